@@ -1,0 +1,144 @@
+/* One path-tracing step, shared by every path tracer: start a path at the camera, and extend
+ * it by one vertex (intersect, add emission, next-event estimation, sample the BSDF, Russian
+ * roulette). The techniques differ only in how they schedule these steps over work-items. */
+#ifndef PATH_H
+#define PATH_H
+
+#include "common.h"
+#include "rng.h"
+#include "camera.h"
+#include "bvh.h"
+#include "lights.h"
+#include "materials.h"
+
+/* Per-lane work counters for the SIMD-efficiency model (all zero unless the host reads them). */
+typedef struct {
+    int traversal_steps;   /* BVH nodes visited by closest-hit rays */
+    int shadow_steps;      /* BVH nodes visited by shadow rays */
+    int shadow_rays;
+} LaneCounters;
+
+/* A new camera path for (pixel, sample): box-filtered position inside the pixel (FORMAT.md). */
+inline void path_start(PathState* p, const Camera* cam, int pixel, int sample, uint seed) {
+    Sampler rng = sampler_init(seed, (uint)pixel, (uint)sample);
+    float x = (float)(pixel % cam->width) + sampler_get(&rng, DIM_PIXEL);
+    float y = (float)(pixel / cam->width) + sampler_get(&rng, DIM_PIXEL + 1);
+    p->origin = (float4)(cam->origin.xyz, 0.0f);   /* camera rays start exactly at the pinhole */
+    p->dir = (float4)(camera_direction(cam, x, y), 0.0f);
+    p->throughput = (float4)(1.0f, 1.0f, 1.0f, 0.0f);
+    p->radiance = (float4)(0.0f);
+    p->prev_pdf = 0.0f;
+    p->prev_specular = 1;   /* nothing to MIS against for emitters seen directly */
+    p->bounce = 0;
+    p->pixel = pixel;
+    p->sample = sample;
+}
+
+inline float path_rand(const PathState* p, Sampler* rng, uint offset) {
+    return sampler_get(rng, bounce_dim(p->bounce, offset));
+}
+
+/* Extend the path by one vertex. Returns false when the path has terminated. */
+inline bool path_extend(const SceneView* s, PathState* p, uint seed, LaneCounters* count) {
+    Sampler rng = sampler_init(seed, (uint)p->pixel, (uint)p->sample);
+    float3 o = p->origin.xyz, d = p->dir.xyz;
+    Hit h = trace_closest(s, o, d, 0.0f, INFINITY, &count->traversal_steps);
+    if (h.tri < 0) return false;                     /* left the scene: no environment light */
+
+    Triangle tri = s->tris[h.tri];
+    float3 ng = triangle_normal(&tri);
+    float3 x = o + h.t * d;
+    float3 wo = -d;
+    int segments = p->bounce + 1;                    /* path segments so far, camera one included */
+
+    /* Emission found by the BSDF-sampled ray, MIS-weighted against light sampling
+     * (Veach 1997, sec. 9.2); after the camera or a specular bounce light sampling was impossible. */
+    float3 le = emitted(s, &tri, ng, wo);
+    if (!is_black(le)) {
+        float w = 1.0f;
+        if (!p->prev_specular) {
+            float light_pdf = tri.light_pdf * h.t * h.t / fabs(dot(ng, wo));
+            w = power_heuristic(p->prev_pdf, light_pdf);
+        }
+        p->radiance.xyz += p->throughput.xyz * le * w;
+    }
+#if USE_MAX_DEPTH
+    if (segments >= MAX_DEPTH) return false;
+#endif
+    if (p->bounce >= HARD_MAX_BOUNCES) return false;
+
+    Material m = s->materials[tri.material];
+    /* Two-sided materials shade with the normal facing wo; a dielectric keeps its outward normal. */
+    float3 n = ng;
+#if HAS_DIELECTRIC
+    if (m.type != MAT_DIELECTRIC && dot(ng, wo) < 0.0f) n = -ng;
+#else
+    if (dot(ng, wo) < 0.0f) n = -ng;
+#endif
+    float3 ts, tt;
+    make_basis(n, &ts, &tt);
+    float3 wo_local = to_local(wo, ts, tt, n);
+
+    /* Next-event estimation: one point on a light, one shadow ray, MIS with BSDF sampling. */
+    bool nee_allowed = !is_specular(m.type);
+#if USE_MAX_DEPTH
+    nee_allowed = nee_allowed && segments + 1 <= MAX_DEPTH;
+#endif
+    if (nee_allowed) {
+        LightSample ls = sample_light(s, path_rand(p, &rng, DIM_LIGHT_PICK),
+                                      path_rand(p, &rng, DIM_LIGHT_U), path_rand(p, &rng, DIM_LIGHT_V));
+        float3 to_light = ls.p - x;
+        float dist2 = dot(to_light, to_light);
+        float3 wi = to_light * rsqrt(dist2);
+        float cos_light = dot(ls.n, -wi);
+        if (cos_light > 0.0f && dist2 > 0.0f) {
+            float3 wi_local = to_local(wi, ts, tt, n);
+            float bsdf_pdf;
+            float3 f = bsdf_eval(&m, wo_local, wi_local, &bsdf_pdf);
+            if (!is_black(f)) {
+                float light_pdf = ls.pdf_area * dist2 / cos_light;
+                float3 from = offset_point(s, x, ng, wi);
+                float3 to = offset_point(s, ls.p, ls.n, -wi);
+                float3 seg = to - from;
+                float len = length(seg);
+                count->shadow_rays += 1;
+                if (dot(seg, wi) > 0.0f && !trace_any(s, from, seg / len, 0.0f, len, &count->shadow_steps)) {
+                    float w = power_heuristic(light_pdf, bsdf_pdf);
+                    p->radiance.xyz += p->throughput.xyz * f * wi_local.z * ls.emission * (w / light_pdf);
+                }
+            }
+        }
+    }
+
+    /* Continue the path by sampling the BSDF. */
+    BsdfSample bs;
+    if (!bsdf_sample(&m, wo_local, path_rand(p, &rng, DIM_BSDF_U), path_rand(p, &rng, DIM_BSDF_V),
+                     path_rand(p, &rng, DIM_BSDF_LOBE), &bs))
+        return false;
+    float3 wi = to_world(bs.wi, ts, tt, n);
+    p->throughput.xyz *= bs.weight;
+    p->prev_pdf = bs.pdf;
+    p->prev_specular = bs.specular ? 1 : 0;
+    p->origin = (float4)(offset_point(s, x, ng, wi), 0.0f);
+    p->dir = (float4)(wi, 0.0f);
+    p->bounce += 1;
+
+#if USE_RUSSIAN_ROULETTE
+    /* Roulette as Mitsuba 3's path integrator: from RR_DEPTH bounces on, continue with
+     * probability q = min(max throughput, 0.95) and divide by q (no change in expectation). */
+    if (p->bounce >= RR_DEPTH) {
+        float q = fmin(max3(p->throughput.xyz), 0.95f);
+        if (sampler_get(&rng, bounce_dim(p->bounce - 1, DIM_ROULETTE)) >= q) return false;
+        p->throughput.xyz /= q;
+    }
+#endif
+    return !is_black(p->throughput.xyz);
+}
+
+/* The sample's final value: non-finite results are counted and dropped, never averaged in. */
+inline float4 path_result(const PathState* p) {
+    float3 L = p->radiance.xyz;
+    return all_finite(L) ? (float4)(L, 0.0f) : (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+}
+
+#endif

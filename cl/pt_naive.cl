@@ -1,0 +1,30 @@
+/* Plain path tracing: one path per work-item, traced from the camera to termination.
+ * A work-item whose path has ended idles until the longest path in its warp is done:
+ * this is the baseline of the talk ("Random Walk": ~33% active threads per warp). */
+#include "path.h"
+
+__kernel void pt_naive_render(SCENE_PARAMS, const Camera cam, const uint seed,
+                              const int sample_base, const int n,
+                              __global float4* radiance,          /* one per work-item; .w = 1: non-finite */
+                              __global int4* lane_counts)         /* per lane: iterations, traversal, shadow steps, shadow rays */
+{
+    int gid = get_global_id(0);
+    if (gid >= n) return;
+    SceneView s = SCENE_INIT;
+    int pixels = cam.width * cam.height;
+    PathState path;
+    path_start(&path, &cam, gid % pixels, sample_base + gid / pixels, seed);
+    LaneCounters count = {0, 0, 0};
+    int iterations = 0;
+#if !(USE_MAX_DEPTH) || MAX_DEPTH > 0
+    bool alive = true;
+    while (alive) {
+        alive = path_extend(&s, &path, seed, &count);
+        ++iterations;
+    }
+#endif
+    radiance[gid] = path_result(&path);
+#if COUNT_SIMD
+    lane_counts[gid] = (int4)(iterations, count.traversal_steps, count.shadow_steps, count.shadow_rays);
+#endif
+}

@@ -1,0 +1,52 @@
+/* Counter-based random numbers: Philox4x32-10 (Salmon et al. 2011, shipped with pyopencl).
+ * Every number is a pure function of (seed, pixel, sample, dimension), so an image does not
+ * depend on how work-items are scheduled, and a technique may draw dimensions in any order.
+ * One Philox call yields a block of four dimensions. */
+#ifndef RNG_H
+#define RNG_H
+
+#include <pyopencl-random123/philox.cl>
+
+typedef struct {
+    uint seed, pixel, sample;
+    uint block;      /* block currently held in `cache`, or 0xffffffff */
+    float4 cache;
+    uint dim;        /* next dimension for sampler_next() */
+} Sampler;
+
+inline float uint_to_unit(uint x) { return (float)(x >> 8) * (1.0f / 16777216.0f); /* in [0, 1) */ }
+
+inline float4 rng_block(uint seed, uint pixel, uint sample, uint block) {
+    philox4x32_ctr_t counter = {{pixel, sample, block, 0x6d6c7421u}};
+    philox4x32_key_t key = {{seed, 0x9e3779b9u}};
+    philox4x32_ctr_t r = philox4x32(counter, key);
+    return (float4)(uint_to_unit(r.v[0]), uint_to_unit(r.v[1]), uint_to_unit(r.v[2]), uint_to_unit(r.v[3]));
+}
+
+inline Sampler sampler_init(uint seed, uint pixel, uint sample) {
+    Sampler s = {seed, pixel, sample, 0xffffffffu, (float4)(0.0f), 0};
+    return s;
+}
+
+/* The uniform number of dimension `dim` of this sample. */
+inline float sampler_get(Sampler* s, uint dim) {
+    uint block = dim >> 2;
+    if (block != s->block) { s->cache = rng_block(s->seed, s->pixel, s->sample, block); s->block = block; }
+    uint k = dim & 3u;
+    return k == 0 ? s->cache.x : k == 1 ? s->cache.y : k == 2 ? s->cache.z : s->cache.w;
+}
+
+/* Dimension layout of a path-tracing sample: 2 for the pixel position, then
+ * DIMS_PER_BOUNCE per bounce (see the DIM_* offsets), so bounce k always reads the same dims. */
+#define DIM_PIXEL 0
+#define DIMS_PER_BOUNCE 8
+#define DIM_LIGHT_PICK 0
+#define DIM_LIGHT_U 1
+#define DIM_LIGHT_V 2
+#define DIM_BSDF_U 3
+#define DIM_BSDF_V 4
+#define DIM_BSDF_LOBE 5
+#define DIM_ROULETTE 6
+inline uint bounce_dim(int bounce, uint offset) { return 4u + (uint)bounce * DIMS_PER_BOUNCE + offset; }
+
+#endif

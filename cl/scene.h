@@ -1,0 +1,38 @@
+/* The scene as the kernels see it: BVH nodes, triangles in leaf order, materials, lights.
+ * Coordinates are relative to the scene's centre (the host subtracts it in float64), which
+ * keeps float32 precision for scenes far from the origin. */
+#ifndef SCENE_H
+#define SCENE_H
+
+#include "common.h"
+
+#define SCENE_PARAMS __global const BvhNode* nodes, __global const Triangle* tris, \
+    __global const Material* materials, __global const LightTri* lights, \
+    const int light_count, const float scene_epsilon
+#define SCENE_INIT {nodes, tris, materials, lights, light_count, scene_epsilon}
+
+typedef struct {
+    __global const BvhNode* nodes;
+    __global const Triangle* tris;
+    __global const Material* materials;
+    __global const LightTri* lights;
+    int light_count;
+    float epsilon;  /* ~1e-5 of the scene's size, set by the host */
+} SceneView;
+
+/* How far to move a ray origin off a surface: relative to the scene's size and to the
+ * magnitude of the point's coordinates (float32 spacing grows with distance from the origin). */
+inline float ray_offset(const SceneView* s, float3 p) {
+    float m = fmax(fabs(p.x), fmax(fabs(p.y), fabs(p.z)));
+    return s->epsilon + m * 64.0f * FLT_EPSILON;
+}
+
+/* p moved off the surface with normal n to the side of direction w. */
+inline float3 offset_point(const SceneView* s, float3 p, float3 n, float3 w) {
+    float e = ray_offset(s, p);
+    return p + (dot(n, w) >= 0.0f ? e : -e) * n;
+}
+
+inline float3 triangle_normal(const Triangle* t) { return normalize(cross(t->e1.xyz, t->e2.xyz)); }
+
+#endif

@@ -1,0 +1,7 @@
+"""A PyOpenCL teaching toolkit for SIMD-efficient Monte Carlo light transport
+(after van Antwerpen, HPG 2011). Start with `toolkit.render(...)` or `python -m toolkit`."""
+from .api import RenderResult, render
+from .scene import Scene, SceneError, load_scene
+
+__all__ = ["render", "RenderResult", "load_scene", "Scene", "SceneError"]
+__version__ = "0.1.0"

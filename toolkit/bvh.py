@@ -1,0 +1,108 @@
+"""A binned SAH bounding-volume hierarchy built on the host with numpy, flattened for the device.
+
+Nodes are stored depth-first: an inner node's left child follows it, `first` holds the right
+child. Leaves hold at most `leaf_size` triangles, reordered so each leaf's are contiguous.
+"""
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from .layout import BVH_NODE
+
+
+@dataclass
+class Bvh:
+    nodes: np.ndarray        # BVH_NODE.dtype
+    order: np.ndarray        # triangle order: leaf slot -> scene triangle index
+    build_seconds: float
+    inner_nodes: int
+    leaf_nodes: int
+    max_depth: int
+
+    @property
+    def node_count(self):
+        return len(self.nodes)
+
+
+def _area(lo, hi):
+    d = np.maximum(hi - lo, 0.0)
+    return 2.0 * (d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0])
+
+
+def _best_split(lo, hi, centroid, bins):
+    """(cost, axis, mask_left) of the cheapest binned SAH split, or None if none exists."""
+    cmin, cmax = centroid.min(0), centroid.max(0)
+    best = None
+    for axis in range(3):
+        extent = cmax[axis] - cmin[axis]
+        if extent <= 0:
+            continue
+        b = np.minimum(((centroid[:, axis] - cmin[axis]) / extent * bins).astype(np.int64), bins - 1)
+        order = np.argsort(b, kind="stable")
+        sb = b[order]
+        starts = np.searchsorted(sb, np.arange(bins))
+        counts = np.bincount(b, minlength=bins)
+        nonempty = counts > 0
+        blo = np.full((bins, 3), np.inf)
+        bhi = np.full((bins, 3), -np.inf)
+        blo[nonempty] = np.minimum.reduceat(lo[order], starts[nonempty])
+        bhi[nonempty] = np.maximum.reduceat(hi[order], starts[nonempty])
+        # Sweeps: bounds and counts of bins [0, i] from the left and [i+1, bins) from the right.
+        llo, lhi = np.minimum.accumulate(blo), np.maximum.accumulate(bhi)
+        rlo = np.minimum.accumulate(blo[::-1])[::-1]
+        rhi = np.maximum.accumulate(bhi[::-1])[::-1]
+        lcount = np.cumsum(counts)
+        cost = (lcount[:-1] * _area(llo[:-1], lhi[:-1])
+                + (len(b) - lcount[:-1]) * _area(rlo[1:], rhi[1:]))
+        cost[(lcount[:-1] == 0) | (lcount[:-1] == len(b))] = np.inf
+        i = int(np.argmin(cost))
+        if np.isfinite(cost[i]) and (best is None or cost[i] < best[0]):
+            best = (float(cost[i]), axis, b <= i)
+    return best
+
+
+def build_bvh(tri_vertices, leaf_size=4, bins=16):
+    """Build over triangles given as (M, 3, 3) float64 vertex positions."""
+    start = time.perf_counter()
+    lo_all, hi_all = tri_vertices.min(1), tri_vertices.max(1)
+    centroid_all = 0.5 * (lo_all + hi_all)
+    nodes = []            # [lo, hi, first, count, axis]
+    order = []
+    depth_max = 0
+    stack = [(np.arange(len(tri_vertices)), None, 0)]  # (triangles, parent to patch, depth)
+    while stack:
+        ids, parent, depth = stack.pop()
+        depth_max = max(depth_max, depth)
+        me = len(nodes)
+        if parent is not None:
+            nodes[parent][2] = me  # this is the right child of `parent`
+        lo, hi = lo_all[ids].min(0), hi_all[ids].max(0)
+        split = None
+        if len(ids) > leaf_size:
+            split = _best_split(lo_all[ids], hi_all[ids], centroid_all[ids], bins)
+            if split is None:  # all centroids coincide: split the list in half
+                half = np.zeros(len(ids), bool)
+                half[: len(ids) // 2] = True
+                split = (0.0, 0, half)
+        if split is None:
+            nodes.append([lo, hi, len(order), len(ids), 0])
+            order.extend(ids.tolist())
+            continue
+        _, axis, left = split
+        nodes.append([lo, hi, -1, 0, axis])
+        # Right pushed first so the left child is built next and lands at me + 1.
+        stack.append((ids[~left], me, depth + 1))
+        stack.append((ids[left], None, depth + 1))
+    flat = BVH_NODE.zeros(len(nodes))
+    lo = np.array([n[0] for n in nodes])
+    hi = np.array([n[1] for n in nodes])
+    # Round outwards so float32 boxes still contain the float32 triangles.
+    flat["lo"][:, :3] = np.nextafter(lo.astype(np.float32), np.float32(-np.inf))
+    flat["hi"][:, :3] = np.nextafter(hi.astype(np.float32), np.float32(np.inf))
+    flat["first"] = [n[2] for n in nodes]
+    flat["count"] = [n[3] for n in nodes]
+    flat["axis"] = [n[4] for n in nodes]
+    leaves = int((flat["count"] > 0).sum())
+    return Bvh(flat, np.asarray(order, np.int64), time.perf_counter() - start,
+               len(nodes) - leaves, leaves, depth_max)

@@ -1,0 +1,49 @@
+"""The film: per-pixel sums in float64 on the host, and a standard-error estimate.
+
+A float32 accumulator stops growing after ~1e7 additions of similar values, so the device
+only ever sums a handful of samples; everything else adds up here in float64. Every sample is
+an independent estimate of its pixel, so the standard error is sqrt(sample variance / n).
+"""
+import numpy as np
+
+
+class Film:
+    def __init__(self, width, height):
+        self.width, self.height = width, height
+        self.sum = np.zeros((height * width, 3))
+        self.sum_sq = np.zeros((height * width, 3))
+        self.count = np.zeros(height * width, np.int64)
+        self.nonfinite_samples = 0
+
+    def add_samples(self, pixels, radiance):
+        """Add samples: pixel indices (n,) and radiance (n, 4) float32, .w = 1 marks a sample
+        whose value was not finite (the kernel zeroed it; counted here, and in the stats)."""
+        value = radiance[:, :3].astype(np.float64)
+        self.nonfinite_samples += int(np.count_nonzero(radiance[:, 3]))
+        for k in range(3):
+            self.sum[:, k] += np.bincount(pixels, value[:, k], minlength=len(self.count))
+            self.sum_sq[:, k] += np.bincount(pixels, value[:, k] ** 2, minlength=len(self.count))
+        self.count += np.bincount(pixels, minlength=len(self.count))
+
+    def add_pixel_major(self, radiance):
+        """Samples laid out as (samples, pixels) in one array: the common case, without bincount."""
+        per_pixel = radiance.reshape(-1, len(self.count), 4)
+        value = per_pixel[..., :3].astype(np.float64)
+        self.nonfinite_samples += int(np.count_nonzero(per_pixel[..., 3]))
+        self.sum += value.sum(0)
+        self.sum_sq += (value ** 2).sum(0)
+        self.count += per_pixel.shape[0]
+
+    @property
+    def samples(self):
+        return int(self.count.sum())
+
+    def image(self):
+        n = np.maximum(self.count, 1)[:, None]
+        return (self.sum / n).reshape(self.height, self.width, 3)
+
+    def stderr(self):
+        n = np.maximum(self.count, 1)[:, None]
+        mean = self.sum / n
+        var = np.maximum(self.sum_sq / n - mean ** 2, 0.0) * (n / np.maximum(n - 1, 1))
+        return np.sqrt(var / n).reshape(self.height, self.width, 3)

@@ -1,0 +1,96 @@
+"""Record layouts described once: each description gives the numpy dtype and the C struct.
+
+The device structs are generated from these descriptions into the source every program is
+built from (see `c_header()`), so host and device can never disagree on a layout.
+"""
+import numpy as np
+
+_C_TYPES = {"float": ("float32", 1), "int": ("int32", 1), "uint": ("uint32", 1),
+            "float4": ("float32", 4), "int4": ("int32", 4), "uint4": ("uint32", 4)}
+
+
+class Record:
+    def __init__(self, name, fields, doc=""):
+        self.name, self.fields, self.doc = name, list(fields), doc
+        self.dtype = np.dtype([(f, _C_TYPES[t][0], (_C_TYPES[t][1],)) if _C_TYPES[t][1] > 1
+                               else (f, _C_TYPES[t][0]) for f, t in self.fields], align=True)
+
+    def c_struct(self):
+        lines = [f"/* {self.doc} */"] if self.doc else []
+        lines.append(f"typedef struct {{")
+        lines += [f"    {t} {f};" for f, t in self.fields]
+        lines.append(f"}} {self.name};")
+        return "\n".join(lines)
+
+    def zeros(self, n):
+        return np.zeros(n, self.dtype)
+
+
+# float4-first layouts keep every record 16-byte aligned on host and device alike.
+BVH_NODE = Record("BvhNode", [
+    ("lo", "float4"),   # box minimum; .w unused
+    ("hi", "float4"),   # box maximum; .w unused
+    ("first", "int"),   # leaf: first triangle; inner: index of the right child (left = this + 1)
+    ("count", "int"),   # leaf: number of triangles (> 0); inner: 0
+    ("axis", "int"),    # inner: split axis, to visit the nearer child first
+    ("pad", "int"),
+], "A flattened BVH node (depth-first order), 48 bytes.")
+
+TRIANGLE = Record("Triangle", [
+    ("v0", "float4"),   # .w unused
+    ("e1", "float4"),   # v1 - v0
+    ("e2", "float4"),   # v2 - v0
+    ("material", "int"),
+    ("prim", "int"),    # index of the triangle in the scene (BVH order differs)
+    ("light_pdf", "float"),  # density per unit area with which light sampling picks a point here
+    ("light", "int"),        # index into the light array, -1: not a light
+], "A triangle in BVH leaf order with precomputed edges, 64 bytes.")
+
+MATERIAL = Record("Material", [
+    ("reflectance", "float4"),
+    ("type", "int"),
+    ("ior", "float"),
+    ("alpha", "float"),
+    ("pad", "int"),
+], "A material of scenes/FORMAT.md; `type` is one of the MAT_* defines.")
+
+LIGHT = Record("LightTri", [
+    ("emission", "float4"),
+    ("cdf", "float"),        # inclusive cumulative selection probability
+    ("triangle", "int"),     # index into the triangle array (BVH order)
+    ("pad0", "int"),
+    ("pad1", "int"),
+], "An emitting triangle, chosen for next-event estimation in proportion to its power.")
+
+CAMERA = Record("Camera", [
+    ("origin", "float4"),
+    ("forward", "float4"),   # unit viewing direction f
+    ("right", "float4"),     # r * tx (FORMAT.md)
+    ("up", "float4"),        # u * ty
+    ("width", "int"),
+    ("height", "int"),
+    ("pad0", "int"),
+    ("pad1", "int"),
+], "The pinhole camera of scenes/FORMAT.md, for the rendered resolution.")
+
+PATH_STATE = Record("PathState", [
+    ("origin", "float4"),      # next ray origin (already offset off the surface)
+    ("dir", "float4"),         # next ray direction (unit)
+    ("throughput", "float4"),  # product of BSDF weights so far
+    ("radiance", "float4"),    # radiance gathered so far
+    ("prev_pdf", "float"),     # solid-angle pdf of the BSDF sample that chose dir (for MIS)
+    ("prev_specular", "int"),  # 1: dir came from the camera or a delta lobe
+    ("bounce", "int"),         # surface vertices so far
+    ("pixel", "int"),
+    ("sample", "int"),         # sample index within the pixel: keys the random numbers
+    ("pad0", "int"),
+    ("pad1", "int"),
+    ("pad2", "int"),
+], "The state of one camera path between two extension steps, 96 bytes.")
+
+RECORDS = [BVH_NODE, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE]
+
+
+def c_header(records=RECORDS):
+    return "/* Generated from toolkit/layout.py: do not edit by hand. */\n" + \
+        "\n\n".join(r.c_struct() for r in records) + "\n"

@@ -1,0 +1,273 @@
+"""Scenes in the interchange format `toolkit-scene/1` (scenes/FORMAT.md), validated.
+
+A `Scene` holds float64 numpy arrays on the host; `features()` says which code the kernels need.
+"""
+import json
+import math
+import warnings
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from .obj import ObjError, read_obj
+
+FORMAT = "toolkit-scene/1"
+# Material type codes shared with cl/materials.h through the MAT_* defines (see features()).
+MATERIAL_TYPES = {"diffuse": 0, "mirror": 1, "dielectric": 2, "glossy": 3}
+MATERIAL_PARAMS = {"diffuse": {"reflectance"}, "mirror": {"reflectance"},
+                   "dielectric": {"ior"}, "glossy": {"reflectance", "alpha"}}
+
+
+class SceneError(ValueError):
+    """A scene that cannot be rendered, with the file and the problem named."""
+
+
+@dataclass
+class Camera:
+    origin: np.ndarray
+    target: np.ndarray
+    up: np.ndarray
+    fov_deg: float
+    fov_axis: str
+    width: int
+    height: int
+
+    def basis(self, width=None, height=None):
+        """(forward, right*tx, up*ty) as in FORMAT.md, for an image of width x height."""
+        width, height = width or self.width, height or self.height
+        f = self.target - self.origin
+        f = f / np.linalg.norm(f)
+        r = np.cross(f, self.up)
+        r = r / np.linalg.norm(r)
+        u = np.cross(r, f)
+        t = math.tan(math.radians(self.fov_deg) / 2)
+        tx, ty = (t, t * height / width) if self.fov_axis == "x" else (t * width / height, t)
+        return f, r * tx, u * ty
+
+
+@dataclass
+class Scene:
+    name: str
+    camera: Camera
+    vertices: np.ndarray            # (N, 3) float64
+    triangles: np.ndarray           # (M, 3) int64
+    material_of: np.ndarray         # (M,) material index per triangle
+    emission_of: np.ndarray         # (M, 3) emitted radiance per triangle (0: not a light)
+    materials: list                 # [{"name", "type", "reflectance", "ior", "alpha"}]
+    max_depth: int = -1
+    rr_depth: int = 5
+    path: Path = None
+    reference: np.ndarray = None    # (H, W, 3) float32 or None
+    reference_stderr: np.ndarray = None
+    dropped_triangles: int = 0
+    info: dict = field(default_factory=dict)
+
+    @property
+    def extent(self):
+        """Length of the bounding-box diagonal: the scale every epsilon is relative to."""
+        lo, hi = self.vertices.min(0), self.vertices.max(0)
+        return float(np.linalg.norm(hi - lo))
+
+    def features(self):
+        """Compile-time defines: only what this scene uses is built into the kernels."""
+        used = {self.materials[i]["type"] for i in np.unique(self.material_of)}
+        defines = {f"MAT_{name.upper()}": code for name, code in MATERIAL_TYPES.items()}
+        for name in MATERIAL_TYPES:
+            defines[f"HAS_{name.upper()}"] = name in used
+        defines["HAS_SPECULAR"] = bool(used & {"mirror", "dielectric"})
+        defines["MAX_DEPTH"] = self.max_depth
+        defines["USE_MAX_DEPTH"] = self.max_depth >= 0
+        defines["RR_DEPTH"] = self.rr_depth
+        defines["USE_RUSSIAN_ROULETTE"] = self.rr_depth >= 0 and self.max_depth != 0
+        return defines
+
+    def transformed(self, scale=1.0, translate=(0.0, 0.0, 0.0)):
+        """The same scene scaled about the origin then translated (numerical-stability tests)."""
+        t = np.asarray(translate, np.float64)
+        cam = replace(self.camera, origin=self.camera.origin * scale + t,
+                      target=self.camera.target * scale + t)
+        return replace(self, vertices=self.vertices * scale + t, camera=cam,
+                       name=f"{self.name} (x{scale:g} +{tuple(t)})")
+
+    def with_resolution(self, width, height):
+        return replace(self, camera=replace(self.camera, width=int(width), height=int(height)))
+
+    @property
+    def light_triangles(self):
+        return np.flatnonzero(self.emission_of.max(1) > 0)
+
+
+def _fail(where, message):
+    raise SceneError(f"{where}: {message}")
+
+
+def _vector(where, value, n=3, positive=False):
+    try:
+        v = np.asarray(value, np.float64)
+    except (TypeError, ValueError):
+        _fail(where, f"expected {n} numbers, got {value!r}")
+    if v.shape != (n,):
+        _fail(where, f"expected {n} numbers, got {value!r}")
+    if not np.all(np.isfinite(v)):
+        _fail(where, f"NaN or infinite value in {value!r}")
+    if positive and np.any(v < 0):
+        _fail(where, f"negative value in {value!r}")
+    return v
+
+
+def _number(where, value, low=-math.inf, high=math.inf):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+        _fail(where, f"expected a finite number, got {value!r}")
+    if not low <= value <= high:
+        _fail(where, f"{value!r} is outside [{low}, {high}]")
+    return float(value)
+
+
+def _parse_camera(where, cam):
+    if not isinstance(cam, dict):
+        _fail(where, "'camera' must be an object")
+    for key in ("origin", "target", "up", "fov_deg", "width", "height"):
+        if key not in cam:
+            _fail(where, f"camera has no '{key}'")
+    camera = Camera(
+        origin=_vector(f"{where}: camera.origin", cam["origin"]),
+        target=_vector(f"{where}: camera.target", cam["target"]),
+        up=_vector(f"{where}: camera.up", cam["up"]),
+        fov_deg=_number(f"{where}: camera.fov_deg", cam["fov_deg"], 1e-3, 179.0),
+        fov_axis=cam.get("fov_axis", "x"),
+        width=int(_number(f"{where}: camera.width", cam["width"], 1, 1 << 15)),
+        height=int(_number(f"{where}: camera.height", cam["height"], 1, 1 << 15)))
+    if camera.fov_axis not in ("x", "y"):
+        _fail(where, f"camera.fov_axis must be 'x' or 'y', got {camera.fov_axis!r}")
+    f = camera.target - camera.origin
+    if np.linalg.norm(f) == 0:
+        _fail(where, "camera.target equals camera.origin")
+    if np.linalg.norm(np.cross(f, camera.up)) <= 1e-9 * np.linalg.norm(f) * np.linalg.norm(camera.up):
+        _fail(where, "camera.up is parallel to the viewing direction")
+    return camera
+
+
+def _parse_material(where, name, m):
+    if not isinstance(m, dict) or "type" not in m:
+        _fail(where, f"material {name!r} needs a 'type'")
+    kind = m["type"]
+    if kind not in MATERIAL_TYPES:
+        _fail(where, f"material {name!r} has unknown type {kind!r} "
+                     f"(known: {', '.join(MATERIAL_TYPES)})")
+    missing = MATERIAL_PARAMS[kind] - set(m)
+    if missing:
+        _fail(where, f"material {name!r} ({kind}) is missing {', '.join(sorted(missing))}")
+    out = {"name": name, "type": kind, "reflectance": np.zeros(3), "ior": 1.0, "alpha": 0.0}
+    if "reflectance" in MATERIAL_PARAMS[kind]:
+        out["reflectance"] = _vector(f"{where}: material {name!r}.reflectance", m["reflectance"], positive=True)
+        if np.any(out["reflectance"] > 1):
+            _fail(where, f"material {name!r}: reflectance above 1 creates energy")
+    if kind == "dielectric":
+        out["ior"] = _number(f"{where}: material {name!r}.ior", m["ior"], 1.0 + 1e-6, 10.0)
+    if kind == "glossy":
+        out["alpha"] = _number(f"{where}: material {name!r}.alpha", m["alpha"], 1e-4, 1.0)
+    return out
+
+
+def load_scene(path):
+    """Load and validate a scene folder or scene.json; raises SceneError naming the problem."""
+    path = Path(path)
+    if path.is_dir():
+        path = path / "scene.json"
+    if not path.is_file():
+        raise SceneError(f"{path}: scene file not found")
+    where = str(path)
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as error:
+        raise SceneError(f"{where}:{error.lineno}:{error.colno}: malformed JSON: {error.msg}") from None
+    if not isinstance(data, dict):
+        _fail(where, "top level must be a JSON object")
+    if data.get("format") != FORMAT:
+        _fail(where, f"'format' must be {FORMAT!r}, got {data.get('format')!r}")
+    camera = _parse_camera(where, data.get("camera"))
+    materials_in = data.get("materials")
+    if not isinstance(materials_in, dict) or not materials_in:
+        _fail(where, "'materials' must be a non-empty object")
+    materials = [_parse_material(where, name, m) for name, m in materials_in.items()]
+    index_of = {m["name"]: i for i, m in enumerate(materials)}
+    shapes = data.get("shapes")
+    if not isinstance(shapes, list) or not shapes:
+        _fail(where, "'shapes' must be a non-empty list")
+    vertices, triangles, material_of, emission_of = [], [], [], []
+    offset = 0
+    for k, shape in enumerate(shapes):
+        swhere = f"{where}: shapes[{k}]"
+        if not isinstance(shape, dict) or "mesh" not in shape or "material" not in shape:
+            _fail(swhere, "a shape needs 'mesh' and 'material'")
+        if shape["material"] not in index_of:
+            _fail(swhere, f"unknown material {shape['material']!r}")
+        emission = _vector(f"{swhere}.emission", shape.get("emission", [0, 0, 0]), positive=True)
+        try:
+            v, t = read_obj(path.parent / shape["mesh"])
+        except ObjError as error:
+            raise SceneError(f"{swhere}: {error}") from None
+        vertices.append(v)
+        triangles.append(t + offset)
+        offset += len(v)
+        material_of.append(np.full(len(t), index_of[shape["material"]]))
+        emission_of.append(np.repeat(emission[None], len(t), 0))
+    integrator = data.get("integrator", {})
+    scene = Scene(
+        name=path.parent.name, camera=camera,
+        vertices=np.concatenate(vertices), triangles=np.concatenate(triangles),
+        material_of=np.concatenate(material_of), emission_of=np.concatenate(emission_of),
+        materials=materials,
+        max_depth=int(_number(f"{where}: integrator.max_depth", integrator.get("max_depth", -1), -1, 1 << 20)),
+        rr_depth=int(_number(f"{where}: integrator.rr_depth", integrator.get("rr_depth", 5), -1, 1 << 20)),
+        path=path, info={"notes": data.get("notes", "")})
+    scene = drop_degenerate(scene, where)
+    if not len(scene.light_triangles):
+        _fail(where, "the scene has no lights (no shape with a positive 'emission'): it would render black")
+    scene.reference, scene.reference_stderr = _load_reference(path.parent, camera)
+    return scene
+
+
+def drop_degenerate(scene, where="scene"):
+    """Remove zero-area triangles with a warning (they have no normal and no light area)."""
+    v = scene.vertices[scene.triangles]
+    cross = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    area2 = np.linalg.norm(cross, axis=1)
+    edges = np.max([np.linalg.norm(v[:, i] - v[:, (i + 1) % 3], axis=1) for i in range(3)], axis=0)
+    # Relative test: twice the area against the longest edge squared (a needle or a point).
+    bad = ~(area2 > 1e-12 * np.maximum(edges ** 2, 1e-300))
+    if bad.all():
+        _fail(where, "every triangle is degenerate (zero area)")
+    if bad.any():
+        warnings.warn(f"{where}: dropped {int(bad.sum())} degenerate (zero-area) triangle(s)", stacklevel=3)
+        keep = ~bad
+        scene = replace(scene, triangles=scene.triangles[keep], material_of=scene.material_of[keep],
+                        emission_of=scene.emission_of[keep], dropped_triangles=int(bad.sum()))
+    return scene
+
+
+def _load_reference(folder, camera):
+    ref_path = folder / "reference.exr"
+    if not ref_path.is_file():
+        return None, None
+    from .images import read_exr
+    ref = read_exr(ref_path)
+    if ref.shape[:2] != (camera.height, camera.width):
+        warnings.warn(f"{ref_path}: size {ref.shape[1]}x{ref.shape[0]} differs from the camera; ignored")
+        return None, None
+    err_path = folder / "reference_stderr.exr"
+    err = read_exr(err_path) if err_path.is_file() else np.zeros_like(ref)
+    return ref, err
+
+
+def bundled_scene_dir(name="cornell_box"):
+    """Folder of a scene shipped with the toolkit (installed package or source checkout)."""
+    from importlib import resources
+    try:
+        installed = Path(str(resources.files("toolkit.scenes"))) / name
+        if (installed / "scene.json").is_file():
+            return installed
+    except (ModuleNotFoundError, TypeError):
+        pass
+    return Path(__file__).resolve().parent.parent / "scenes" / name

@@ -1,0 +1,50 @@
+"""The SIMD-efficiency model of the talk: active lanes divided by lanes issued, over warps of
+W consecutive work-items. It is an upper bound on real SIMD efficiency and is counted the same
+way on every device (a CPU runs idle lanes cheaply; the counters model a GPU warp)."""
+import numpy as np
+
+
+class PhaseCounter:
+    """Active and issued lane-steps per phase, summed over a render."""
+
+    def __init__(self, warp_width=32):
+        self.warp_width = warp_width
+        self.active = {}
+        self.issued = {}
+        self.per_iteration = []  # (phase, iteration, efficiency, stream length) for plots
+
+    def add(self, phase, active, issued):
+        self.active[phase] = self.active.get(phase, 0) + int(active)
+        self.issued[phase] = self.issued.get(phase, 0) + int(issued)
+
+    def add_stream_step(self, phase, mask_or_count, length=None, iteration=None):
+        """One kernel step over a stream: a warp issues the step if any of its lanes is active.
+        `mask_or_count` is a boolean mask of active lanes, or a count of active lanes packed at
+        the start of a stream of `length` (compacted streams)."""
+        w = self.warp_width
+        if np.ndim(mask_or_count) == 0:
+            active = int(mask_or_count)
+            issued = -(-active // w) * w
+        else:
+            mask = np.asarray(mask_or_count, bool)
+            pad = (-len(mask)) % w
+            warps = np.concatenate([mask, np.zeros(pad, bool)]).reshape(-1, w)
+            active = int(warps.sum())
+            issued = int(warps.any(1).sum()) * w
+        self.add(phase, active, issued)
+        if iteration is not None:
+            self.per_iteration.append((phase, iteration, active / issued if issued else 1.0, length or active))
+
+    def add_warp_loops(self, phase, lane_iterations):
+        """A loop run inside each lane: its warp issues as many iterations as its longest lane."""
+        w = self.warp_width
+        x = np.asarray(lane_iterations, np.int64)
+        pad = (-len(x)) % w
+        warps = np.concatenate([x, np.zeros(pad, np.int64)]).reshape(-1, w)
+        self.add(phase, warps.sum(), warps.max(1).sum() * w)
+
+    def efficiency(self):
+        out = {p: (self.active[p] / self.issued[p] if self.issued[p] else 1.0) for p in self.active}
+        total_issued = sum(self.issued.values())
+        out["overall"] = sum(self.active.values()) / total_issued if total_issued else 1.0
+        return out

@@ -1,0 +1,46 @@
+"""Plain path tracing (the talk's baseline): one path per work-item, camera to termination.
+
+Kernel: cl/pt_naive.cl. A warp keeps issuing the extension loop until its longest path has
+ended, so lanes whose paths ended early sit idle: with Russian roulette the SIMD efficiency
+of the loop is low (the talk reports ~33% active threads per warp).
+"""
+import numpy as np
+import pyopencl as cl
+
+from .. import program
+from .base import Technique
+
+
+class PtNaive(Technique):
+    name = "pt_naive"
+    source = "pt_naive.cl"
+
+    def run_pass(self, film, camera, seed, sample_base, spp):
+        pixels = camera["width"] * camera["height"]
+        n = pixels * spp
+        ctx = self.queue.context
+        radiance = cl.Buffer(ctx, cl.mem_flags.WRITE_ONLY, 16 * program.padded(n))
+        counts = cl.Buffer(ctx, cl.mem_flags.WRITE_ONLY, 16 * (program.padded(n) if self.count_simd else 1))
+        kernel = self.program.pt_naive_render
+        program.launch(self.queue, kernel, n, *self.scene.args(), camera, seed,
+                       np.int32(sample_base), np.int32(n), radiance, counts)
+        result = np.empty((n, 4), np.float32)
+        cl.enqueue_copy(self.queue, result, radiance)
+        film.add_pixel_major(result)
+        if self.count_simd:
+            lanes = np.empty((n, 4), np.int32)
+            cl.enqueue_copy(self.queue, lanes, counts)
+            # Every lane generates its camera ray once; then the loop runs as long as the warp's longest path.
+            self.simd.add_stream_step("generate", np.ones(n, bool))
+            self.simd.add_warp_loops("extend", lanes[:, 0])
+            # A shadow ray is cast once per vertex at most; the warp issues the shadow step in each of its iterations.
+            self.simd.add("shadow", lanes[:, 3].sum(),
+                          self._issued_per_warp(lanes[:, 0]))
+            self.traversal.add_warp_loops("closest", lanes[:, 1])
+            self.traversal.add_warp_loops("shadow", lanes[:, 2])
+
+    def _issued_per_warp(self, iterations):
+        w = self.warp_width
+        pad = (-len(iterations)) % w
+        warps = np.concatenate([iterations, np.zeros(pad, iterations.dtype)]).reshape(-1, w)
+        return int(warps.max(1).sum()) * w
