@@ -127,6 +127,17 @@ def _format_build_error(name, error, program, options):
             + f"Full compiler log:\n{log or error}")
 
 
+_kernels = {}
+
+
+def kernel(built, name):
+    """The kernel `name` of a built program, retrieved once (each retrieval makes a new cl.Kernel)."""
+    key = (built.int_ptr, name)
+    if key not in _kernels:
+        _kernels[key] = getattr(built, name)
+    return _kernels[key]
+
+
 def padded(n, local_size=LOCAL_SIZE):
     """Global size: n rounded up to the fixed local size (kernels guard with `gid >= n`)."""
     return max(local_size, (n + local_size - 1) // local_size * local_size)

@@ -32,6 +32,10 @@ class Technique:
         self.simd = PhaseCounter(warp_width)
         self.traversal = PhaseCounter(warp_width)
 
+    def kernel(self, name):
+        """The kernel object, retrieved once (each retrieval makes a new cl.Kernel)."""
+        return program.kernel(self.program, name)
+
     def render(self, width, height, spp, seed=0, progress=None):
         """Render `spp` samples per pixel; returns the film (see toolkit.api.render)."""
         film = Film(width, height)

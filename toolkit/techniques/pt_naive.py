@@ -21,7 +21,7 @@ class PtNaive(Technique):
         ctx = self.queue.context
         radiance = cl.Buffer(ctx, cl.mem_flags.WRITE_ONLY, 16 * program.padded(n))
         counts = cl.Buffer(ctx, cl.mem_flags.WRITE_ONLY, 16 * (program.padded(n) if self.count_simd else 1))
-        kernel = self.program.pt_naive_render
+        kernel = self.kernel("pt_naive_render")
         program.launch(self.queue, kernel, n, *self.scene.args(), camera, seed,
                        np.int32(sample_base), np.int32(n), radiance, counts)
         result = np.empty((n, 4), np.float32)

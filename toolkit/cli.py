@@ -1,0 +1,92 @@
+"""Command line: `python -m toolkit {render,devices,...}`. See README.md for examples."""
+import argparse
+import json
+import sys
+from pathlib import Path
+
+import numpy as np
+
+
+def _resolution(text):
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+        if w < 1 or h < 1:
+            raise ValueError
+        return w, h
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT like 64x64, got {text!r}") from None
+
+
+def _positive(text):
+    value = int(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError("must be at least 1")
+    return value
+
+
+def build_parser():
+    from .techniques import TECHNIQUES
+    parser = argparse.ArgumentParser(prog="python -m toolkit", description=__doc__)
+    parser.add_argument("--device", help="OpenCL device: P:D indices or a name part (overrides PYOPENCL_CTX)")
+    sub = parser.add_subparsers(dest="command", required=True)
+
+    p = sub.add_parser("render", help="render a scene with one technique")
+    p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
+    p.add_argument("--technique", default="pt_naive", choices=sorted(TECHNIQUES))
+    p.add_argument("--spp", type=_positive, default=64, help="samples per pixel (default 64)")
+    p.add_argument("--resolution", type=_resolution, help="WxH; keeps the scene's camera and field of view")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--out", help="output .exr (an sRGB .png is written beside it); default out/<scene>_<technique>.exr")
+    p.add_argument("--json", action="store_true", help="print a JSON summary as the last line of stdout")
+    p.add_argument("--no-progress", action="store_true")
+
+    sub.add_parser("devices", help="list OpenCL platforms and devices, and which one the toolkit picks")
+    return parser
+
+
+def main(argv=None):
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    from .device import NoOpenCLError
+    from .program import KernelBuildError
+    from .scene import SceneError
+    try:
+        if args.command == "devices":
+            from .device import report
+            print(report())
+            return 0
+        if args.command == "render":
+            return cmd_render(args)
+    except (SceneError, NoOpenCLError, KernelBuildError, ValueError, OSError) as error:
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    return 1
+
+
+def cmd_render(args):
+    from .api import as_scene, render
+    from .images import write_image
+    from .reference import reference_at, rmse, z_test
+    scene = as_scene(args.scene)
+    width, height = args.resolution or (scene.camera.width, scene.camera.height)
+    result = render(scene, technique=args.technique, spp=args.spp, seed=args.seed,
+                    resolution=(width, height), device=args.device, progress=not args.no_progress)
+    out = Path(args.out or f"out/{scene.name}_{args.technique}.exr")
+    write_image(out, result.image.astype(np.float32))
+    stats = dict(result.stats, out=str(out))
+    ref, ref_err = reference_at(scene, width, height)
+    if ref is not None:
+        stats["rmse"] = rmse(result.image, ref)
+        stats["z_test_passed"] = z_test(result.image, result.stderr, ref, ref_err).passed
+    simd = stats["simd_efficiency"]
+    lines = [f"{stats['technique']} on {stats['scene']} {width}x{height}, {args.spp} spp: "
+             f"{stats['seconds']:.2f} s, {stats['samples_per_second']:,.0f} samples/s on {stats['device']}",
+             f"  image mean (linear RGB) {np.round(stats['mean'], 5).tolist()}, non-finite pixels {stats['nonfinite']}",
+             "  SIMD efficiency (W=32): " + ", ".join(f"{k} {v:.1%}" for k, v in simd.items())]
+    if "rmse" in stats:
+        lines.append(f"  RMSE against the reference {stats['rmse']:.5f}")
+    lines.append(f"  wrote {out} and {out.with_suffix('.png')}")
+    print("\n".join(lines))
+    if args.json:
+        print(json.dumps(stats))
+    return 0

@@ -1,0 +1,94 @@
+"""Comparing a render with a reference image within statistical error.
+
+The reference (256x256 Mitsuba render with its per-pixel standard error) is averaged over
+k x k blocks to match a reduced-resolution render of the same camera: a 64x64 pixel covers
+exactly a 4x4 block of reference pixels, and the box filter makes its expected value the block
+mean. The z-test combines both standard errors and corrects for the number of pixels tested.
+"""
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+def downsample(image, width, height):
+    """Average an (H, W, C) image over blocks so it becomes (height, width, C)."""
+    h, w, c = image.shape
+    if h % height or w % width:
+        raise ValueError(f"cannot average a {w}x{h} image down to {width}x{height}")
+    return image.reshape(height, h // height, width, w // width, c).mean((1, 3))
+
+
+def downsample_stderr(stderr, width, height):
+    """Standard error of a block mean: sqrt(sum of squares) / pixels per block."""
+    h, w, c = stderr.shape
+    k = (h // height) * (w // width)
+    return np.sqrt(downsample(stderr ** 2, width, height) * k) / k
+
+
+def reference_at(scene, width, height):
+    """(reference, reference_stderr) at width x height, or (None, None) if not available."""
+    if scene.reference is None:
+        return None, None
+    try:
+        return (downsample(scene.reference.astype(np.float64), width, height),
+                downsample_stderr(scene.reference_stderr.astype(np.float64), width, height))
+    except ValueError:
+        return None, None
+
+
+def normal_two_sided_p(z):
+    """Two-sided p-value of a standard normal z (vectorised, via erfc)."""
+    z = np.abs(np.asarray(z, np.float64))
+    return np.vectorize(math.erfc)(z / math.sqrt(2.0))
+
+
+@dataclass
+class ZTest:
+    passed: bool
+    alpha: float
+    tests: int
+    min_p: float
+    threshold_p: float   # Bonferroni: alpha / tests
+    worst_pixel: tuple
+    worst_z: float
+    mean_abs_z: float
+
+    def __str__(self):
+        return (f"z-test {'passed' if self.passed else 'FAILED'}: {self.tests} pixel-channels, "
+                f"min p {self.min_p:.3g} vs alpha/N {self.threshold_p:.3g}, worst |z| {self.worst_z:.2f} "
+                f"at {self.worst_pixel}, mean |z| {self.mean_abs_z:.3f}")
+
+
+def z_test(image, stderr, expected, expected_stderr, alpha=0.01, min_stderr=1e-12):
+    """Per-pixel z-test of image against expected, Bonferroni-corrected over all pixel-channels.
+
+    z = (image - expected) / sqrt(stderr^2 + expected_stderr^2). Pixels where both standard
+    errors vanish (e.g. black background in both) must match exactly and are not counted.
+    Passes when the smallest two-sided p-value is above alpha / N: the chance that a correct
+    renderer fails is at most alpha, whatever the number of pixels.
+    """
+    var = stderr ** 2 + expected_stderr ** 2
+    diff = image - expected
+    tested = var > min_stderr ** 2
+    exact_mismatch = (~tested) & (np.abs(diff) > 1e-6)
+    z = np.zeros_like(diff)
+    z[tested] = diff[tested] / np.sqrt(var[tested])
+    p = normal_two_sided_p(z[tested]) if tested.any() else np.ones(1)
+    n = int(tested.sum())
+    worst = np.unravel_index(np.argmax(np.abs(z)), z.shape)
+    threshold = alpha / max(n, 1)
+    return ZTest(bool(p.min() > threshold and not exact_mismatch.any()), alpha, n, float(p.min()),
+                 threshold, tuple(int(i) for i in worst), float(np.abs(z).max()),
+                 float(np.abs(z[tested]).mean()) if n else 0.0)
+
+
+def rmse(image, expected):
+    return float(np.sqrt(np.mean((np.asarray(image) - np.asarray(expected)) ** 2)))
+
+
+def relative_mean_error(image, expected):
+    """Per-channel |mean(image) / mean(expected) - 1|."""
+    a = np.asarray(image).reshape(-1, 3).mean(0)
+    b = np.asarray(expected).reshape(-1, 3).mean(0)
+    return np.abs(a / b - 1.0)
