@@ -18,8 +18,9 @@ typedef struct {
     int shadow_rays;
 } LaneCounters;
 
-/* A new camera path for (pixel, sample): box-filtered position inside the pixel (FORMAT.md). */
-inline void path_start(PathState* p, const Camera* cam, int pixel, int sample, uint seed) {
+/* A new camera path for (pixel, sample): box-filtered position inside the pixel (FORMAT.md).
+ * `slot` is where its result goes in the pass's output buffer. */
+inline void path_start(PathState* p, const Camera* cam, int pixel, int sample, int slot, uint seed) {
     Sampler rng = sampler_init(seed, (uint)pixel, (uint)sample);
     float x = (float)(pixel % cam->width) + sampler_get(&rng, DIM_PIXEL);
     float y = (float)(pixel / cam->width) + sampler_get(&rng, DIM_PIXEL + 1);
@@ -32,14 +33,26 @@ inline void path_start(PathState* p, const Camera* cam, int pixel, int sample, u
     p->bounce = 0;
     p->pixel = pixel;
     p->sample = sample;
+    p->slot = slot;
+}
+
+/* The sample with index `id` in a pass: consecutive ids are consecutive pixels, so samples
+ * started together trace coherent primary rays. */
+inline void path_start_sample(PathState* p, const Camera* cam, int id, int sample_base, uint seed) {
+    int pixels = cam->width * cam->height;
+    path_start(p, cam, id % pixels, sample_base + id / pixels, id, seed);
 }
 
 inline float path_rand(const PathState* p, Sampler* rng, uint offset) {
     return sampler_get(rng, bounce_dim(p->bounce, offset));
 }
 
-/* Extend the path by one vertex. Returns false when the path has terminated. */
-inline bool path_extend(const SceneView* s, PathState* p, uint seed, LaneCounters* count) {
+/* Extend the path by one vertex: intersect, add emission, prepare a next-event shadow ray
+ * (shadow->slot >= 0 if there is one), sample the BSDF, roulette.
+ * Returns false when the path has terminated. */
+inline bool path_extend_deferred(const SceneView* s, PathState* p, uint seed, LaneCounters* count,
+                                 ShadowRay* shadow) {
+    shadow->slot = -1;
     Sampler rng = sampler_init(seed, (uint)p->pixel, (uint)p->sample);
     float3 o = p->origin.xyz, d = p->dir.xyz;
     Hit h = trace_closest(s, o, d, 0.0f, INFINITY, &count->traversal_steps);
@@ -79,7 +92,9 @@ inline bool path_extend(const SceneView* s, PathState* p, uint seed, LaneCounter
     make_basis(n, &ts, &tt);
     float3 wo_local = to_local(wo, ts, tt, n);
 
-    /* Next-event estimation: one point on a light, one shadow ray, MIS with BSDF sampling. */
+    /* Next-event estimation: one point on a light, one shadow ray, MIS with BSDF sampling.
+     * The shadow ray is only prepared here; the caller traces it now or queues it. */
+    shadow->slot = -1;
     bool nee_allowed = !is_specular(m.type);
 #if USE_MAX_DEPTH
     nee_allowed = nee_allowed && segments + 1 <= MAX_DEPTH;
@@ -101,10 +116,12 @@ inline bool path_extend(const SceneView* s, PathState* p, uint seed, LaneCounter
                 float3 to = offset_point(s, ls.p, ls.n, -wi);
                 float3 seg = to - from;
                 float len = length(seg);
-                count->shadow_rays += 1;
-                if (dot(seg, wi) > 0.0f && !trace_any(s, from, seg / len, 0.0f, len, &count->shadow_steps)) {
+                if (dot(seg, wi) > 0.0f) {
                     float w = power_heuristic(light_pdf, bsdf_pdf);
-                    p->radiance.xyz += p->throughput.xyz * f * wi_local.z * ls.emission * (w / light_pdf);
+                    shadow->origin = (float4)(from, len);
+                    shadow->dir = (float4)(seg / len, 0.0f);
+                    shadow->contribution = (float4)(p->throughput.xyz * f * wi_local.z * ls.emission * (w / light_pdf), 0.0f);
+                    shadow->slot = p->slot;
                 }
             }
         }
@@ -135,10 +152,26 @@ inline bool path_extend(const SceneView* s, PathState* p, uint seed, LaneCounter
     return !is_black(p->throughput.xyz);
 }
 
-/* The sample's final value: non-finite results are counted and dropped, never averaged in. */
-inline float4 path_result(const PathState* p) {
-    float3 L = p->radiance.xyz;
-    return all_finite(L) ? (float4)(L, 0.0f) : (float4)(0.0f, 0.0f, 0.0f, 1.0f);
+/* Whether a shadow ray reaches its light. */
+inline bool shadow_unoccluded(const SceneView* s, const ShadowRay* r, LaneCounters* count) {
+    count->shadow_rays += 1;
+    return !trace_any(s, r->origin.xyz, r->dir.xyz, 0.0f, r->origin.w, &count->shadow_steps);
+}
+
+/* Extend by one vertex and trace the shadow ray at once (one path per work-item). */
+inline bool path_extend(const SceneView* s, PathState* p, uint seed, LaneCounters* count) {
+    ShadowRay shadow;
+    bool continues = path_extend_deferred(s, p, seed, count, &shadow);
+    if (shadow.slot >= 0 && shadow_unoccluded(s, &shadow, count))
+        p->radiance.xyz += shadow.contribution.xyz;
+    return continues;
+}
+
+/* Write the sample's value to the pass output, where queued shadow rays may already have
+ * added their part; .w becomes 0 (done) or 1 (not finite: the host counts and drops it). */
+inline void path_finish(__global float4* out, const PathState* p) {
+    float3 L = out[p->slot].xyz + p->radiance.xyz;
+    out[p->slot] = all_finite(L) ? (float4)(L, 0.0f) : (float4)(0.0f, 0.0f, 0.0f, 1.0f);
 }
 
 #endif

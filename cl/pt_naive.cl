@@ -11,9 +11,8 @@ __kernel void pt_naive_render(SCENE_PARAMS, const Camera cam, const uint seed,
     int gid = get_global_id(0);
     if (gid >= n) return;
     SceneView s = SCENE_INIT;
-    int pixels = cam.width * cam.height;
     PathState path;
-    path_start(&path, &cam, gid % pixels, sample_base + gid / pixels, seed);
+    path_start_sample(&path, &cam, gid, sample_base, seed);
     LaneCounters count = {0, 0, 0};
     int iterations = 0;
 #if !(USE_MAX_DEPTH) || MAX_DEPTH > 0
@@ -23,7 +22,7 @@ __kernel void pt_naive_render(SCENE_PARAMS, const Camera cam, const uint seed,
         ++iterations;
     }
 #endif
-    radiance[gid] = path_result(&path);
+    path_finish(radiance, &path);
 #if COUNT_SIMD
     lane_counts[gid] = (int4)(iterations, count.traversal_steps, count.shadow_steps, count.shadow_rays);
 #endif

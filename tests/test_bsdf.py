@@ -40,12 +40,8 @@ CHI2_SIGNIFICANCE = sidak(FAMILY_SIGNIFICANCE, len(CHI2_CASES))
 
 
 @pytest.fixture(scope="module")
-def checker():
-    from toolkit.device import NoOpenCLError
-    try:
-        return BsdfChecker()   # builds cl/bsdf_test.cl once, all four materials compiled in
-    except NoOpenCLError as error:
-        pytest.skip(str(error))
+def checker(queue):
+    return BsdfChecker(queue)   # builds cl/bsdf_test.cl once, all four materials compiled in
 
 
 @pytest.fixture(scope="module")
@@ -102,8 +98,8 @@ def test_pearson_pools_small_cells_and_rejects_impossible_samples():
 def test_chi2_sampled_directions_match_pdf(checker, case):
     name, material, theta = CHI2_CASES[case]
     if name == "glossy0.1" and theta == 0.0:
-        # the lobe lies within z > 0.97: bin a cap finely; the rest of the sphere and the
-        # failed samples form one extra cell
+        # half the samples have z > 0.98: bin the cap z > 0.9 (84% of them) finely; the
+        # rest of the sphere and the failed samples form one extra cell
         options = dict(z_range=(0.9, 1.0), res=(40, 96))
     else:
         # the whole sphere, 32 x 96 equal-area bins per hemisphere: a direction below the

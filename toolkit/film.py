@@ -29,7 +29,9 @@ class Film:
         """Samples laid out as (samples, pixels) in one array: the common case, without bincount."""
         per_pixel = radiance.reshape(-1, len(self.count), 4)
         value = per_pixel[..., :3].astype(np.float64)
-        self.nonfinite_samples += int(np.count_nonzero(per_pixel[..., 3]))
+        bad = (per_pixel[..., 3] != 0) | ~np.isfinite(value).all(-1)
+        value[bad] = 0.0
+        self.nonfinite_samples += int(np.count_nonzero(bad))
         self.sum += value.sum(0)
         self.sum_sq += (value ** 2).sum(0)
         self.count += per_pixel.shape[0]

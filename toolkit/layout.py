@@ -22,6 +22,40 @@ class Record:
         lines.append(f"}} {self.name};")
         return "\n".join(lines)
 
+    def c_soa(self):
+        """Structure-of-arrays access to records of this type, one global buffer per field:
+        <Name>SoA, <NAME>_SOA_PARAMS(p) for kernel parameters p_<field>, <NAME>_SOA(p) to
+        bundle them, and <name>_load / <name>_store to move one record in and out."""
+        upper, lower = _snake(self.name).upper(), _snake(self.name)
+        fields = self.soa_fields
+        lines = [f"/* {self.name} as a structure of arrays: consecutive work-items touch consecutive words. */",
+                 "typedef struct {"]
+        lines += [f"    __global {t}* {f};" for f, t in fields]
+        lines.append(f"}} {self.name}SoA;")
+        params = ", ".join(f"__global {t}* p##_{f}" for f, t in fields)
+        lines.append(f"#define {upper}_SOA_PARAMS(p) {params}")
+        bundle = ", ".join(f"p##_{f}" for f, _ in fields)
+        lines.append(f"#define {upper}_SOA(p) (({self.name}SoA){{{bundle}}})")
+        lines.append(f"inline {self.name} {lower}_load({self.name}SoA s, int i) {{")
+        lines.append(f"    {self.name} r;")
+        lines += [f"    r.{f} = s.{f}[i];" for f, _ in fields]
+        lines.append("    return r;\n}")
+        lines.append(f"inline void {lower}_store({self.name}SoA s, int i, const {self.name}* r) {{")
+        lines += [f"    s.{f}[i] = r->{f};" for f, _ in fields]
+        lines.append("}")
+        return "\n".join(lines)
+
+    def soa_buffers(self, context, n):
+        """One device buffer per field, in field order (matching <NAME>_SOA_PARAMS)."""
+        import pyopencl as cl
+        return [cl.Buffer(context, cl.mem_flags.READ_WRITE, max(1, n) * self.dtype[f].itemsize)
+                for f, _ in self.soa_fields]
+
+    @property
+    def soa_fields(self):
+        """Fields stored in structure-of-arrays form (alignment padding is left out)."""
+        return [(f, t) for f, t in self.fields if not f.startswith("pad")]
+
     def zeros(self, n):
         return np.zeros(n, self.dtype)
 
@@ -83,14 +117,32 @@ PATH_STATE = Record("PathState", [
     ("bounce", "int"),         # surface vertices so far
     ("pixel", "int"),
     ("sample", "int"),         # sample index within the pixel: keys the random numbers
-    ("pad0", "int"),
+    ("slot", "int"),           # where the finished sample's radiance goes in this pass's output
     ("pad1", "int"),
     ("pad2", "int"),
 ], "The state of one camera path between two extension steps, 96 bytes.")
 
-RECORDS = [BVH_NODE, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE]
+SHADOW_RAY = Record("ShadowRay", [
+    ("origin", "float4"),        # .w = length of the segment to test
+    ("dir", "float4"),
+    ("contribution", "float4"),  # radiance added to the sample if the segment is unoccluded
+    ("slot", "int"),             # the sample's slot in the pass's output
+    ("pad0", "int"),
+    ("pad1", "int"),
+    ("pad2", "int"),
+], "A next-event-estimation shadow ray waiting to be traced, 64 bytes.")
+
+RECORDS = [BVH_NODE, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY]
+
+
+SOA_RECORDS = [PATH_STATE, SHADOW_RAY]
+
+
+def _snake(name):
+    return "".join("_" + c.lower() if c.isupper() and i else c.lower() for i, c in enumerate(name))
 
 
 def c_header(records=RECORDS):
-    return "/* Generated from toolkit/layout.py: do not edit by hand. */\n" + \
-        "\n\n".join(r.c_struct() for r in records) + "\n"
+    return ("/* Generated from toolkit/layout.py: do not edit by hand. */\n"
+            + "\n\n".join(r.c_struct() for r in records) + "\n\n"
+            + "\n\n".join(r.c_soa() for r in SOA_RECORDS) + "\n")

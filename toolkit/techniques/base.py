@@ -3,6 +3,7 @@ that splits the sample budget into passes and feeds the film."""
 import time
 
 import numpy as np
+import pyopencl as cl
 
 from .. import program
 from ..film import Film
@@ -15,6 +16,8 @@ class Technique:
     source = None
     # Work-items per launch we aim for: enough to fill a GPU, small enough to read back often.
     target_batch = 1 << 18
+    # Whether shadow rays go to a queue traced by a kernel of their own (counted there).
+    shadow_queue = False
 
     def __init__(self, queue, device_scene, warp_width=32, count_simd=True, extra_defines=None):
         self.queue = queue
@@ -53,6 +56,48 @@ class Technique:
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         raise NotImplementedError
+
+    # --- helpers shared by the techniques -------------------------------------------------
+
+    def output_buffer(self, n):
+        """One float4 per sample of the pass, pre-filled with .w = -1 ("not written yet")."""
+        buf = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * program.padded(n))
+        cl.enqueue_fill_buffer(self.queue, buf, np.array([0, 0, 0, -1], np.float32), 0, 16 * program.padded(n))
+        return buf
+
+    def collect(self, film, buffer, n):
+        """Read the pass's samples back into the film; every sample must have been written once."""
+        result = np.empty((n, 4), np.float32)
+        cl.enqueue_copy(self.queue, result, buffer)
+        missing = int(np.count_nonzero(result[:, 3] < 0))
+        if missing:
+            raise RuntimeError(f"{self.name}: {missing} of {n} samples were never written (sample accounting bug)")
+        film.add_pixel_major(result)
+
+    def int_buffer(self, n, fill=None):
+        buf = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * max(1, program.padded(n)))
+        if fill is not None:
+            cl.enqueue_fill_buffer(self.queue, buf, np.int32(fill), 0, 4 * max(1, program.padded(n)))
+        return buf
+
+    def lane_counts_buffer(self, n):
+        return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * program.padded(max(n, 1)))
+
+    def read_ints(self, buffer, n, columns=1):
+        out = np.empty((n, columns) if columns > 1 else n, np.int32)
+        if n:
+            cl.enqueue_copy(self.queue, out, buffer)
+        return out
+
+    def count_stream_step(self, lanes, iteration):
+        """SIMD counters of one extension step over a stream, from per-lane counts
+        (active, traversal steps, shadow rays, shadow steps) of the lanes that ran it."""
+        active = lanes[:, 0] > 0
+        self.simd.add_stream_step("extend", active, iteration=iteration, length=int(active.sum()))
+        self.traversal.add_warp_loops("closest", lanes[:, 1])
+        if not self.shadow_queue:   # shadow rays traced inside the extension step
+            self.simd.add_stream_step("shadow", lanes[:, 2] > 0)
+            self.traversal.add_warp_loops("shadow", lanes[:, 3])
 
     def simd_efficiency(self):
         return self.simd.efficiency() if self.count_simd else {}

@@ -19,14 +19,12 @@ class PtNaive(Technique):
         pixels = camera["width"] * camera["height"]
         n = pixels * spp
         ctx = self.queue.context
-        radiance = cl.Buffer(ctx, cl.mem_flags.WRITE_ONLY, 16 * program.padded(n))
+        radiance = self.output_buffer(n)
         counts = cl.Buffer(ctx, cl.mem_flags.WRITE_ONLY, 16 * (program.padded(n) if self.count_simd else 1))
         kernel = self.kernel("pt_naive_render")
         program.launch(self.queue, kernel, n, *self.scene.args(), camera, seed,
                        np.int32(sample_base), np.int32(n), radiance, counts)
-        result = np.empty((n, 4), np.float32)
-        cl.enqueue_copy(self.queue, result, radiance)
-        film.add_pixel_major(result)
+        self.collect(film, radiance, n)
         if self.count_simd:
             lanes = np.empty((n, 4), np.int32)
             cl.enqueue_copy(self.queue, lanes, counts)

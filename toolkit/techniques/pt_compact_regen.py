@@ -1,0 +1,94 @@
+"""Path tracing on a compacted stream with regeneration at its end (the talk's
+"Stream Compaction + Regeneration", with single-pass "immediate" compaction).
+
+Kernel: cl/pt_compact_regen.cl. The stream has a fixed size; one iteration:
+    extend      - all paths in the stream trace one vertex (every lane busy);
+    compact     - ended paths leave, survivors are packed at the start of the stream;
+    regenerate  - new samples fill the end of the stream: consecutive pixels, side by side.
+With compaction="immediate" the compaction is fused into the extend kernel (one scan per
+work-group in local memory, one atomic per group); "multipass" labels, scans and gathers.
+"""
+import numpy as np
+import pyopencl as cl
+
+from .. import program
+from ..compaction import Compactor
+from ..layout import PATH_STATE, SHADOW_RAY
+from .base import Technique
+
+
+class PtCompactRegen(Technique):
+    name = "pt_compact_regen"
+    source = "pt_compact_regen.cl"
+    stream_size = 1 << 15
+
+    def __init__(self, *args, compaction="immediate", **kwargs):
+        super().__init__(*args, **kwargs)
+        if compaction not in ("immediate", "multipass"):
+            raise ValueError(f"compaction must be 'immediate' or 'multipass', not {compaction!r}")
+        self.compaction = compaction
+        self.shadow_queue = compaction == "immediate"
+        self.compactor = Compactor(self.queue) if compaction == "multipass" else None
+
+    def run_pass(self, film, camera, seed, sample_base, spp):
+        budget = camera["width"] * camera["height"] * spp
+        size = min(self.stream_size, budget)
+        stream = PATH_STATE.soa_buffers(self.queue.context, size)
+        spare = PATH_STATE.soa_buffers(self.queue.context, size)   # compaction writes here
+        radiance = self.output_buffer(budget)
+        lane_counts = self.lane_counts_buffer(size)
+        out_length = self.int_buffer(1)
+        alive = self.int_buffer(size)
+        shadow_rays = SHADOW_RAY.soa_buffers(self.queue.context, size)
+        shadow_length = self.int_buffer(1)
+        shadow_steps = self.int_buffer(size)
+        generate = self.kernel("pt_compact_regen_generate")
+
+        length, next_id, iteration = 0, 0, 0
+        while True:
+            # Regenerate: fill the end of the stream with the next samples of the budget.
+            count = min(size - length, budget - next_id)
+            if count > 0:
+                program.launch(self.queue, generate, count, camera, seed, np.int32(length), np.int32(count),
+                               np.int32(next_id), np.int32(sample_base), *stream)
+                if self.count_simd:
+                    self.simd.add_stream_step("generate", count)
+                length += count
+                next_id += count
+            if length == 0:
+                break   # budget spent and the stream has drained
+            # Extend every path by one vertex, then compact the survivors into `spare`.
+            survivors, queued = self.extend_and_compact(seed, length, stream, spare, alive, out_length,
+                                                        shadow_rays, shadow_length, radiance, lane_counts)
+            if self.count_simd:
+                self.count_stream_step(self.read_ints(lane_counts, length, 4), iteration)
+                self.simd.add_stream_step("compact", length)
+            # Trace the queued shadow rays: a packed stream of its own.
+            if queued:
+                program.launch(self.queue, self.kernel("pt_compact_regen_shadow"), queued, *self.scene.args(),
+                               np.int32(queued), *shadow_rays, radiance, shadow_steps)
+                if self.count_simd:
+                    self.simd.add_stream_step("shadow", queued)
+                    self.traversal.add_warp_loops("shadow", self.read_ints(shadow_steps, queued))
+            stream, spare = spare, stream
+            length = survivors
+            iteration += 1
+        self.collect(film, radiance, budget)
+
+    def extend_and_compact(self, seed, length, stream, spare, alive, out_length, shadow_rays, shadow_length,
+                           radiance, lane_counts):
+        """Returns (surviving paths, now packed at the start of `spare`; queued shadow rays)."""
+        if self.compaction == "immediate":
+            cl.enqueue_fill_buffer(self.queue, out_length, np.int32(0), 0, 4)
+            cl.enqueue_fill_buffer(self.queue, shadow_length, np.int32(0), 0, 4)
+            program.launch(self.queue, self.kernel("pt_compact_regen_extend"), length, *self.scene.args(),
+                           seed, np.int32(length), *stream, *spare, out_length, *shadow_rays, shadow_length,
+                           radiance, lane_counts)
+            return int(self.read_ints(out_length, 1)[0]), int(self.read_ints(shadow_length, 1)[0])
+        program.launch(self.queue, self.kernel("pt_compact_regen_extend_flags"), length, *self.scene.args(),
+                       seed, np.int32(length), *stream, alive, radiance, lane_counts)
+        indices, survivors = self.compactor.compact_indices(alive, length, method="multipass")
+        if survivors:
+            program.launch(self.queue, self.kernel("pt_compact_regen_gather"), survivors,
+                           np.int32(survivors), indices, *stream, *spare)
+        return survivors, 0
