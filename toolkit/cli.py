@@ -18,7 +18,10 @@ def _resolution(text):
 
 
 def _positive(text):
-    value = int(text)
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
     if value < 1:
         raise argparse.ArgumentTypeError("must be at least 1")
     return value
@@ -41,6 +44,29 @@ def build_parser():
     p.add_argument("--no-progress", action="store_true")
 
     sub.add_parser("devices", help="list OpenCL platforms and devices, and which one the toolkit picks")
+
+    from .techniques import VARIANTS
+    names = ", ".join([*sorted(TECHNIQUES), *VARIANTS])
+    p = sub.add_parser("compare", help="several techniques side by side: time, SIMD efficiency, error")
+    p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
+    p.add_argument("--techniques", default="pt_naive,pt_inplace_regen,pt_compact_regen",
+                   help=f"comma-separated, from: {names}")
+    p.add_argument("--spp", type=_positive, default=16)
+    p.add_argument("--resolution", type=_resolution, default=(64, 64))
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--warp-width", type=int, default=32, choices=[8, 16, 32, 64])
+    p.add_argument("--json", action="store_true", help="print a JSON object as the last line of stdout")
+    p.add_argument("--out", default="out/compare", help="folder for images and plots (default out/compare)")
+    p.add_argument("--no-progress", action="store_true")
+
+    p = sub.add_parser("bench", help="samples/s of each technique and their ratios, measured in one run")
+    p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
+    p.add_argument("--techniques", default="pt_naive,pt_inplace_regen,pt_compact_regen,pt_compact_regen/multipass",
+                   help=f"comma-separated, from: {names}")
+    p.add_argument("--spp", type=_positive, default=16)
+    p.add_argument("--resolution", type=_resolution, default=(128, 128))
+    p.add_argument("--repeats", type=_positive, default=3)
+    p.add_argument("--json", action="store_true")
     return parser
 
 
@@ -57,6 +83,10 @@ def main(argv=None):
             return 0
         if args.command == "render":
             return cmd_render(args)
+        if args.command == "compare":
+            return cmd_compare(args)
+        if args.command == "bench":
+            return cmd_bench(args)
     except (SceneError, NoOpenCLError, KernelBuildError, ValueError, OSError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -89,4 +119,37 @@ def cmd_render(args):
     print("\n".join(lines))
     if args.json:
         print(json.dumps(stats))
+    return 0
+
+
+def _technique_list(text):
+    from .techniques import get_technique
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    for name in names:
+        get_technique(name)   # raises a clear ValueError for an unknown name
+    if not names:
+        raise ValueError("no technique given")
+    return names
+
+
+def cmd_compare(args):
+    from .compare import compare, format_table
+    table = compare(args.scene, _technique_list(args.techniques), args.spp, resolution=args.resolution,
+                    seed=args.seed, warp_width=args.warp_width, out_dir=args.out, device=args.device,
+                    progress=not args.no_progress)
+    print(format_table(table, args.warp_width))
+    first = next(iter(table.values()))
+    print("plots: " + ", ".join(first.get("plots", {}).values()))
+    if args.json:
+        print(json.dumps(table))
+    return 0
+
+
+def cmd_bench(args):
+    from .bench import bench, format_bench
+    report = bench(args.scene, tuple(_technique_list(args.techniques)), spp=args.spp,
+                   resolution=args.resolution, repeats=args.repeats, device=args.device)
+    print(format_bench(report))
+    if args.json:
+        print(json.dumps(report))
     return 0

@@ -37,11 +37,11 @@ def read_obj(path):
                 raise ObjError(f"{path}:{number}: face index is not an integer: {line.strip()!r}") from None
             if len(ids) < 3:
                 raise ObjError(f"{path}:{number}: face needs at least 3 vertices: {line.strip()!r}")
-            ids = [i - 1 if i > 0 else len(vertices) + i for i in ids]
-            for i in ids:
-                if not 0 <= i < len(vertices):
-                    raise ObjError(f"{path}:{number}: face index {i + 1} out of range "
+            for i in ids:  # 1..n, or -n..-1 counting back from the last vertex; 0 is invalid
+                if not (1 <= i <= len(vertices) or -len(vertices) <= i <= -1):
+                    raise ObjError(f"{path}:{number}: face index {i} out of range "
                                    f"(the file has {len(vertices)} vertices so far)")
+            ids = [i - 1 if i > 0 else len(vertices) + i for i in ids]
             for k in range(1, len(ids) - 1):
                 triangles.append((ids[0], ids[k], ids[k + 1]))
         # vn, vt, o, g, s, usemtl ... are ignored by the format.

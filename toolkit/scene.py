@@ -182,6 +182,8 @@ def load_scene(path):
         data = json.loads(path.read_text(encoding="utf-8"))
     except json.JSONDecodeError as error:
         raise SceneError(f"{where}:{error.lineno}:{error.colno}: malformed JSON: {error.msg}") from None
+    except (OSError, UnicodeDecodeError) as error:
+        raise SceneError(f"{where}: cannot read the scene file: {error}") from None
     if not isinstance(data, dict):
         _fail(where, "top level must be a JSON object")
     if data.get("format") != FORMAT:
@@ -201,6 +203,8 @@ def load_scene(path):
         swhere = f"{where}: shapes[{k}]"
         if not isinstance(shape, dict) or "mesh" not in shape or "material" not in shape:
             _fail(swhere, "a shape needs 'mesh' and 'material'")
+        if not isinstance(shape["mesh"], str) or not isinstance(shape["material"], str):
+            _fail(swhere, "'mesh' (a path) and 'material' (a name) must be strings")
         if shape["material"] not in index_of:
             _fail(swhere, f"unknown material {shape['material']!r}")
         emission = _vector(f"{swhere}.emission", shape.get("emission", [0, 0, 0]), positive=True)
@@ -214,6 +218,8 @@ def load_scene(path):
         material_of.append(np.full(len(t), index_of[shape["material"]]))
         emission_of.append(np.repeat(emission[None], len(t), 0))
     integrator = data.get("integrator", {})
+    if not isinstance(integrator, dict):
+        _fail(where, "'integrator' must be an object")
     scene = Scene(
         name=path.parent.name, camera=camera,
         vertices=np.concatenate(vertices), triangles=np.concatenate(triangles),

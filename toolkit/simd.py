@@ -17,7 +17,7 @@ class PhaseCounter:
         self.active[phase] = self.active.get(phase, 0) + int(active)
         self.issued[phase] = self.issued.get(phase, 0) + int(issued)
 
-    def add_stream_step(self, phase, mask_or_count, length=None, iteration=None):
+    def add_stream_step(self, phase, mask_or_count, length=None, iteration=None, capacity=None):
         """One kernel step over a stream: a warp issues the step if any of its lanes is active.
         `mask_or_count` is a boolean mask of active lanes, or a count of active lanes packed at
         the start of a stream of `length` (compacted streams)."""
@@ -33,7 +33,9 @@ class PhaseCounter:
             issued = int(warps.any(1).sum()) * w
         self.add(phase, active, issued)
         if iteration is not None:
-            self.per_iteration.append((phase, iteration, active / issued if issued else 1.0, length or active))
+            self.per_iteration.append({"phase": phase, "iteration": iteration,
+                                       "efficiency": active / issued if issued else 1.0,
+                                       "active": active, "capacity": capacity or length or active})
 
     def add_warp_loops(self, phase, lane_iterations):
         """A loop run inside each lane: its warp issues as many iterations as its longest lane."""
@@ -42,6 +44,21 @@ class PhaseCounter:
         pad = (-len(x)) % w
         warps = np.concatenate([x, np.zeros(pad, np.int64)]).reshape(-1, w)
         self.add(phase, warps.sum(), warps.max(1).sum() * w)
+
+    def add_loop_iterations(self, phase, lane_iterations, first_iteration=0):
+        """Per-iteration figures of a loop inside each lane (for plots): at iteration k the
+        lanes with more than k iterations are active, the warps with any such lane issue."""
+        w = self.warp_width
+        x = np.asarray(lane_iterations, np.int64)
+        pad = (-len(x)) % w
+        warps = np.concatenate([x, np.zeros(pad, np.int64)]).reshape(-1, w)
+        warp_max = warps.max(1)
+        for k in range(int(x.max()) if len(x) else 0):
+            active = int((x > k).sum())
+            issued = int((warp_max > k).sum()) * w
+            self.per_iteration.append({"phase": phase, "iteration": first_iteration + k,
+                                       "efficiency": active / issued if issued else 1.0,
+                                       "active": active, "capacity": len(x)})
 
     def efficiency(self):
         out = {p: (self.active[p] / self.issued[p] if self.issued[p] else 1.0) for p in self.active}

@@ -6,8 +6,15 @@ from .pt_naive import PtNaive
 TECHNIQUES = {cls.name: cls for cls in (PtNaive, PtInplaceRegen, PtCompactRegen)}
 
 
+# Variants: the same technique with an option set, for side-by-side measurements.
+VARIANTS = {"pt_compact_regen/multipass": ("pt_compact_regen", {"compaction": "multipass"})}
+
+
 def get_technique(name):
+    """(class, options) for a technique name or a variant name."""
+    base, options = VARIANTS.get(name, (name, {}))
     try:
-        return TECHNIQUES[name]
+        return TECHNIQUES[base], dict(options)
     except KeyError:
-        raise ValueError(f"unknown technique {name!r}; known: {', '.join(TECHNIQUES)}") from None
+        known = ", ".join([*TECHNIQUES, *VARIANTS])
+        raise ValueError(f"unknown technique {name!r}; known: {known}") from None

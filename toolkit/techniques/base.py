@@ -18,6 +18,7 @@ class Technique:
     target_batch = 1 << 18
     # Whether shadow rays go to a queue traced by a kernel of their own (counted there).
     shadow_queue = False
+    iterations = 0   # extension steps over all passes so far (for per-iteration plots)
 
     def __init__(self, queue, device_scene, warp_width=32, count_simd=True, extra_defines=None):
         self.queue = queue
@@ -89,11 +90,13 @@ class Technique:
             cl.enqueue_copy(self.queue, out, buffer)
         return out
 
-    def count_stream_step(self, lanes, iteration):
+    def count_stream_step(self, lanes, capacity):
         """SIMD counters of one extension step over a stream, from per-lane counts
-        (active, traversal steps, shadow rays, shadow steps) of the lanes that ran it."""
+        (active, traversal steps, shadow rays, shadow steps) of the lanes that ran it;
+        `capacity` is the stream's size (for the occupancy plot)."""
         active = lanes[:, 0] > 0
-        self.simd.add_stream_step("extend", active, iteration=iteration, length=int(active.sum()))
+        self.simd.add_stream_step("extend", active, iteration=self.iterations, capacity=capacity)
+        self.iterations += 1
         self.traversal.add_warp_loops("closest", lanes[:, 1])
         if not self.shadow_queue:   # shadow rays traced inside the extension step
             self.simd.add_stream_step("shadow", lanes[:, 2] > 0)

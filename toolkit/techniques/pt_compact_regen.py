@@ -44,7 +44,7 @@ class PtCompactRegen(Technique):
         shadow_steps = self.int_buffer(size)
         generate = self.kernel("pt_compact_regen_generate")
 
-        length, next_id, iteration = 0, 0, 0
+        length, next_id = 0, 0
         while True:
             # Regenerate: fill the end of the stream with the next samples of the budget.
             count = min(size - length, budget - next_id)
@@ -61,7 +61,7 @@ class PtCompactRegen(Technique):
             survivors, queued = self.extend_and_compact(seed, length, stream, spare, alive, out_length,
                                                         shadow_rays, shadow_length, radiance, lane_counts)
             if self.count_simd:
-                self.count_stream_step(self.read_ints(lane_counts, length, 4), iteration)
+                self.count_stream_step(self.read_ints(lane_counts, length, 4), capacity=size)
                 self.simd.add_stream_step("compact", length)
             # Trace the queued shadow rays: a packed stream of its own.
             if queued:
@@ -72,7 +72,6 @@ class PtCompactRegen(Technique):
                     self.traversal.add_warp_loops("shadow", self.read_ints(shadow_steps, queued))
             stream, spare = spare, stream
             length = survivors
-            iteration += 1
         self.collect(film, radiance, budget)
 
     def extend_and_compact(self, seed, length, stream, spare, alive, out_length, shadow_rays, shadow_length,

@@ -30,7 +30,6 @@ class PtInplaceRegen(Technique):
         regenerated = self.int_buffer(slots)
         extend = self.kernel("pt_inplace_regen_extend")
         regenerate = self.kernel("pt_inplace_regen_regenerate")
-        iteration = 0
         while True:
             program.launch(self.queue, regenerate, slots, camera, seed, np.int32(slots),
                            np.int32(sample_base), np.int32(budget), next_sample, *paths, alive, regenerated)
@@ -42,6 +41,5 @@ class PtInplaceRegen(Technique):
             program.launch(self.queue, extend, slots, *self.scene.args(), seed, np.int32(slots),
                            *paths, alive, radiance, lane_counts)
             if self.count_simd:
-                self.count_stream_step(self.read_ints(lane_counts, slots, 4), iteration)
-            iteration += 1
+                self.count_stream_step(self.read_ints(lane_counts, slots, 4), capacity=slots)
         self.collect(film, radiance, budget)

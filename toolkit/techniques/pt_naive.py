@@ -14,6 +14,7 @@ from .base import Technique
 class PtNaive(Technique):
     name = "pt_naive"
     source = "pt_naive.cl"
+    iterations = 0   # loop iterations over all passes so far (for per-iteration plots)
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         pixels = camera["width"] * camera["height"]
@@ -31,6 +32,8 @@ class PtNaive(Technique):
             # Every lane generates its camera ray once; then the loop runs as long as the warp's longest path.
             self.simd.add_stream_step("generate", np.ones(n, bool))
             self.simd.add_warp_loops("extend", lanes[:, 0])
+            self.simd.add_loop_iterations("extend", lanes[:, 0], first_iteration=self.iterations)
+            self.iterations += int(lanes[:, 0].max())
             # A shadow ray is cast once per vertex at most; the warp issues the shadow step in each of its iterations.
             self.simd.add("shadow", lanes[:, 3].sum(),
                           self._issued_per_warp(lanes[:, 0]))

@@ -1,0 +1,113 @@
+"""`python -m toolkit compare`: several techniques on one scene with the same sample budget.
+
+Prints a table (seconds, samples/s, SIMD efficiency per phase, RMSE against the reference and
+against each other) and saves plots: efficiency and stream occupancy per iteration, and an
+image strip with false-colour error images.
+"""
+from pathlib import Path
+
+import numpy as np
+
+from .api import as_scene, render
+from .images import to_srgb8, write_image
+from .reference import reference_at, rmse
+
+PHASES = ["generate", "extend", "shadow", "compact", "walk", "connect"]
+
+
+def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=32, out_dir="out/compare",
+            device=None, progress=False, plots=True):
+    """Render `scene` with each technique; returns {technique: figures} and writes images/plots."""
+    scene = as_scene(scene)
+    width, height = resolution or (scene.camera.width, scene.camera.height)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    ref, _ = reference_at(scene, width, height)
+    results, table = {}, {}
+    for name in techniques:
+        result = render(scene, technique=name, spp=spp, seed=seed, resolution=(width, height),
+                        device=device, warp_width=warp_width, progress=progress)
+        path = out_dir / f"{scene.name}_{name.replace('/', '_')}.exr"
+        write_image(path, result.image.astype(np.float32))
+        results[name] = result
+        table[name] = {
+            "seconds": result.stats["seconds"],
+            "samples_per_second": result.stats["samples_per_second"],
+            "simd_efficiency": result.stats["simd_efficiency"],
+            "traversal_efficiency": result.stats["traversal_efficiency"],
+            "rmse": rmse(result.image, ref) if ref is not None else None,
+            "nonfinite": result.stats["nonfinite"],
+            "out": str(path),
+        }
+    for a in techniques:
+        table[a]["rmse_vs"] = {b: rmse(results[a].image, results[b].image) for b in techniques if b != a}
+    if plots:
+        plot_paths = save_plots(scene.name, results, ref, out_dir, warp_width)
+        for name in techniques:
+            table[name]["plots"] = plot_paths
+    return table
+
+
+def format_table(table, warp_width=32):
+    phases = [p for p in PHASES if any(p in row["simd_efficiency"] for row in table.values())]
+    head = f"{'technique':<28}{'seconds':>9}{'samples/s':>12}" + "".join(f"{p:>10}" for p in phases) + \
+        f"{'overall':>10}{'RMSE ref':>11}"
+    lines = [f"SIMD efficiency = active lanes / lanes issued, warps of {warp_width} (an upper bound, as in the talk)",
+             head, "-" * len(head)]
+    for name, row in table.items():
+        eff = row["simd_efficiency"]
+        cells = "".join(f"{eff[p]:>10.1%}" if p in eff else f"{'-':>10}" for p in phases)
+        r = f"{row['rmse']:>11.5f}" if row["rmse"] is not None else f"{'-':>11}"
+        lines.append(f"{name:<28}{row['seconds']:>9.2f}{row['samples_per_second']:>12,.0f}{cells}"
+                     f"{eff.get('overall', float('nan')):>10.1%}{r}")
+    names = list(table)
+    if len(names) > 1:
+        lines.append("RMSE between techniques: " + ", ".join(
+            f"{a} vs {b} {table[a]['rmse_vs'][b]:.5f}" for i, a in enumerate(names) for b in names[i + 1:]))
+    return "\n".join(lines)
+
+
+def save_plots(scene_name, results, ref, out_dir, warp_width):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    paths = {}
+
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4))
+    for name, result in results.items():
+        steps = [it for it in result.iterations if it["phase"] == "extend"]
+        if not steps:
+            continue
+        x = [it["iteration"] for it in steps]
+        ax1.plot(x, [100 * it["efficiency"] for it in steps], label=name, lw=1)
+        ax2.plot(x, [100 * it["active"] / it["capacity"] for it in steps], label=name, lw=1)
+    ax1.set(xlabel="extension iteration", ylabel=f"SIMD efficiency of extend (%), W={warp_width}",
+            title=f"{scene_name}: active lanes per issued lane", ylim=(0, 105))
+    ax2.set(xlabel="extension iteration", ylabel="stream occupancy (% of lanes with a live path)",
+            title=f"{scene_name}: live paths in the stream", ylim=(0, 105))
+    for ax in (ax1, ax2):
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+    fig.tight_layout()
+    paths["efficiency"] = str(out_dir / f"{scene_name}_efficiency_per_iteration.png")
+    fig.savefig(paths["efficiency"], dpi=100)
+    plt.close(fig)
+
+    expected = ref if ref is not None else next(iter(results.values())).image
+    errors = {n: np.abs(r.image - expected).mean(-1) for n, r in results.items()}
+    vmax = max(float(np.percentile(e, 99)) for e in errors.values()) or 1.0
+    n = len(results)
+    fig, axes = plt.subplots(2, n, figsize=(3.2 * n, 6.4), squeeze=False)
+    for k, (name, result) in enumerate(results.items()):
+        axes[0, k].imshow(to_srgb8(result.image.astype(np.float32)))
+        axes[0, k].set_title(name, fontsize=9)
+        im = axes[1, k].imshow(errors[name], cmap="inferno", vmin=0, vmax=vmax)
+        axes[1, k].set_title(f"|error| vs {'reference' if ref is not None else 'first'}", fontsize=9)
+        for ax in axes[:, k]:
+            ax.set_xticks([])
+            ax.set_yticks([])
+    fig.colorbar(im, ax=axes[1, :].tolist(), label="absolute error (linear radiance, mean of RGB)", shrink=0.8)
+    paths["images"] = str(out_dir / f"{scene_name}_image_strip.png")
+    fig.savefig(paths["images"], dpi=100)
+    plt.close(fig)
+    return paths
