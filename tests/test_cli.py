@@ -1,0 +1,131 @@
+"""The command line (`python -m toolkit ...`, run as a learner would, in a subprocess) and
+`toolkit.render()` from Python."""
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+SUMMARY_KEYS = {"scene", "technique", "spp", "resolution", "seconds", "samples_per_second",
+                "device", "out", "mean", "nonfinite"}
+
+
+def run_cli(*args, cwd=ROOT, timeout=300):
+    # PYTHONPATH: the toolkit need not be installed, and cwd may be outside the checkout.
+    path = os.pathsep.join(filter(None, [str(ROOT), os.environ.get("PYTHONPATH")]))
+    return subprocess.run([sys.executable, "-m", "toolkit", *args], cwd=cwd,
+                          env=dict(os.environ, PYTHONPATH=path),
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def summary(result):
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr
+    lines = result.stdout.strip().splitlines()
+    stats = json.loads(lines[-1])
+    assert isinstance(stats, dict)
+    missing = SUMMARY_KEYS - set(stats)
+    assert not missing, missing
+    return stats
+
+
+def test_render_json_small(tmp_path):
+    out = tmp_path / "x.exr"
+    stats = summary(run_cli("render", "--json", "--spp", "2", "--resolution", "16x16",
+                            "--out", str(out), "--no-progress"))
+    assert stats["scene"] == "cornell_box"
+    assert stats["technique"] == "pt_naive"
+    assert stats["spp"] == 2
+    assert stats["resolution"] == [16, 16]
+    assert stats["nonfinite"] == 0
+    assert stats["seconds"] > 0 and stats["samples_per_second"] > 0
+    assert Path(stats["out"]) == out
+    assert isinstance(stats["device"], str) and stats["device"]
+    assert len(stats["mean"]) == 3 and all(np.isfinite(stats["mean"])) and min(stats["mean"]) > 0
+    assert out.is_file() and out.with_suffix(".png").is_file()
+
+    import OpenImageIO as oiio
+    from toolkit.images import read_exr
+    image = read_exr(out)
+    assert image.shape == (16, 16, 3)
+    assert np.isfinite(image).all()
+    np.testing.assert_allclose(image.reshape(-1, 3).mean(0), stats["mean"], rtol=1e-5)
+    for path in (out, out.with_suffix(".png")):
+        file = oiio.ImageInput.open(str(path))
+        assert file is not None, oiio.geterror()
+        try:
+            spec = file.spec()
+            assert (spec.width, spec.height, spec.nchannels) == (16, 16, 3), path
+        finally:
+            file.close()
+
+
+def test_render_json_with_no_other_argument(tmp_path):
+    """The README's `python -m toolkit render --json`: bundled Cornell box, 256x256, 64 spp,
+    written under out/ of the working directory."""
+    stats = summary(run_cli("render", "--json", cwd=tmp_path))
+    assert stats["scene"] == "cornell_box"
+    assert stats["technique"] == "pt_naive"
+    assert stats["spp"] == 64
+    assert stats["resolution"] == [256, 256]
+    assert stats["nonfinite"] == 0
+    out = tmp_path / "out" / "cornell_box_pt_naive.exr"
+    assert (tmp_path / stats["out"]).resolve() == out.resolve()
+    assert out.is_file() and out.with_suffix(".png").is_file()
+    # The bundled scene has a reference: the summary compares with it.
+    assert "rmse" in stats and stats["rmse"] < 0.1
+
+
+def test_devices():
+    result = run_cli("devices")
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr
+    assert "OpenCL devices" in result.stdout
+    assert "0:0" in result.stdout
+    assert "The toolkit would pick:" in result.stdout
+
+
+@pytest.mark.parametrize("args,complaint", [
+    (["--resolution", "0x5"], "argument --resolution: expected WIDTHxHEIGHT"),
+    (["--resolution", "64"], "argument --resolution: expected WIDTHxHEIGHT"),
+    (["--technique", "nope"], "argument --technique: invalid choice: 'nope'"),
+    (["--spp", "0"], "argument --spp: must be at least 1"),
+    (["--spp", "many"], "argument --spp: expected a whole number"),
+], ids=["zero-width", "no-height", "unknown-technique", "zero-spp", "spp-not-a-number"])
+def test_bad_arguments(args, complaint, tmp_path):
+    result = run_cli("render", *args, cwd=tmp_path)
+    assert result.returncode != 0
+    assert "Traceback" not in result.stderr
+    assert "usage:" in result.stderr
+    assert complaint in result.stderr.splitlines()[-1], result.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_no_command():
+    result = run_cli()
+    assert result.returncode != 0
+    assert "usage:" in result.stderr and "Traceback" not in result.stderr
+
+
+def test_render_from_python():
+    import toolkit
+    result = toolkit.render(None, technique="pt_naive", spp=2, seed=1, resolution=(24, 16))
+    assert result.image.shape == (16, 24, 3)
+    assert result.stderr.shape == (16, 24, 3)
+    assert np.isfinite(result.image).all() and np.isfinite(result.stderr).all()
+    assert (result.stderr >= 0).all()
+    assert result.image.mean() > 0
+    stats = result.stats
+    assert SUMMARY_KEYS - {"out"} <= set(stats)
+    assert stats["resolution"] == [24, 16] and stats["spp"] == 2 and stats["nonfinite"] == 0
+    np.testing.assert_allclose(stats["mean"], result.image.reshape(-1, 3).mean(0))
+
+
+def test_render_from_python_rejects_bad_spp():
+    import toolkit
+    with pytest.raises(ValueError, match="spp"):
+        toolkit.render(None, spp=0, resolution=(8, 8))

@@ -1,0 +1,251 @@
+"""toolkit/program.py: build errors that point into our files, memoised builds, scene-specialised
+builds (absent materials are not compiled), and the fixed local size with a padded global size.
+
+Test kernels are written to tmp_path and built with `program.build(..., directory=tmp_path)`;
+their quoted includes are looked up there first, then in cl/.
+"""
+import os
+import time
+
+import numpy as np
+import pyopencl as cl
+import pytest
+
+from toolkit import program
+from toolkit.program import KernelBuildError
+
+
+def write(folder, name, text):
+    (folder / name).write_text(text)
+    return name
+
+
+def nonce():
+    """A define value no earlier build used: makes a build that cannot be memoised yet."""
+    return f"{os.getpid()}{time.time_ns()}"
+
+
+# -- (a) build errors name our files and lines ------------------------------------------------
+
+BROKEN_H = """/* a header with a mistake on line 3 */
+inline int fine(int x) { return x + 1; }
+inline int broken(int x) { return x + undefined_in_header; }
+"""
+
+BROKEN_CL = """/* includes the broken header */
+#include "broken.h"
+__kernel void use_broken(__global int* out) {
+    out[0] = broken(1);
+}
+"""
+
+
+def test_error_in_included_header_names_its_file_and_line(queue, tmp_path):
+    write(tmp_path, "broken.h", BROKEN_H)
+    write(tmp_path, "broken.cl", BROKEN_CL)
+    with pytest.raises(KernelBuildError) as info:
+        program.build(queue.context, "broken.cl", {}, directory=tmp_path)
+    message = str(info.value)
+    assert "OpenCL build of broken.cl failed" in message
+    assert "broken.h:3" in message, message
+    assert "undefined_in_header" in message
+    # The summary lists the lines that point into our sources before the full log.
+    summary = message.split("Full compiler log:")[0]
+    assert "Errors in our sources:" in summary and "broken.h:3" in summary, message
+
+
+def test_error_after_an_include_names_the_right_line(queue, tmp_path):
+    write(tmp_path, "fine.h", "/* line 1 */\ninline int fine(int x) { return x + 1; }\n")
+    write(tmp_path, "broken_main.cl", """/* line 1 */
+#include "fine.h"
+#include "common.h"
+__kernel void k(__global int* out) {
+    out[0] = fine(1) + undefined_in_kernel;
+}
+""")
+    with pytest.raises(KernelBuildError) as info:
+        program.build(queue.context, "broken_main.cl", {}, directory=tmp_path)
+    message = str(info.value)
+    assert "broken_main.cl:5" in message, message
+    assert "fine.h" not in message.split("Full compiler log:")[0]
+
+
+def test_missing_source_is_a_build_error(queue, tmp_path):
+    write(tmp_path, "includes_missing.cl", '#include "no_such_header.h"\n__kernel void k() {}\n')
+    with pytest.raises(KernelBuildError, match="no_such_header.h"):
+        program.build(queue.context, "includes_missing.cl", {}, directory=tmp_path)
+    with pytest.raises(KernelBuildError, match="not found"):
+        program.build(queue.context, "no_such_kernel.cl", {}, directory=tmp_path)
+
+
+def test_expand_includes_inlines_each_header_once_with_line_markers():
+    source = program.expand_includes("materials.h")
+    assert source.count('#line 1 "common.h"') == 1
+    assert source.count('#line 1 "materials.h"') == 1
+    assert '#include "' not in source
+    # After an include the including file resumes on its own next line.
+    lines = (program.cl_dir() / "materials.h").read_text().splitlines()
+    include_line = next(i for i, t in enumerate(lines, 1) if '#include "common.h"' in t)
+    assert f'#line {include_line + 1} "materials.h"' in source
+
+
+def test_define_options():
+    options = program.define_options({"B": True, "A": False, "C": None, "D": 3, "E": 0.5})
+    assert options == ["-DB=1", "-DD=3", "-DE=0.5f"]
+
+
+# -- (b) memoisation --------------------------------------------------------------------------
+
+TINY = """__kernel void tiny(__global int* out) {
+    out[get_global_id(0)] = TINY_VALUE;
+}
+"""
+
+
+def test_builds_are_memoised(queue, tmp_path):
+    write(tmp_path, "tiny.cl", TINY)
+    defines = {"TINY_VALUE": 7, "NONCE": nonce()}
+    first = program.build(queue.context, "tiny.cl", defines, directory=tmp_path)
+    assert program.build_log[-1][0] == "tiny.cl" and program.build_log[-1][2] is False
+    second = program.build(queue.context, "tiny.cl", dict(defines), directory=tmp_path)
+    assert second is first
+    assert program.build_log[-1] == ("tiny.cl", 0.0, True)
+    other = program.build(queue.context, "tiny.cl", dict(defines, TINY_VALUE=8), directory=tmp_path)
+    assert other is not first
+    assert program.build_log[-1][2] is False
+    # The defines really reach the compiler.
+    out = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, 4)
+    values = []
+    for built in (first, other):
+        program.kernel(built, "tiny")(queue, (1,), None, out)
+        value = np.zeros(1, np.int32)
+        cl.enqueue_copy(queue, value, out)
+        values.append(int(value[0]))
+    assert values == [7, 8]
+    assert program.kernel(first, "tiny") is program.kernel(first, "tiny")
+
+
+def test_changed_source_is_rebuilt(queue, tmp_path):
+    write(tmp_path, "tiny.cl", TINY)
+    defines = {"TINY_VALUE": 1, "NONCE": nonce()}
+    first = program.build(queue.context, "tiny.cl", defines, directory=tmp_path)
+    write(tmp_path, "tiny.cl", TINY + "/* edited */\n")
+    assert program.build(queue.context, "tiny.cl", defines, directory=tmp_path) is not first
+
+
+# -- (c) scene-specialised builds -------------------------------------------------------------
+
+def test_cornell_box_features(cornell_box):
+    f = cornell_box.features()
+    assert f["HAS_DIFFUSE"] is True
+    for absent in ("HAS_DIELECTRIC", "HAS_MIRROR", "HAS_GLOSSY", "HAS_SPECULAR"):
+        assert f[absent] is False, absent
+    options = program.define_options(f)
+    assert "-DHAS_DIFFUSE=1" in options
+    assert not any(o.startswith(("-DHAS_DIELECTRIC", "-DHAS_MIRROR", "-DHAS_GLOSSY")) for o in options)
+
+
+def test_cornell_spheres_features(cornell_spheres):
+    f = cornell_spheres.features()
+    assert f["HAS_MIRROR"] and f["HAS_DIELECTRIC"] and f["HAS_DIFFUSE"] and f["HAS_SPECULAR"]
+    assert not f["HAS_GLOSSY"]
+
+
+USES_FRESNEL = """#include "materials.h"
+__kernel void uses_fresnel(__global float* out) {
+    float cos_t;
+    out[0] = fresnel_dielectric(0.5f, 1.5f, &cos_t);
+}
+"""
+
+USES_GGX = """#include "materials.h"
+__kernel void uses_ggx(__global float* out) {
+    out[0] = ggx_d((float3)(0.0f, 0.0f, 1.0f), 0.3f);
+}
+"""
+
+
+@pytest.mark.parametrize("source,symbol,feature", [
+    (USES_FRESNEL, "fresnel_dielectric", "HAS_DIELECTRIC"),
+    (USES_GGX, "ggx_d", "HAS_GLOSSY"),
+])
+def test_absent_materials_are_compiled_out(queue, tmp_path, cornell_box, source, symbol, feature):
+    """Code that only an absent material uses is not in the program: calling it fails to build."""
+    name = write(tmp_path, f"uses_{symbol}.cl", source)
+    defines = cornell_box.features()
+    with pytest.raises(KernelBuildError) as info:
+        program.build(queue.context, name, defines, directory=tmp_path)
+    assert symbol in str(info.value)
+    assert f"{name}:" in str(info.value)
+    program.build(queue.context, name, dict(defines, **{feature: True}), directory=tmp_path)
+
+
+IS_SPECULAR = """#include "materials.h"
+__kernel void specular_types(__global int* out) {
+    out[0] = is_specular(MAT_DIFFUSE);
+    out[1] = is_specular(MAT_MIRROR);
+    out[2] = is_specular(MAT_DIELECTRIC);
+}
+"""
+
+
+def test_specular_branches_follow_the_scene(queue, tmp_path, cornell_box, cornell_spheres):
+    """is_specular() only knows the materials the scene has: with the box's defines the mirror
+    and glass branches are gone; with the spheres' they are there."""
+    name = write(tmp_path, "specular_types.cl", IS_SPECULAR)
+    out = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, 12)
+    results = {}
+    for scene in (cornell_box, cornell_spheres):
+        built = program.build(queue.context, name, scene.features(), directory=tmp_path)
+        program.kernel(built, "specular_types")(queue, (1,), None, out)
+        values = np.zeros(3, np.int32)
+        cl.enqueue_copy(queue, values, out)
+        results[scene.name] = values.tolist()
+    assert results == {"cornell_box": [0, 0, 0], "cornell_spheres": [0, 1, 1]}
+
+
+def test_pt_naive_builds_for_each_scene(queue, cornell_box, cornell_spheres):
+    box = program.build(queue.context, "pt_naive.cl", cornell_box.features())
+    spheres = program.build(queue.context, "pt_naive.cl", cornell_spheres.features())
+    assert box is not spheres
+    assert program.kernel(box, "pt_naive_render") is not None
+
+
+# -- (d) fixed local size, padded global size -------------------------------------------------
+
+FILL = """__kernel void fill(const int n, __global int* out, __global int* sizes) {
+    int gid = get_global_id(0);
+    if (gid == 0) {
+        sizes[0] = (int)get_global_size(0);
+        sizes[1] = (int)get_local_size(0);
+    }
+    if (gid >= n) return;
+    out[gid] = gid + 1;
+}
+"""
+
+
+def test_padded():
+    L = program.LOCAL_SIZE
+    assert L == 64
+    assert [program.padded(n) for n in (0, 1, L - 1, L, L + 1, 10 * L, 10 * L + 3)] == \
+        [L, L, L, L, 2 * L, 10 * L, 11 * L]
+    assert program.padded(33, 32) == 64
+    assert all(program.padded(n) % L == 0 and program.padded(n) >= n for n in range(1, 1000, 7))
+
+
+@pytest.mark.parametrize("n", [1, 64, 65, 1000])
+def test_launch_uses_fixed_local_size_and_padded_global_size(queue, tmp_path, n):
+    name = write(tmp_path, "fill.cl", FILL)
+    built = program.build(queue.context, name, {}, directory=tmp_path)
+    out = cl.Buffer(queue.context, cl.mem_flags.READ_WRITE, 4 * (n + 1))
+    cl.enqueue_fill_buffer(queue, out, np.int32(-1), 0, 4 * (n + 1))
+    sizes = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, 8)
+    program.launch(queue, program.kernel(built, "fill"), n, np.int32(n), out, sizes)
+    values = np.zeros(n + 1, np.int32)
+    got = np.zeros(2, np.int32)
+    cl.enqueue_copy(queue, values, out)
+    cl.enqueue_copy(queue, got, sizes)
+    assert got.tolist() == [program.padded(n), program.LOCAL_SIZE]
+    np.testing.assert_array_equal(values[:n], np.arange(1, n + 1))
+    assert values[n] == -1   # the padding work-items wrote nothing
