@@ -1,0 +1,70 @@
+"""The tutorials in tutorials/ run from top to bottom without error, in their fast mode.
+
+Each notebook checks its own results with asserts, so executing it is the test. Notebooks are
+committed without outputs: a stored output would go stale as the toolkit changes (and bloat
+the diff), so the second test rejects any.
+"""
+import json
+import os
+import re
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+TUTORIALS = ROOT / "tutorials"
+NOTEBOOKS = sorted(TUTORIALS.glob("*.ipynb"))
+CELL_TIMEOUT = 300  # seconds per cell
+ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;]*m")
+
+
+def test_there_are_tutorials():
+    assert NOTEBOOKS, f"no notebooks in {TUTORIALS}"
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_notebook_has_no_outputs(path):
+    nb = json.loads(path.read_text(encoding="utf-8"))
+    assert nb.get("nbformat") == 4, f"{path.name}: not an nbformat v4 notebook"
+    stored = [i for i, cell in enumerate(nb["cells"]) if cell["cell_type"] == "code"
+              and (cell.get("outputs") or cell.get("execution_count") is not None)]
+    assert not stored, (f"{path.name}: code cells {stored} carry outputs or execution counts; "
+                        "clear them before committing (Jupyter: Edit > Clear All Outputs)")
+
+
+@pytest.fixture
+def python3_kernel(tmp_path, monkeypatch):
+    """A 'python3' kernelspec that runs this interpreter, so the notebook sees the same
+    environment (toolkit, pyopencl, ...) as the tests, whatever kernelspecs the user has."""
+    spec = tmp_path / "jupyter" / "kernels" / "python3"
+    spec.mkdir(parents=True)
+    (spec / "kernel.json").write_text(json.dumps({
+        "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
+        "display_name": "Python 3 (tests)", "language": "python"}))
+    # JUPYTER_PATH comes before the user's and the environment's kernel folders.
+    monkeypatch.setenv("JUPYTER_PATH", os.pathsep.join(
+        [str(tmp_path / "jupyter")] + [p for p in [os.environ.get("JUPYTER_PATH")] if p]))
+    return "python3"
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_notebook_runs(path, python3_kernel, monkeypatch):
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    # The kernel inherits this environment: fast mode, no display, and the toolkit under test
+    # (the checkout this file belongs to) ahead of any installed copy.
+    monkeypatch.setenv("TOOLKIT_FAST_NOTEBOOKS", "1")
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join(
+        [str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))
+    nb = nbformat.read(path, as_version=4)
+    client = nbclient.NotebookClient(nb, timeout=CELL_TIMEOUT, kernel_name=python3_kernel,
+                                     resources={"metadata": {"path": str(TUTORIALS)}})
+    failure = None
+    try:
+        client.execute()
+    except nbclient.exceptions.CellExecutionError as error:
+        failure = ANSI_ESCAPE.sub("", str(error))   # the kernel's traceback is coloured
+    if failure is not None:
+        pytest.fail(f"{path.name}: a cell failed\n{failure}", pytrace=False)
