@@ -12,11 +12,6 @@
  * no measurable energy in any scene whose albedo is below one. */
 #define HARD_MAX_BOUNCES 1024
 
-/* Warp width used by the SIMD-efficiency model (host counts lanes; this only names it). */
-#ifndef WARP_WIDTH
-#define WARP_WIDTH 32
-#endif
-
 inline float max3(float3 v) { return fmax(v.x, fmax(v.y, v.z)); }
 inline float luminance(float3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
 inline bool is_black(float3 c) { return c.x <= 0.0f && c.y <= 0.0f && c.z <= 0.0f; }
@@ -32,6 +27,12 @@ inline void make_basis(float3 n, float3* s, float3* t) {
 }
 inline float3 to_local(float3 v, float3 s, float3 t, float3 n) { return (float3)(dot(v, s), dot(v, t), dot(v, n)); }
 inline float3 to_world(float3 v, float3 s, float3 t, float3 n) { return v.x * s + v.y * t + v.z * n; }
+
+/* Cosine-weighted hemisphere (Malley's method: a uniform disk point lifted to the hemisphere). */
+inline float3 sample_cosine_hemisphere(float u1, float u2) {
+    float r = sqrt(u1), phi = 2.0f * PI * u2;
+    return (float3)(r * cos(phi), r * sin(phi), sqrt(fmax(0.0f, 1.0f - u1)));
+}
 
 /* Power heuristic (Veach 1997, eq. 9.13, beta = 2) for two strategies with pdfs a and b. */
 inline float power_heuristic(float a, float b) {

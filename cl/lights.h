@@ -12,6 +12,7 @@ typedef struct {
     float3 n;         /* its normal (the emitting side) */
     float3 emission;
     float pdf_area;   /* density per unit area of choosing p */
+    int light;        /* index into the light array */
 } LightSample;
 
 inline int pick_light(const SceneView* s, float u) {
@@ -24,7 +25,8 @@ inline int pick_light(const SceneView* s, float u) {
 }
 
 inline LightSample sample_light(const SceneView* s, float u_pick, float u1, float u2) {
-    LightTri light = s->lights[pick_light(s, u_pick)];
+    int index = pick_light(s, u_pick);
+    LightTri light = s->lights[index];
     Triangle tri = s->tris[light.triangle];
     float r = sqrt(u1);              /* uniform on the triangle (Shirley's square-root map) */
     float b1 = u2 * r, b2 = 1.0f - r;
@@ -33,6 +35,7 @@ inline LightSample sample_light(const SceneView* s, float u_pick, float u1, floa
     ls.n = triangle_normal(&tri);
     ls.emission = light.emission.xyz;
     ls.pdf_area = tri.light_pdf;
+    ls.light = index;
     return ls;
 }
 

@@ -28,13 +28,6 @@ inline bool is_specular(int type) {
         ;
 }
 
-#if HAS_DIFFUSE || HAS_GLOSSY
-/* Cosine-weighted hemisphere (Malley's method: a uniform disk point lifted to the hemisphere). */
-inline float3 sample_cosine_hemisphere(float u1, float u2) {
-    float r = sqrt(u1), phi = 2.0f * PI * u2;
-    return (float3)(r * cos(phi), r * sin(phi), sqrt(fmax(0.0f, 1.0f - u1)));
-}
-#endif
 
 #if HAS_GLOSSY
 /* GGX (Trowbridge-Reitz) as FORMAT.md defines it; Walter et al. 2007, eqs. 33-34. */

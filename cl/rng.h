@@ -49,4 +49,22 @@ inline float sampler_get(Sampler* s, uint dim) {
 #define DIM_ROULETTE 6
 inline uint bounce_dim(int bounce, uint offset) { return 4u + (uint)bounce * DIMS_PER_BOUNCE + offset; }
 
+/* The sampler interface of a bidirectional sample: every random number it consumes is
+ * dimension `dim` of sample (pixel, sample). A Metropolis sampler can drive the same BDPT code
+ * by answering these calls from a stored, mutated primary-sample vector instead.
+ * Fixed assignment of dimensions:
+ *     0, 1                pixel position (eye)
+ *     2                   which light;  3, 4  point on it;  5, 6  emission direction
+ *     8 + 8(k-1) + 0..3   eye vertex k >= 1 scatters:   BSDF u, v, lobe, roulette
+ *     8 + 8(k-1) + 4..7   light vertex k >= 1 scatters: BSDF u, v, lobe, roulette
+ * Connections consume no random numbers (s = 1 uses the light subpath's first vertex). */
+#define BDPT_DIM_PIXEL 0
+#define BDPT_DIM_LIGHT_PICK 2
+#define BDPT_DIM_LIGHT_POINT 3
+#define BDPT_DIM_EMIT_DIR 5
+inline uint bdpt_scatter_dim(int vertex, bool light_path, uint offset) {
+    return 8u + 8u * (uint)(vertex - 1) + (light_path ? 4u : 0u) + offset;
+}
+inline float bdpt_sample(Sampler* s, uint dim) { return sampler_get(s, dim); }
+
 #endif

@@ -7,6 +7,17 @@ ROOT = Path(__file__).resolve().parent.parent
 SCENES = ROOT / "scenes"
 
 
+sys.path.insert(0, str(ROOT))   # the checkout's toolkit, also when another copy is installed
+
+
+def spp_for(technique, spp):
+    """Samples per pixel for a test: a bidirectional sample evaluates ~30 connections, each
+    with a shadow ray, so on the CPU it costs ~10x a path-tracing sample; its variance is also
+    lower. BDPT tests use an eighth of the path tracers' budget (their statistical tolerances
+    come from their own measured error, so this only widens the error bars, honestly)."""
+    return max(1, spp // 8) if technique.startswith("bdpt") else spp
+
+
 def scene_dirs():
     return sorted(p for p in SCENES.iterdir() if (p / "scene.json").is_file())
 

@@ -75,5 +75,7 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
         "bvh": {"nodes": device_scene.bvh.node_count, "leaves": device_scene.bvh.leaf_nodes,
                 "depth": device_scene.bvh.max_depth, "build_seconds": device_scene.bvh.build_seconds},
         "triangles": int(len(scene.triangles)),
+        "degrees_of_freedom": film.degrees_of_freedom,
+        **tech.extra_stats(),
     }
     return RenderResult(image, stderr, stats, tech.simd.per_iteration if count_simd else [])

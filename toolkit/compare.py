@@ -68,12 +68,13 @@ def format_table(table, warp_width=32):
 
 
 def save_plots(scene_name, results, ref, out_dir, warp_width):
-    import matplotlib
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
+    # Figures drawn straight onto an Agg canvas: no pyplot state, and the caller's backend
+    # (e.g. inline plots in a notebook) is left alone.
+    from matplotlib.figure import Figure
     paths = {}
 
-    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(12, 4))
+    fig = Figure(figsize=(12, 4))
+    ax1, ax2 = fig.subplots(1, 2)
     for name, result in results.items():
         steps = [it for it in result.iterations if it["phase"] == "extend"]
         if not steps:
@@ -91,13 +92,13 @@ def save_plots(scene_name, results, ref, out_dir, warp_width):
     fig.tight_layout()
     paths["efficiency"] = str(out_dir / f"{scene_name}_efficiency_per_iteration.png")
     fig.savefig(paths["efficiency"], dpi=100)
-    plt.close(fig)
 
     expected = ref if ref is not None else next(iter(results.values())).image
     errors = {n: np.abs(r.image - expected).mean(-1) for n, r in results.items()}
     vmax = max(float(np.percentile(e, 99)) for e in errors.values()) or 1.0
     n = len(results)
-    fig, axes = plt.subplots(2, n, figsize=(3.2 * n, 6.4), squeeze=False)
+    fig = Figure(figsize=(3.2 * n, 6.4))
+    axes = fig.subplots(2, n, squeeze=False)
     for k, (name, result) in enumerate(results.items()):
         axes[0, k].imshow(to_srgb8(result.image.astype(np.float32)))
         axes[0, k].set_title(name, fontsize=9)
@@ -109,5 +110,4 @@ def save_plots(scene_name, results, ref, out_dir, warp_width):
     fig.colorbar(im, ax=axes[1, :].tolist(), label="absolute error (linear radiance, mean of RGB)", shrink=0.8)
     paths["images"] = str(out_dir / f"{scene_name}_image_strip.png")
     fig.savefig(paths["images"], dpi=100)
-    plt.close(fig)
     return paths

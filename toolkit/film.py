@@ -14,6 +14,9 @@ class Film:
         self.sum_sq = np.zeros((height * width, 3))
         self.count = np.zeros(height * width, np.int64)
         self.nonfinite_samples = 0
+        self.passes = 0   # whole-image passes (add_pass) instead of per-sample sums
+        self.pass_sum = np.zeros((height * width, 3))
+        self.pass_sum_sq = np.zeros((height * width, 3))
 
     def add_samples(self, pixels, radiance):
         """Add samples: pixel indices (n,) and radiance (n, 4) float32, .w = 1 marks a sample
@@ -36,15 +39,39 @@ class Film:
         self.sum_sq += (value ** 2).sum(0)
         self.count += per_pixel.shape[0]
 
+    def add_pass(self, image, spp, nonfinite=0):
+        """A whole pass as one image of spp samples per pixel (techniques whose samples add to
+        other pixels, like BDPT's light tracing): the pixel's passes are its independent
+        estimates, each counted with weight spp. All passes of a render have the same spp."""
+        value = image.reshape(-1, 3).astype(np.float64)
+        self.passes += 1
+        self.pass_sum += value
+        self.pass_sum_sq += value ** 2
+        self.count += spp
+        self.nonfinite_samples += int(nonfinite)
+
+    @property
+    def degrees_of_freedom(self):
+        """For the t-distribution of (mean - expected) / stderr: passes - 1, or None when the
+        error comes from per-sample variance (many degrees of freedom: normal)."""
+        return self.passes - 1 if self.passes else None
+
     @property
     def samples(self):
         return int(self.count.sum())
 
     def image(self):
+        if self.passes:
+            return (self.pass_sum / self.passes).reshape(self.height, self.width, 3)
         n = np.maximum(self.count, 1)[:, None]
         return (self.sum / n).reshape(self.height, self.width, 3)
 
     def stderr(self):
+        if self.passes:
+            k = self.passes
+            mean = self.pass_sum / k
+            var = np.maximum(self.pass_sum_sq / k - mean ** 2, 0.0) * (k / max(k - 1, 1))
+            return np.sqrt(var / k).reshape(self.height, self.width, 3)
         n = np.maximum(self.count, 1)[:, None]
         mean = self.sum / n
         var = np.maximum(self.sum_sq / n - mean ** 2, 0.0) * (n / np.maximum(n - 1, 1))

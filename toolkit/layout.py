@@ -132,10 +132,34 @@ SHADOW_RAY = Record("ShadowRay", [
     ("pad2", "int"),
 ], "A next-event-estimation shadow ray waiting to be traced, 64 bytes.")
 
-RECORDS = [BVH_NODE, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY]
+BDPT_VERTEX = Record("BdptVertex", [
+    ("pos", "float4"),       # position; .w = pdf_fwd: area density with which its own subpath generated it
+    ("normal", "float4"),    # geometric normal; .w = prev_pdf_rev: area density of generating the
+                             #   previous vertex of the subpath from this one (reverse direction)
+    ("wo", "float4"),        # unit direction to the previous vertex of the subpath
+    ("beta", "float4"),      # subpath throughput up to this vertex (light paths: includes Le / pdf)
+    ("material", "int"),
+    ("flags", "int"),        # VERTEX_DELTA | VERTEX_CAMERA | VERTEX_LIGHT (cl/bdpt.h)
+    ("light", "int"),        # index into the light array if the vertex lies on a light, else -1
+    ("pad", "int"),
+], "A stored BDPT path vertex, 80 bytes (the talk's vertex is 128: ours packs pdfs into .w).")
+
+SUBPATH = Record("Subpath", [
+    ("origin", "float4"),     # next ray origin; .w = solid-angle pdf of dir (0 after a delta bounce)
+    ("dir", "float4"),        # next ray direction
+    ("beta", "float4"),       # throughput; .w = roulette normaliser (1 for eye paths)
+    ("prev_pos", "float4"),   # the last stored vertex (exact, not offset)
+    ("prev_normal", "float4"),
+    ("slot", "int"),          # the sample's slot in the sample pool
+    ("vertices", "int"),      # vertices stored so far
+    ("prev_flags", "int"),    # flags of the last stored vertex
+    ("pad", "int"),
+], "One eye or light subpath in a random-walk stream, 96 bytes.")
+
+RECORDS = [BVH_NODE, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY, BDPT_VERTEX, SUBPATH]
 
 
-SOA_RECORDS = [PATH_STATE, SHADOW_RAY]
+SOA_RECORDS = [PATH_STATE, SHADOW_RAY, SUBPATH]
 
 
 def _snake(name):

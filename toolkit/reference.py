@@ -43,6 +43,51 @@ def normal_two_sided_p(z):
     return np.vectorize(math.erfc)(z / math.sqrt(2.0))
 
 
+def _betacf(a, b, x, iterations=300, eps=3e-16):
+    """Continued fraction of the incomplete beta function (Lentz's method, as in
+    Numerical Recipes sec. 6.4)."""
+    tiny = 1e-300
+    qab, qap, qam = a + b, a + 1.0, a - 1.0
+    c, d = 1.0, 1.0 - qab * x / qap
+    d = 1.0 / (d if abs(d) > tiny else tiny)
+    h = d
+    for m in range(1, iterations + 1):
+        m2 = 2 * m
+        aa = m * (b - m) * x / ((qam + m2) * (a + m2))
+        d = 1.0 + aa * d
+        d = 1.0 / (d if abs(d) > tiny else tiny)
+        c = 1.0 + aa / c if abs(1.0 + aa / c) > tiny else tiny
+        h *= d * c
+        aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2))
+        d = 1.0 + aa * d
+        d = 1.0 / (d if abs(d) > tiny else tiny)
+        c = 1.0 + aa / c if abs(1.0 + aa / c) > tiny else tiny
+        delta = d * c
+        h *= delta
+        if abs(delta - 1.0) < eps:
+            break
+    return h
+
+
+def regularized_beta(a, b, x):
+    """I_x(a, b), the regularized incomplete beta function."""
+    if x <= 0.0:
+        return 0.0
+    if x >= 1.0:
+        return 1.0
+    log_front = (math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b)
+                 + a * math.log(x) + b * math.log1p(-x))
+    if x < (a + 1.0) / (a + b + 2.0):
+        return math.exp(log_front) * _betacf(a, b, x) / a
+    return 1.0 - math.exp(log_front) * _betacf(b, a, 1.0 - x) / b
+
+
+def student_t_two_sided_p(t, dof):
+    """P(|T| >= |t|) for Student's t with `dof` degrees of freedom: I_{dof/(dof+t^2)}(dof/2, 1/2)."""
+    t = np.abs(np.asarray(t, np.float64))
+    return np.vectorize(lambda v: regularized_beta(0.5 * dof, 0.5, dof / (dof + v * v)))(t)
+
+
 @dataclass
 class ZTest:
     passed: bool
@@ -60,8 +105,12 @@ class ZTest:
                 f"at {self.worst_pixel}, mean |z| {self.mean_abs_z:.3f}")
 
 
-def z_test(image, stderr, expected, expected_stderr, alpha=0.01, min_stderr=1e-12):
+def z_test(image, stderr, expected, expected_stderr, alpha=0.01, min_stderr=1e-12, dof=None):
     """Per-pixel z-test of image against expected, Bonferroni-corrected over all pixel-channels.
+
+    `dof`: when the render's standard error comes from few independent passes (BDPT), the
+    statistic follows Student's t with passes - 1 degrees of freedom rather than a normal
+    (the reference's own error, from far more samples, is small next to ours).
 
     z = (image - expected) / sqrt(stderr^2 + expected_stderr^2). Pixels where both standard
     errors vanish (e.g. black background in both) must match exactly and are not counted.
@@ -74,7 +123,12 @@ def z_test(image, stderr, expected, expected_stderr, alpha=0.01, min_stderr=1e-1
     exact_mismatch = (~tested) & (np.abs(diff) > 1e-6)
     z = np.zeros_like(diff)
     z[tested] = diff[tested] / np.sqrt(var[tested])
-    p = normal_two_sided_p(z[tested]) if tested.any() else np.ones(1)
+    if not tested.any():
+        p = np.ones(1)
+    elif dof:
+        p = student_t_two_sided_p(z[tested], dof)
+    else:
+        p = normal_two_sided_p(z[tested])
     n = int(tested.sum())
     worst = np.unravel_index(np.argmax(np.abs(z)), z.shape)
     threshold = alpha / max(n, 1)

@@ -1,9 +1,12 @@
 """The registry of techniques: name -> class. Each has a host module and a cl/ file of the same name."""
+from .bdpt_naive_connect import BdptNaiveConnect
+from .bdpt_parallel_connect import BdptParallelConnect
 from .pt_compact_regen import PtCompactRegen
 from .pt_inplace_regen import PtInplaceRegen
 from .pt_naive import PtNaive
 
-TECHNIQUES = {cls.name: cls for cls in (PtNaive, PtInplaceRegen, PtCompactRegen)}
+TECHNIQUES = {cls.name: cls for cls in (PtNaive, PtInplaceRegen, PtCompactRegen,
+                                        BdptNaiveConnect, BdptParallelConnect)}
 
 
 # Variants: the same technique with an option set, for side-by-side measurements.

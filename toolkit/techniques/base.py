@@ -27,7 +27,6 @@ class Technique:
         self.count_simd = count_simd
         defines = dict(device_scene.scene.features())
         defines["COUNT_SIMD"] = bool(count_simd)
-        defines["WARP_WIDTH"] = warp_width
         defines.update(extra_defines or {})
         self.defines = defines
         start = time.perf_counter()
@@ -44,7 +43,7 @@ class Technique:
         """Render `spp` samples per pixel; returns the film (see toolkit.api.render)."""
         film = Film(width, height)
         camera = self.scene.camera(width, height)
-        per_pass = max(1, min(spp, self.target_batch // (width * height)))
+        per_pass = self.passes(width, height, spp)
         start = 0
         while start < spp:
             count = min(per_pass, spp - start)
@@ -54,6 +53,10 @@ class Technique:
                 progress.update(count)
         self.queue.finish()
         return film
+
+    def passes(self, width, height, spp):
+        """Samples per pixel in one pass (one launch batch)."""
+        return max(1, min(spp, self.target_batch // (width * height)))
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         raise NotImplementedError
@@ -101,6 +104,10 @@ class Technique:
         if not self.shadow_queue:   # shadow rays traced inside the extension step
             self.simd.add_stream_step("shadow", lanes[:, 2] > 0)
             self.traversal.add_warp_loops("shadow", lanes[:, 3])
+
+    def extra_stats(self):
+        """Technique-specific figures added to the render stats."""
+        return {}
 
     def simd_efficiency(self):
         return self.simd.efficiency() if self.count_simd else {}

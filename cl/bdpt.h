@@ -1,0 +1,262 @@
+/* Bidirectional path tracing: stored vertices, the densities MIS needs, and the evaluation
+ * of one connection strategy (s, t) = (s light vertices y_0..y_{s-1}, t eye vertices
+ * z_0..z_{t-1}; z_0 is the camera, y_0 the point on the light).
+ *
+ * Conventions follow Veach's thesis (ch. 10) and pbrt-v3's bdpt.cpp (section 16.3):
+ *   - every stored vertex keeps pdf_fwd, the area density with which its own subpath
+ *     generated it, and prev_pdf_rev, the area density of generating the *previous* vertex
+ *     of its subpath from it in the reverse direction (so pdf_rev of vertex i is read from
+ *     vertex i + 1);
+ *   - at a connection the densities that change (the two endpoints and their predecessors)
+ *     are recomputed, and the balance heuristic weight is 1 / (1 + sum of ratios r_i) over
+ *     the other strategies that could have made the same path (pbrt-v3 eq. 16.4 ff.);
+ *   - delta (specular) vertices cannot be connected; densities of 0 next to them are
+ *     treated as 1 in the ratios ("remap0") and their strategies skipped.
+ * A pinhole camera is a delta in position; its importance for the whole film is
+ * We = 1 / (A cos^4 theta), A the image-plane area at distance 1 (pbrt-v3 sec. 16.1.1). */
+#ifndef BDPT_H
+#define BDPT_H
+
+#include "common.h"
+#include "rng.h"
+#include "camera.h"
+#include "bvh.h"
+#include "lights.h"
+#include "materials.h"
+
+#define VERTEX_DELTA 1
+#define VERTEX_CAMERA 2
+#define VERTEX_LIGHT 4   /* y_0: the point sampled on a light */
+
+#ifndef MAX_VERTICES
+#define MAX_VERTICES 64  /* per subpath; set by the host (toolkit/techniques/bdpt_base.py) */
+#endif
+
+inline float pdf_fwd(const BdptVertex* v) { return v->pos.w; }
+inline float prev_pdf_rev(const BdptVertex* v) { return v->normal.w; }
+inline bool is_delta(const BdptVertex* v) { return (v->flags & VERTEX_DELTA) != 0; }
+inline bool is_camera(const BdptVertex* v) { return (v->flags & VERTEX_CAMERA) != 0; }
+inline bool is_light_origin(const BdptVertex* v) { return (v->flags & VERTEX_LIGHT) != 0; }
+
+/* ---- the pinhole camera as a vertex ----------------------------------------------------- */
+
+inline float film_area(const Camera* cam) { return 4.0f * length(cam->right.xyz) * length(cam->up.xyz); }
+
+/* Solid-angle density of the camera choosing direction w (uniform on the film). */
+inline float camera_pdf_dir(const Camera* cam, float3 w) {
+    float c = dot(w, cam->forward.xyz);
+    return c > 0.0f ? 1.0f / (film_area(cam) * c * c * c) : 0.0f;
+}
+
+/* Pixel hit by direction w from the camera, or -1 outside the image. */
+inline int camera_pixel(const Camera* cam, float3 w) {
+    float c = dot(w, cam->forward.xyz);
+    if (c <= 0.0f) return -1;
+    float3 on_plane = w / c;
+    float tx = length(cam->right.xyz), ty = length(cam->up.xyz);
+    float sx = dot(on_plane, cam->right.xyz) / (tx * tx);
+    float sy = dot(on_plane, cam->up.xyz) / (ty * ty);
+    float x = 0.5f * (sx + 1.0f) * (float)cam->width;
+    float y = 0.5f * (1.0f - sy) * (float)cam->height;
+    if (!(x >= 0.0f && x < (float)cam->width && y >= 0.0f && y < (float)cam->height)) return -1;
+    return min((int)y, cam->height - 1) * cam->width + min((int)x, cam->width - 1);
+}
+
+/* ---- densities ------------------------------------------------------------------------ */
+
+/* Shading frame of a surface vertex seen from direction `toward` (two-sided materials flip). */
+inline void vertex_frame(const SceneView* s, const BdptVertex* v, float3 toward, float3* n, float3* ts, float3* tt) {
+    float3 ng = v->normal.xyz;
+    *n = ng;
+#if HAS_DIELECTRIC
+    if (s->materials[v->material].type != MAT_DIELECTRIC && dot(ng, toward) < 0.0f) *n = -ng;
+#else
+    if (dot(ng, toward) < 0.0f) *n = -ng;
+#endif
+    make_basis(*n, ts, tt);
+}
+
+/* f(wo, wi) at a surface vertex, directions in world space; wo towards where light goes. */
+inline float3 vertex_bsdf(const SceneView* s, const BdptVertex* v, float3 wo, float3 wi, float* pdf) {
+    float3 n, ts, tt;
+    vertex_frame(s, v, wo, &n, &ts, &tt);
+    Material m = s->materials[v->material];
+    return bsdf_eval(&m, to_local(wo, ts, tt, n), to_local(wi, ts, tt, n), pdf);
+}
+
+/* Convert a solid-angle density at `from` towards `to` into an area density at `to`. */
+inline float to_area(float pdf_dir, float3 from, const BdptVertex* to) {
+    float3 d = to->pos.xyz - from;
+    float dist2 = dot(d, d);
+    if (dist2 <= 0.0f) return 0.0f;
+    if (is_camera(to)) return pdf_dir / dist2;      /* not on a surface: no cosine */
+    return pdf_dir * fabs(dot(to->normal.xyz, d)) * rsqrt(dist2) / dist2;
+}
+
+/* Area density at `next` of sampling it from vertex v, which was reached from `prev`
+ * (prev may be 0 for the camera and the light origin, which have no predecessor). */
+inline float vertex_pdf(const SceneView* s, const Camera* cam, const BdptVertex* prev, const BdptVertex* v,
+                        const BdptVertex* next) {
+    float3 w = normalize(next->pos.xyz - v->pos.xyz);
+    float pdf_dir;
+    if (is_camera(v)) {
+        pdf_dir = camera_pdf_dir(cam, w);
+    } else if (is_light_origin(v) && prev == 0) {
+        pdf_dir = fmax(0.0f, dot(v->normal.xyz, w)) * INV_PI;   /* cosine-weighted emission */
+    } else {
+        float3 wo = normalize(prev->pos.xyz - v->pos.xyz);
+        vertex_bsdf(s, v, wo, w, &pdf_dir);
+    }
+    return to_area(pdf_dir, v->pos.xyz, next);
+}
+
+/* Area density of light sampling choosing the point of `v` (an eye vertex on a light), and
+ * solid-angle density of the light emitting from there towards `to`, as an area density. */
+inline float light_origin_pdf(const SceneView* s, const BdptVertex* v) {
+    return v->light >= 0 ? s->tris[s->lights[v->light].triangle].light_pdf : 0.0f;
+}
+inline float light_emit_pdf(const BdptVertex* v, const BdptVertex* to) {
+    float3 w = normalize(to->pos.xyz - v->pos.xyz);
+    return to_area(fmax(0.0f, dot(v->normal.xyz, w)) * INV_PI, v->pos.xyz, to);
+}
+
+inline float remap0(float f) { return f != 0.0f ? f : 1.0f; }
+
+/* ---- MIS: the balance heuristic over all strategies that could make this path ---------- */
+
+typedef struct {
+    float pt_rev, ptm_rev, qs_rev, qsm_rev;   /* recomputed reverse densities at the connection */
+} ConnectionPdfs;
+
+inline float mis_weight(__global const BdptVertex* eye, __global const BdptVertex* light,
+                        int s, int t, const ConnectionPdfs* c) {
+    float sum = 0.0f;
+    /* Hypothetical strategies with more light vertices: walk the eye subpath backwards. */
+    float r = 1.0f;
+    for (int i = t - 1; i > 0; --i) {
+        float rev = i == t - 1 ? c->pt_rev : i == t - 2 ? c->ptm_rev : eye[i + 1].normal.w;
+        r *= remap0(rev) / remap0(eye[i].pos.w);
+        bool delta_i = i == t - 1 ? false : (eye[i].flags & VERTEX_DELTA) != 0;
+        bool delta_prev = i - 1 == t - 1 ? false : (eye[i - 1].flags & VERTEX_DELTA) != 0;
+        if (!delta_i && !delta_prev) sum += r;
+    }
+    /* Hypothetical strategies with more eye vertices: walk the light subpath backwards. */
+    r = 1.0f;
+    for (int i = s - 1; i >= 0; --i) {
+        float rev = i == s - 1 ? c->qs_rev : i == s - 2 ? c->qsm_rev : light[i + 1].normal.w;
+        r *= remap0(rev) / remap0(light[i].pos.w);
+        bool delta_i = i == s - 1 ? false : (light[i].flags & VERTEX_DELTA) != 0;
+        bool delta_prev = i > 0 ? (light[i - 1].flags & VERTEX_DELTA) != 0 : false;  /* area lights are not delta */
+        if (!delta_i && !delta_prev) sum += r;
+    }
+    return 1.0f / (1.0f + sum);
+}
+
+/* ---- one connection ------------------------------------------------------------------- */
+
+typedef struct {
+    float3 value;   /* contribution to the pixel (already MIS-weighted) */
+    int pixel;      /* target pixel: the sample's own (t >= 2) or the splat's (t = 1); -1: none */
+    float weight;   /* the MIS weight alone (for tests and per-strategy images) */
+} Connection;
+
+inline bool visible(const SceneView* s, const BdptVertex* a, const BdptVertex* b, int* steps) {
+    float3 d = b->pos.xyz - a->pos.xyz;
+    float3 from = is_camera(a) ? a->pos.xyz : offset_point(s, a->pos.xyz, a->normal.xyz, d);
+    float3 to = is_camera(b) ? b->pos.xyz : offset_point(s, b->pos.xyz, b->normal.xyz, -d);
+    float3 seg = to - from;
+    float len = length(seg);
+    if (!(len > 0.0f) || dot(seg, d) <= 0.0f) return false;
+    return !trace_any(s, from, seg / len, 0.0f, len, steps);
+}
+
+/* Evaluate strategy (s, t) of the sample whose subpaths are `eye` (t_max vertices) and `light`.
+ * `own_pixel` is where eye-path strategies land. Returns value 0 / pixel -1 when the strategy
+ * cannot make a path (delta endpoint, light's back side, occluded, outside the image...). */
+inline Connection connect_strategy(const SceneView* s, const Camera* cam, __global const BdptVertex* eye,
+                                   __global const BdptVertex* light, int s_len, int t_len, int own_pixel,
+                                   int* steps) {
+    Connection out = {(float3)(0.0f), -1, 0.0f};
+#if USE_MAX_DEPTH
+    if (s_len + t_len - 1 > MAX_DEPTH) return out;
+#endif
+    ConnectionPdfs c = {0.0f, 0.0f, 0.0f, 0.0f};
+    float3 value;
+    int pixel = own_pixel;
+    if (s_len == 0) {
+        /* The eye subpath found a light by itself. */
+        BdptVertex pt = eye[t_len - 1], ptm = eye[t_len - 2];
+        if (pt.light < 0 || dot(pt.normal.xyz, pt.wo.xyz) <= 0.0f) return out;
+        value = pt.beta.xyz * s->lights[pt.light].emission.xyz;
+        c.pt_rev = light_origin_pdf(s, &pt);
+        c.ptm_rev = light_emit_pdf(&pt, &ptm);
+    } else if (t_len == 1) {
+        /* Light tracing: connect y_{s-1} to the camera; the result lands on another pixel. */
+        BdptVertex qs = light[s_len - 1], cam_v = eye[0];
+        if (is_delta(&qs)) return out;
+        float3 d = cam_v.pos.xyz - qs.pos.xyz;
+        float dist2 = dot(d, d);
+        float3 w = d * rsqrt(dist2);            /* from qs towards the camera */
+        pixel = camera_pixel(cam, -w);
+        if (pixel < 0) return out;
+        float3 f;
+        if (s_len == 1) {
+            f = dot(qs.normal.xyz, w) > 0.0f ? s->lights[qs.light].emission.xyz : (float3)(0.0f);
+        } else {
+            float unused;
+            f = vertex_bsdf(s, &qs, qs.wo.xyz, w, &unused);
+        }
+        if (is_black(f)) return out;
+        float cos_cam = dot(-w, cam->forward.xyz);
+        float we = 1.0f / (film_area(cam) * cos_cam * cos_cam * cos_cam * cos_cam);
+        value = qs.beta.xyz * f * fabs(dot(qs.normal.xyz, w)) * we * cos_cam / dist2;
+        if (!visible(s, &qs, &cam_v, steps)) return out;
+        c.qs_rev = to_area(camera_pdf_dir(cam, -w), cam_v.pos.xyz, &qs);
+        if (s_len > 1) {
+            BdptVertex qsm = light[s_len - 2];
+            c.qsm_rev = vertex_pdf(s, cam, &cam_v, &qs, &qsm);
+        }
+    } else {
+        /* Connect y_{s-1} and z_{t-1} with a shadow ray. */
+        BdptVertex qs = light[s_len - 1], pt = eye[t_len - 1];
+        if (is_delta(&qs) || is_delta(&pt)) return out;
+        float3 d = pt.pos.xyz - qs.pos.xyz;
+        float dist2 = dot(d, d);
+        float3 w = d * rsqrt(dist2);            /* from qs towards pt */
+        float3 fq;
+        if (s_len == 1) {
+            fq = dot(qs.normal.xyz, w) > 0.0f ? s->lights[qs.light].emission.xyz : (float3)(0.0f);
+        } else {
+            float unused;
+            fq = vertex_bsdf(s, &qs, qs.wo.xyz, w, &unused);
+        }
+        float unused;
+        float3 fp = vertex_bsdf(s, &pt, pt.wo.xyz, -w, &unused);
+        if (is_black(fq) || is_black(fp)) return out;
+        float g = fabs(dot(qs.normal.xyz, w)) * fabs(dot(pt.normal.xyz, w)) / dist2;
+        value = qs.beta.xyz * fq * g * fp * pt.beta.xyz;
+        if (!visible(s, &qs, &pt, steps)) return out;
+        BdptVertex ptm = eye[t_len - 2];
+        BdptVertex qsm = light[max(s_len - 2, 0)];
+        c.pt_rev = vertex_pdf(s, cam, s_len > 1 ? &qsm : 0, &qs, &pt);
+        c.ptm_rev = vertex_pdf(s, cam, &qs, &pt, &ptm);
+        c.qs_rev = vertex_pdf(s, cam, &ptm, &pt, &qs);
+        if (s_len > 1) c.qsm_rev = vertex_pdf(s, cam, &pt, &qs, &qsm);
+    }
+    out.weight = mis_weight(eye, light, s_len, t_len, &c);
+    out.value = value * out.weight;
+    out.pixel = pixel;
+    return out;
+}
+
+/* Strategies of a sample with n_light light and n_eye eye vertices: every (s, t) with
+ * 0 <= s <= n_light, 1 <= t <= n_eye, except (0, 1), which would need the eye path to hit
+ * the pinhole. Index k in [0, count) maps to k + 1 = (t - 1) * (n_light + 1) + s. */
+inline int connection_count(int n_light, int n_eye) { return (n_light + 1) * n_eye - 1; }
+inline void connection_strategy(int k, int n_light, int* s, int* t) {
+    int kk = k + 1;
+    *s = kk % (n_light + 1);
+    *t = kk / (n_light + 1) + 1;
+}
+
+#endif

@@ -1,0 +1,221 @@
+/* The random-walk phase shared by both BDPT techniques (the talk's "Random Walk Phase"):
+ * an eye-path stream and a light-path stream, each extended by one vertex per step and
+ * compacted at once (cl/compact.h); vertices go to pre-allocated per-sample memory.
+ * A sample terminates when both of its subpaths have; regeneration is postponed until a
+ * fraction of the samples has terminated (host: toolkit/techniques/bdpt_base.py). */
+#ifndef BDPT_WALK_H
+#define BDPT_WALK_H
+
+#include "bdpt.h"
+#include "compact.h"
+
+#define VERTEX_WORDS ((int)(sizeof(BdptVertex) / sizeof(uint)))
+
+/* Vertex k of the subpath of pool slot `slot`. */
+inline int vertex_index(int slot, int k) { return slot * MAX_VERTICES + k; }
+
+/* Store one vertex per work-item at memory[index] (index < 0: nothing to store).
+ * Direct: each work-item writes its own 80 bytes, far from its neighbours' (uncoalesced).
+ * Coalesced (the talk's "Coalesced Vertex Scatter", like a matrix transpose): the group
+ * stages its vertices in local memory, then work-item j writes word j, j + LOCAL_SIZE, ...
+ * of the staged block, so consecutive work-items write consecutive words of one vertex.
+ * Both leave identical memory. Every work-item of the group must call this (barriers). */
+inline void store_vertex(__global BdptVertex* memory, int index, const BdptVertex* v,
+                         __local uint* stage, __local int* dest) {
+#if COALESCED_SCATTER
+    int lid = get_local_id(0);
+    dest[lid] = index;
+    if (index >= 0) {
+        const uint* words = (const uint*)v;
+        for (int w = 0; w < VERTEX_WORDS; ++w) stage[lid * VERTEX_WORDS + w] = words[w];
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+    __global uint* out = (__global uint*)memory;
+    for (int k = lid; k < LOCAL_SIZE * VERTEX_WORDS; k += LOCAL_SIZE) {
+        int target = dest[k / VERTEX_WORDS];
+        if (target >= 0) out[target * VERTEX_WORDS + k % VERTEX_WORDS] = stage[k];
+    }
+    barrier(CLK_LOCAL_MEM_FENCE);
+#else
+    if (index >= 0) memory[index] = *v;
+#endif
+}
+
+/* The sampler of the sample in pool slot `slot` (see the dimension table in rng.h). */
+inline Sampler bdpt_sampler(const Camera* cam, uint seed, int id, int sample_base) {
+    int pixels = cam->width * cam->height;
+    return sampler_init(seed, (uint)(id % pixels), (uint)(sample_base + id / pixels));
+}
+
+/* Extend a subpath by one vertex: intersect, store the vertex, sample the BSDF, roulette.
+ * Sets *store_at to where the new vertex goes. Returns false when the subpath has ended. */
+inline bool subpath_extend(const SceneView* s, Subpath* p, Sampler* rng, bool light_path,
+                           BdptVertex* v, int* store_at, int* steps) {
+    float3 d = p->dir.xyz;
+    Hit h = trace_closest(s, p->origin.xyz, d, 0.0f, INFINITY, steps);
+    if (h.tri < 0) return false;
+    Triangle tri = s->tris[h.tri];
+    float3 ng = triangle_normal(&tri);
+    float3 x = p->origin.xyz + h.t * d;
+    float3 from_prev = x - p->prev_pos.xyz;
+    float dist2 = dot(from_prev, from_prev);
+    int k = p->vertices;
+    Material m = s->materials[tri.material];
+    /* pdf_fwd: the solid-angle density of the direction, as an area density here (0 after a delta bounce). */
+    v->pos = (float4)(x, p->origin.w * fabs(dot(ng, d)) / dist2);
+    v->normal = (float4)(ng, 0.0f);
+    v->wo = (float4)(-d, 0.0f);
+    v->beta = (float4)(p->beta.xyz, 0.0f);
+    v->material = tri.material;
+    v->flags = is_specular(m.type) ? VERTEX_DELTA : 0;
+    v->light = tri.light;
+    v->pad = 0;
+    *store_at = vertex_index(p->slot, k);
+    p->vertices = k + 1;
+
+    bool can_continue = k + 1 < MAX_VERTICES;
+#if USE_MAX_DEPTH
+    can_continue = can_continue && k < MAX_DEPTH;
+#endif
+    if (!can_continue) return false;
+
+    float3 n = ng;
+#if HAS_DIELECTRIC
+    if (m.type != MAT_DIELECTRIC && dot(ng, -d) < 0.0f) n = -ng;
+#else
+    if (dot(ng, -d) < 0.0f) n = -ng;
+#endif
+    float3 ts, tt;
+    make_basis(n, &ts, &tt);
+    float3 wo_local = to_local(-d, ts, tt, n);
+    BsdfSample bs;
+    if (!bsdf_sample(&m, wo_local, bdpt_sample(rng, bdpt_scatter_dim(k, light_path, 0)),
+                     bdpt_sample(rng, bdpt_scatter_dim(k, light_path, 1)),
+                     bdpt_sample(rng, bdpt_scatter_dim(k, light_path, 2)), &bs))
+        return false;
+    float3 wi = to_world(bs.wi, ts, tt, n);
+    /* Reverse density: of this vertex choosing the previous one, had it arrived along wi. */
+    float pdf_rev_dir = 0.0f;
+    if (!bs.specular) bsdf_eval(&m, bs.wi, wo_local, &pdf_rev_dir);
+    if (!(p->prev_flags & VERTEX_CAMERA))
+        v->normal.w = pdf_rev_dir * fabs(dot(p->prev_normal.xyz, from_prev)) * rsqrt(dist2) / dist2;
+
+    p->beta.xyz *= bs.weight;
+    p->origin = (float4)(offset_point(s, x, ng, wi), bs.specular ? 0.0f : bs.pdf);
+    p->dir = (float4)(wi, 0.0f);
+    p->prev_pos = (float4)(x, 0.0f);
+    p->prev_normal = (float4)(ng, 0.0f);
+    p->prev_flags = v->flags;
+#if USE_RUSSIAN_ROULETTE
+    /* Roulette as in the path tracers; light paths compare with their throughput at y_1. */
+    if (k >= RR_DEPTH) {
+        float q = fmin(max3(p->beta.xyz) / p->beta.w, 0.95f);
+        if (bdpt_sample(rng, bdpt_scatter_dim(k, light_path, 3)) >= q) return false;
+        p->beta.xyz /= q;
+    }
+#endif
+    return !is_black(p->beta.xyz);
+}
+
+/* One random-walk step over a compacted subpath stream (eye or light). Survivors are packed
+ * into `out`; a subpath that ends records its vertex count, and the sample whose second
+ * subpath this was counts as terminated. */
+__kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
+void bdpt_extend(SCENE_PARAMS, const Camera cam, const uint seed, const int light_path, const int length,
+                 SUBPATH_SOA_PARAMS(in), SUBPATH_SOA_PARAMS(out), volatile __global int* out_length,
+                 __global BdptVertex* vertices, __global int* vertex_count,
+                 volatile __global int* live, volatile __global int* terminated,
+                 __global const int* sample_ids, const int sample_base, __global int4* lane_counts)
+{
+    int gid = get_global_id(0);
+    __local int scratch[COMPACT_SCRATCH_INTS];
+    __local uint stage[LOCAL_SIZE * VERTEX_WORDS];
+    __local int dest[LOCAL_SIZE];
+    bool alive = false;
+    int store_at = -1, steps = 0;
+    BdptVertex v;
+    Subpath p;
+    /* No early return: every work-item must reach the barriers of the scatter and compaction. */
+    if (gid < length) {
+        SceneView s = SCENE_INIT;
+        p = subpath_load(SUBPATH_SOA(in), gid);
+        Sampler rng = bdpt_sampler(&cam, seed, sample_ids[p.slot], sample_base);
+        alive = subpath_extend(&s, &p, &rng, light_path != 0, &v, &store_at, &steps);
+        if (!alive) {
+            vertex_count[p.slot] = p.vertices;
+            if (atomic_dec(&live[p.slot]) == 1) atomic_inc(terminated);
+        }
+    }
+    store_vertex(vertices, store_at, &v, stage, dest);
+    int slot = immediate_compact_slot(alive, scratch, out_length);
+    if (slot >= 0) subpath_store(SUBPATH_SOA(out), slot, &p);
+#if COUNT_SIMD
+    if (gid < length) lane_counts[gid] = (int4)(1, steps, p.slot, 0);
+#endif
+}
+
+/* Start new samples in the terminated pool slots listed in `slots`: the first `fresh` get
+ * samples first_id, first_id + 1, ... (consecutive pixels); the rest go idle (budget spent).
+ * Writes z_0 (camera) and y_0 (point on a light) and appends both subpaths to their streams. */
+__kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const uint seed, const int count, const int fresh,
+                              __global const int* slots, const int first_id, const int sample_base,
+                              SUBPATH_SOA_PARAMS(eye_stream), const int eye_base,
+                              SUBPATH_SOA_PARAMS(light_stream), const int light_base,
+                              __global BdptVertex* eye_vertices, __global BdptVertex* light_vertices,
+                              __global int* eye_vertex_count, __global int* light_vertex_count,
+                              __global int* live, __global int* sample_ids)
+{
+    int gid = get_global_id(0);
+    if (gid >= count) return;
+    int slot = slots[gid];
+    if (gid >= fresh) { live[slot] = -1; return; }
+    SceneView s = SCENE_INIT;
+    int id = first_id + gid;
+    sample_ids[slot] = id;
+    Sampler rng = bdpt_sampler(&cam, seed, id, sample_base);
+    float3 eye_pos = cam.origin.xyz, forward = cam.forward.xyz;
+
+    /* Eye subpath: z_0 is the pinhole; the first direction goes through the pixel. */
+    int pixel = id % (cam.width * cam.height);
+    float x = (float)(pixel % cam.width) + bdpt_sample(&rng, BDPT_DIM_PIXEL);
+    float y = (float)(pixel / cam.width) + bdpt_sample(&rng, BDPT_DIM_PIXEL + 1);
+    float3 w = camera_direction(&cam, x, y);
+    BdptVertex z0 = {(float4)(eye_pos, 1.0f), (float4)(forward, 0.0f), (float4)(0.0f), (float4)(1.0f, 1.0f, 1.0f, 0.0f),
+                     -1, VERTEX_CAMERA, -1, 0};
+    eye_vertices[vertex_index(slot, 0)] = z0;
+    Subpath e = {(float4)(eye_pos, camera_pdf_dir(&cam, w)), (float4)(w, 0.0f), (float4)(1.0f),
+                 (float4)(eye_pos, 0.0f), (float4)(forward, 0.0f), slot, 1, VERTEX_CAMERA, 0};
+    subpath_store(SUBPATH_SOA(eye_stream), eye_base + gid, &e);
+
+    /* Light subpath: y_0 on a light (chosen by power), then a cosine-weighted direction. */
+    LightSample ls = sample_light(&s, bdpt_sample(&rng, BDPT_DIM_LIGHT_PICK),
+                                  bdpt_sample(&rng, BDPT_DIM_LIGHT_POINT), bdpt_sample(&rng, BDPT_DIM_LIGHT_POINT + 1));
+    float inv_pdf = 1.0f / ls.pdf_area;
+    BdptVertex y0 = {(float4)(ls.p, ls.pdf_area), (float4)(ls.n, 0.0f), (float4)(0.0f),
+                     (float4)(inv_pdf, inv_pdf, inv_pdf, 0.0f),
+                     s.tris[s.lights[ls.light].triangle].material, VERTEX_LIGHT, ls.light, 0};
+    light_vertices[vertex_index(slot, 0)] = y0;
+    float3 ts, tt;
+    make_basis(ls.n, &ts, &tt);
+    float3 emit_local = sample_cosine_hemisphere(bdpt_sample(&rng, BDPT_DIM_EMIT_DIR), bdpt_sample(&rng, BDPT_DIM_EMIT_DIR + 1));
+    float3 dir = to_world(emit_local, ts, tt, ls.n);
+    /* Le cos / (pdf_area * cos / pi) = Le pi / pdf_area */
+    float3 beta = ls.emission * (PI * inv_pdf);
+    Subpath l = {(float4)(offset_point(&s, ls.p, ls.n, dir), emit_local.z * INV_PI), (float4)(dir, 0.0f),
+                 (float4)(beta, max3(beta)), (float4)(ls.p, 0.0f), (float4)(ls.n, 0.0f), slot, 1, VERTEX_LIGHT, 0};
+    subpath_store(SUBPATH_SOA(light_stream), light_base + gid, &l);
+
+    eye_vertex_count[slot] = 1;
+    light_vertex_count[slot] = 1;
+    live[slot] = 2;
+}
+
+/* flags[i] = 1 for pool slots whose sample has terminated and waits for its connections. */
+__kernel void bdpt_mark_terminated(const int pool, __global const int* live, __global int* flags)
+{
+    int gid = get_global_id(0);
+    if (gid >= pool) return;
+    flags[gid] = live[gid] == 0;
+}
+
+#endif

@@ -1,0 +1,166 @@
+"""What both bidirectional path tracers share: the random-walk phase over compacted eye and
+light streams with postponed regeneration (cl/bdpt_walk.h), and the pass loop.
+
+One pass, read like the talk's slides:
+    regenerate all samples;
+    repeat:
+        extend the eye stream and the light stream by one vertex each (compacted at once);
+        when enough samples have terminated (default 60%):
+            connect their subpaths (the technique's connect phase), then regenerate them.
+Light-tracing (t = 1) contributions land on other pixels: every connection writes a record
+(pixel, value) and the host adds the records up per pixel in float64 (no float atomics on
+the device). So a pass is an image, and the standard error comes from independent passes.
+"""
+import numpy as np
+import pyopencl as cl
+
+from .. import program
+from ..compaction import Compactor
+from ..layout import BDPT_VERTEX, SUBPATH
+from ..simd import PhaseCounter
+from .base import Technique
+
+
+class BdptTechnique(Technique):
+    pool_size = 1 << 12         # samples in flight (each has MAX_VERTICES eye + light vertices stored)
+    target_batch = 1 << 14      # samples per pass: many passes give the standard error
+    max_vertices = 64           # per subpath when the depth is unbounded; paths this long carry ~1e-10 of the energy at albedo 0.7
+
+    def __init__(self, queue, device_scene, regenerate_fraction=0.6, coalesced_scatter=True, pool_size=None,
+                 **kwargs):
+        scene = device_scene.scene
+        self.max_vertices = min(self.max_vertices, scene.max_depth + 1) if scene.max_depth >= 0 else self.max_vertices
+        defines = {"MAX_VERTICES": self.max_vertices, "COALESCED_SCATTER": bool(coalesced_scatter)}
+        defines.update(kwargs.pop("extra_defines", None) or {})
+        super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
+        if not 0.0 < regenerate_fraction <= 1.0:
+            raise ValueError("regenerate_fraction must be in (0, 1]")
+        self.regenerate_fraction = regenerate_fraction
+        self.coalesced_scatter = coalesced_scatter
+        self.pool_size = pool_size or self.pool_size
+        self.compactor = Compactor(queue)
+        self.uncompacted = PhaseCounter(self.warp_width)   # the walk as it would be without compaction
+        self.walk_seconds = 0.0
+
+    # The film gets one image per pass (splats make samples of one pass dependent).
+    def render(self, width, height, spp, seed=0, progress=None):
+        return super().render(width, height, spp, seed=seed, progress=progress)
+
+    def passes(self, width, height, spp):
+        per_pass = max(1, min(spp, self.target_batch // (width * height)))
+        while spp % per_pass:       # equal passes: the pass-to-pass spread is the error estimate
+            per_pass -= 1
+        return per_pass
+
+    def run_pass(self, film, camera, seed, sample_base, spp):
+        ctx, q = self.queue.context, self.queue
+        width, height = int(camera["width"]), int(camera["height"])
+        budget = width * height * spp
+        pool = min(self.pool_size, budget)
+        mv = self.max_vertices
+        eye_stream, eye_spare = SUBPATH.soa_buffers(ctx, pool), SUBPATH.soa_buffers(ctx, pool)
+        light_stream, light_spare = SUBPATH.soa_buffers(ctx, pool), SUBPATH.soa_buffers(ctx, pool)
+        vertex_bytes = BDPT_VERTEX.dtype.itemsize * pool * mv
+        self.eye_vertices = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes)
+        self.light_vertices = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes)
+        eye_count, light_count = self.int_buffer(pool), self.int_buffer(pool)
+        live = self.int_buffer(pool, fill=-1)
+        sample_ids = self.int_buffer(pool)
+        terminated = self.int_buffer(1, fill=0)
+        out_length = self.int_buffer(1)
+        flags = self.int_buffer(pool)
+        lane_counts = self.lane_counts_buffer(pool)
+        image = np.zeros((width * height, 3))
+        self.pass_nonfinite = 0
+        state = dict(eye_count=eye_count, light_count=light_count, live=live, sample_ids=sample_ids,
+                     pool=pool, camera=camera, seed=seed, lane_counts=lane_counts)
+
+        # All slots start "terminated": regenerate the whole pool.
+        all_slots = cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                              hostbuf=np.arange(pool, dtype=np.int32))
+        fresh = min(pool, budget)
+        self.regenerate(state, all_slots, pool, fresh, 0, sample_base, eye_stream, 0, light_stream, 0)
+        eye_len = light_len = fresh
+        next_id, in_flight = fresh, fresh
+        extend = self.kernel("bdpt_extend")
+        while in_flight > 0:
+            # Random walk: one vertex more on every eye and light subpath, compacted at once.
+            for is_light in (0, 1):
+                length = light_len if is_light else eye_len
+                if length == 0:
+                    continue
+                stream, spare = (light_stream, light_spare) if is_light else (eye_stream, eye_spare)
+                cl.enqueue_fill_buffer(q, out_length, np.int32(0), 0, 4)
+                program.launch(q, extend, length, *self.scene.args(), camera, seed, np.int32(is_light),
+                               np.int32(length), *stream, *spare, out_length,
+                               self.light_vertices if is_light else self.eye_vertices,
+                               light_count if is_light else eye_count, live, terminated, sample_ids,
+                               np.int32(sample_base), lane_counts)
+                survivors = int(self.read_ints(out_length, 1)[0])
+                if self.count_simd:
+                    lanes = self.read_ints(lane_counts, length, 4)
+                    self.simd.add_stream_step("walk", length)
+                    self.simd.add_stream_step("compact", length)
+                    self.traversal.add_warp_loops("closest", lanes[:, 1])
+                    mask = np.zeros(pool, bool)      # without compaction each path keeps its slot's lane
+                    mask[lanes[:, 2]] = True
+                    self.uncompacted.add_stream_step("walk", mask)
+                if is_light:
+                    light_stream, light_spare, light_len = spare, stream, survivors
+                else:
+                    eye_stream, eye_spare, eye_len = spare, stream, survivors
+            done = int(self.read_ints(terminated, 1)[0])
+            # Postponed regeneration: connect and restart once enough samples have terminated.
+            if done >= self.regenerate_fraction * in_flight or (eye_len == 0 and light_len == 0):
+                program.launch(q, self.kernel("bdpt_mark_terminated"), pool, np.int32(pool), live, flags)
+                slots, count = self.compactor.compact_indices(flags, pool, method="immediate")
+                image += self.connect(state, slots, count)
+                fresh = min(count, budget - next_id)
+                self.regenerate(state, slots, count, fresh, next_id, sample_base,
+                                eye_stream, eye_len, light_stream, light_len)
+                eye_len += fresh
+                light_len += fresh
+                next_id += fresh
+                in_flight += fresh - count
+                cl.enqueue_fill_buffer(q, terminated, np.int32(0), 0, 4)
+        film.add_pass(image.reshape(height, width, 3) / spp, spp, nonfinite=self.pass_nonfinite)
+
+    def regenerate(self, state, slots, count, fresh, first_id, sample_base, eye_stream, eye_base,
+                   light_stream, light_base):
+        if count == 0:
+            return
+        program.launch(self.queue, self.kernel("bdpt_regenerate"), count, *self.scene.args(), state["camera"],
+                       state["seed"], np.int32(count), np.int32(fresh), slots, np.int32(first_id),
+                       np.int32(sample_base), *eye_stream, np.int32(eye_base), *light_stream, np.int32(light_base),
+                       self.eye_vertices, self.light_vertices, state["eye_count"], state["light_count"],
+                       state["live"], state["sample_ids"])
+        if self.count_simd and fresh:
+            self.simd.add_stream_step("generate", fresh)
+
+    def connect(self, state, slots, count):
+        """Evaluate the connections of the `count` terminated samples listed in `slots`;
+        returns their contributions per pixel (float64)."""
+        raise NotImplementedError
+
+    def reduce_records(self, values, pixels, npix):
+        """Add connection records (value, pixel) per pixel in float64; non-finite ones are counted and dropped."""
+        ok = pixels >= 0
+        v = values[ok, :3].astype(np.float64)
+        finite = np.isfinite(v).all(1)
+        self.pass_nonfinite += int((~finite).sum())
+        v, p = v[finite], pixels[ok][finite]
+        return np.stack([np.bincount(p, v[:, k], minlength=npix) for k in range(3)], axis=1)
+
+    def read_records(self, value_buffer, pixel_buffer, n):
+        values = np.empty((n, 4), np.float32)
+        pixels = np.empty(n, np.int32)
+        if n:
+            cl.enqueue_copy(self.queue, values, value_buffer)
+            cl.enqueue_copy(self.queue, pixels, pixel_buffer)
+        return values, pixels
+
+    def extra_stats(self):
+        stats = super().extra_stats()
+        if self.count_simd:
+            stats["walk_efficiency_without_compaction"] = self.uncompacted.efficiency().get("walk")
+        return stats

@@ -1,0 +1,45 @@
+"""Bidirectional path tracing with the plain connect phase: the work-item of each sample
+slot loops over all the (s, t) connections of its sample once it has terminated (kernel:
+cl/bdpt_naive_connect.cl); slots still walking idle.
+The random walk (compacted eye/light streams, postponed regeneration) is shared with
+bdpt_parallel_connect: see bdpt_base.py and cl/bdpt_walk.h."""
+import numpy as np
+import pyopencl as cl
+
+from .. import program
+from ..simd import PhaseCounter
+from .bdpt_base import BdptTechnique
+
+
+class BdptNaiveConnect(BdptTechnique):
+    name = "bdpt_naive_connect"
+    source = "bdpt_naive_connect.cl"
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.packed_connect = PhaseCounter(self.warp_width)
+
+    def extra_stats(self):
+        stats = super().extra_stats()
+        if self.count_simd:
+            stats["connect_efficiency_terminated_packed"] = self.packed_connect.efficiency().get("connect")
+        return stats
+
+    def connect(self, state, slots, count):
+        camera = state["camera"]
+        npix = int(camera["width"] * camera["height"])
+        if count == 0:
+            return np.zeros((npix, 3))
+        pool = state["pool"]
+        n = pool * (self.max_vertices + 1)
+        values = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * n)
+        pixels = self.int_buffer(n, fill=-1)
+        program.launch(self.queue, self.kernel("bdpt_naive_connect"), pool, *self.scene.args(), camera,
+                       np.int32(pool), state["live"], self.eye_vertices, self.light_vertices, state["eye_count"],
+                       state["light_count"], state["sample_ids"], values, pixels, state["lane_counts"])
+        if self.count_simd:
+            connections = self.read_ints(state["lane_counts"], pool, 4)[:, 0]
+            self.simd.add_warp_loops("connect", connections)
+            # For comparison: the same loops with only the terminated samples, packed side by side.
+            self.packed_connect.add_warp_loops("connect", connections[connections > 0])
+        return self.reduce_records(*self.read_records(values, pixels, n), npix)

@@ -1,0 +1,36 @@
+"""Bidirectional path tracing with the parallel connect phase (kernel:
+cl/bdpt_parallel_connect.cl): connection counts -> exclusive scan -> one work-item per
+connection, which finds its sample by binary search. Every lane of a warp evaluates one
+connection, whatever the lengths of the subpaths."""
+import numpy as np
+import pyopencl as cl
+
+from .. import program
+from .bdpt_base import BdptTechnique
+
+
+class BdptParallelConnect(BdptTechnique):
+    name = "bdpt_parallel_connect"
+    source = "bdpt_parallel_connect.cl"
+
+    def connect(self, state, slots, count):
+        camera = state["camera"]
+        npix = int(camera["width"] * camera["height"])
+        pool = state["pool"]
+        if count == 0:
+            return np.zeros((npix, 3))
+        counts = self.int_buffer(pool)
+        program.launch(self.queue, self.kernel("bdpt_parallel_connect_count"), pool, np.int32(pool),
+                       state["live"], state["eye_count"], state["light_count"], counts)
+        firsts, total = self.compactor.exclusive_scan(counts, pool)
+        if total == 0:
+            return np.zeros((npix, 3))
+        values = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * total)
+        pixels = self.int_buffer(total)
+        lanes = self.lane_counts_buffer(total)
+        program.launch(self.queue, self.kernel("bdpt_parallel_connect"), total, *self.scene.args(), camera,
+                       np.int32(total), np.int32(pool), firsts, self.eye_vertices, self.light_vertices,
+                       state["eye_count"], state["light_count"], state["sample_ids"], values, pixels, lanes)
+        if self.count_simd:
+            self.simd.add_stream_step("connect", total)
+        return self.reduce_records(*self.read_records(values, pixels, total), npix)
