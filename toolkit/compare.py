@@ -111,3 +111,25 @@ def save_plots(scene_name, results, ref, out_dir, warp_width):
     paths["images"] = str(out_dir / f"{scene_name}_image_strip.png")
     fig.savefig(paths["images"], dpi=100)
     return paths
+
+
+def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=None):
+    """Each technique renders for about `seconds` (its spp chosen from a short timing run);
+    returns {technique: {"spp", "seconds", "rmse"}} against the scene's reference."""
+    scene = as_scene(scene)
+    width, height = resolution
+    ref, _ = reference_at(scene, width, height)
+    if ref is None:
+        raise ValueError(f"{scene.name} has no reference image at {width}x{height}")
+    out = {}
+    for name in techniques:
+        # Warm-up (kernel builds, PoCL's first-launch compile), then a timing probe.
+        render(scene, technique=name, spp=1, seed=seed + 999, resolution=resolution, device=device, count_simd=False)
+        probe = render(scene, technique=name, spp=8, seed=seed + 1000, resolution=resolution,
+                       device=device, count_simd=False)
+        per_spp = probe.stats["seconds"] / 8
+        spp = max(1, int(seconds / per_spp))
+        result = render(scene, technique=name, spp=spp, seed=seed, resolution=resolution, device=device,
+                        count_simd=False)
+        out[name] = {"spp": spp, "seconds": result.stats["seconds"], "rmse": rmse(result.image, ref)}
+    return out

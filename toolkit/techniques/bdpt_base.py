@@ -74,6 +74,7 @@ class BdptTechnique(Technique):
         self.pass_nonfinite = 0
         state = dict(eye_count=eye_count, light_count=light_count, live=live, sample_ids=sample_ids,
                      pool=pool, camera=camera, seed=seed, lane_counts=lane_counts)
+        self.last_pass = state   # kept for inspection (tests, notebooks): the vertex memory of the last samples
 
         # All slots start "terminated": regenerate the whole pool.
         all_slots = cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
@@ -164,3 +165,15 @@ class BdptTechnique(Technique):
         if self.count_simd:
             stats["walk_efficiency_without_compaction"] = self.uncompacted.efficiency().get("walk")
         return stats
+
+    def read_vertices(self):
+        """The vertex memory of the last samples of the last pass, as numpy:
+        (eye vertices, eye counts, light vertices, light counts), vertices shaped (pool, MAX_VERTICES)."""
+        state = self.last_pass
+        pool = state["pool"]
+        out = []
+        for buffer, counts in ((self.eye_vertices, state["eye_count"]), (self.light_vertices, state["light_count"])):
+            v = np.empty(pool * self.max_vertices, BDPT_VERTEX.dtype)
+            cl.enqueue_copy(self.queue, v, buffer)
+            out += [v.reshape(pool, self.max_vertices), self.read_ints(counts, pool)]
+        return tuple(out)
