@@ -8,8 +8,11 @@ from .api import as_scene, render
 from .device import has_gpu
 
 
-def bench(scene=None, techniques=("pt_naive", "pt_inplace_regen", "pt_compact_regen", "pt_compact_regen/multipass"),
-          spp=16, resolution=(128, 128), repeats=3, seed=0, device=None):
+DEFAULT = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "pt_compact_regen/multipass",
+           "bdpt_naive_connect", "bdpt_parallel_connect", "bdpt_parallel_connect/direct_scatter")
+
+
+def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats=3, seed=0, device=None):
     scene = as_scene(scene)
     for name in techniques:   # warm-up: kernel builds and BVH outside the timings
         render(scene, technique=name, spp=1, resolution=(16, 16), device=device, count_simd=False)
@@ -17,7 +20,9 @@ def bench(scene=None, techniques=("pt_naive", "pt_inplace_regen", "pt_compact_re
     device_name = None
     for r in range(repeats):
         for name in techniques:
-            result = render(scene, technique=name, spp=spp, seed=seed + r, resolution=resolution,
+            # Bidirectional samples cost ~10x more: an eighth of the budget keeps the runs comparable in length.
+            n = max(1, spp // 8) if name.startswith("bdpt") else spp
+            result = render(scene, technique=name, spp=n, seed=seed + r, resolution=resolution,
                             device=device, count_simd=False)
             rates[name].append(result.stats["samples_per_second"])
             device_name = result.stats["device"]
@@ -29,6 +34,17 @@ def bench(scene=None, techniques=("pt_naive", "pt_inplace_regen", "pt_compact_re
                                   f"ratio_to_{base}": median[name] / median[base]} for name in techniques}}
 
 
+def format_equal_time(report, seconds):
+    lines = [f"equal time (~{seconds:g} s each): RMSE against the reference"]
+    for name, row in report.items():
+        lines.append(f"  {name:<30}{row['spp']:>7} spp {row['seconds']:>7.2f} s   RMSE {row['rmse']:.5f}")
+    pt = [r["rmse"] for n, r in report.items() if n.startswith("pt")]
+    bd = [r["rmse"] for n, r in report.items() if n.startswith("bdpt")]
+    if pt and bd:
+        lines.append(f"  best BDPT / best PT RMSE: {min(bd) / min(pt):.2f}")
+    return "\n".join(lines)
+
+
 def format_bench(report):
     base = next(iter(report["techniques"]))
     lines = [f"bench: {report['scene']} {report['resolution'][0]}x{report['resolution'][1]}, {report['spp']} spp, "
@@ -36,7 +52,7 @@ def format_bench(report):
     if not report["gpu"]:
         lines.append("No GPU here: these figures describe PoCL on a CPU, where idle SIMD lanes cost little; "
                      "the SIMD-efficiency counters (python -m toolkit compare) are what predict GPU behaviour.")
-    lines.append(f"{'technique':<30}{'samples/s':>14}{'ratio to ' + base:>24}")
+    lines.append(f"{'technique':<38}{'samples/s':>12}{'ratio to ' + base:>22}")
     for name, row in report["techniques"].items():
-        lines.append(f"{name:<30}{row['samples_per_second']:>14,.0f}{row[f'ratio_to_{base}']:>24.2f}")
+        lines.append(f"{name:<38}{row['samples_per_second']:>12,.0f}{row[f'ratio_to_{base}']:>22.2f}")
     return "\n".join(lines)

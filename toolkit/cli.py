@@ -61,11 +61,13 @@ def build_parser():
 
     p = sub.add_parser("bench", help="samples/s of each technique and their ratios, measured in one run")
     p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
-    p.add_argument("--techniques", default="pt_naive,pt_inplace_regen,pt_compact_regen,pt_compact_regen/multipass",
-                   help=f"comma-separated, from: {names}")
-    p.add_argument("--spp", type=_positive, default=16)
+    from .bench import DEFAULT
+    p.add_argument("--techniques", default=",".join(DEFAULT), help=f"comma-separated, from: {names}")
+    p.add_argument("--spp", type=_positive, default=16, help="samples per pixel for path tracers (BDPT: an eighth)")
     p.add_argument("--resolution", type=_resolution, default=(128, 128))
     p.add_argument("--repeats", type=_positive, default=3)
+    p.add_argument("--equal-time", type=float, metavar="SECONDS",
+                   help="instead: render each technique for about SECONDS and compare RMSE against the reference")
     p.add_argument("--json", action="store_true")
     return parser
 
@@ -145,7 +147,16 @@ def cmd_compare(args):
 
 
 def cmd_bench(args):
-    from .bench import bench, format_bench
+    from .bench import bench, format_bench, format_equal_time
+    if args.equal_time:
+        from .compare import equal_time
+        scene = args.scene or "scenes/cornell_spheres"
+        report = equal_time(scene, _technique_list(args.techniques), args.equal_time,
+                            resolution=args.resolution, device=args.device)
+        print(format_equal_time(report, args.equal_time))
+        if args.json:
+            print(json.dumps(report))
+        return 0
     report = bench(args.scene, tuple(_technique_list(args.techniques)), spp=args.spp,
                    resolution=args.resolution, repeats=args.repeats, device=args.device)
     print(format_bench(report))

@@ -5,12 +5,16 @@ from .pt_compact_regen import PtCompactRegen
 from .pt_inplace_regen import PtInplaceRegen
 from .pt_naive import PtNaive
 
+__all__ = ["TECHNIQUES", "VARIANTS", "get_technique", "PtNaive", "PtInplaceRegen", "PtCompactRegen",
+           "BdptNaiveConnect", "BdptParallelConnect"]
+
 TECHNIQUES = {cls.name: cls for cls in (PtNaive, PtInplaceRegen, PtCompactRegen,
                                         BdptNaiveConnect, BdptParallelConnect)}
 
 
 # Variants: the same technique with an option set, for side-by-side measurements.
-VARIANTS = {"pt_compact_regen/multipass": ("pt_compact_regen", {"compaction": "multipass"})}
+VARIANTS = {"pt_compact_regen/multipass": ("pt_compact_regen", {"compaction": "multipass"}),
+            "bdpt_parallel_connect/direct_scatter": ("bdpt_parallel_connect", {"coalesced_scatter": False})}
 
 
 def get_technique(name):
