@@ -45,6 +45,12 @@ def build_parser():
 
     sub.add_parser("devices", help="list OpenCL platforms and devices, and which one the toolkit picks")
 
+    p = sub.add_parser("crosscheck", help="our BVH traversal against Embree: agreement figures")
+    p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
+    p.add_argument("--rays", type=_positive, default=100_000, help="random rays besides the camera rays")
+    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--json", action="store_true")
+
     from .techniques import VARIANTS
     names = ", ".join([*sorted(TECHNIQUES), *VARIANTS])
     p = sub.add_parser("compare", help="several techniques side by side: time, SIMD efficiency, error")
@@ -89,6 +95,8 @@ def main(argv=None):
             return cmd_compare(args)
         if args.command == "bench":
             return cmd_bench(args)
+        if args.command == "crosscheck":
+            return cmd_crosscheck(args)
     except (SceneError, NoOpenCLError, KernelBuildError, ValueError, OSError) as error:
         print(f"error: {error}", file=sys.stderr)
         return 2
@@ -163,3 +171,13 @@ def cmd_bench(args):
     if args.json:
         print(json.dumps(report))
     return 0
+
+
+def cmd_crosscheck(args):
+    from .api import as_scene
+    from .crosscheck import compare_with_embree, format_figures
+    figures = compare_with_embree(as_scene(args.scene), n_random=args.rays, seed=args.seed)
+    print(format_figures(figures))
+    if args.json:
+        print(json.dumps(figures, default=lambda x: x.item() if hasattr(x, "item") else str(x)))
+    return 0 if figures.get("unexplained", 0) == 0 else 1

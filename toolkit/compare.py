@@ -51,15 +51,17 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=32, out_
 def format_table(table, warp_width=32):
     phases = [p for p in PHASES if any(p in row["simd_efficiency"] for row in table.values())]
     head = f"{'technique':<28}{'seconds':>9}{'samples/s':>12}" + "".join(f"{p:>10}" for p in phases) + \
-        f"{'overall':>10}{'RMSE ref':>11}"
-    lines = [f"SIMD efficiency = active lanes / lanes issued, warps of {warp_width} (an upper bound, as in the talk)",
+        f"{'overall':>10}{'BVH trav':>10}{'RMSE ref':>11}"
+    lines = [f"SIMD efficiency = active lanes / lanes issued, warps of {warp_width} (an upper bound, as in the talk);",
+             "BVH trav = traversal steps per lane / the warp's longest traversal (divergence inside intersection)",
              head, "-" * len(head)]
     for name, row in table.items():
         eff = row["simd_efficiency"]
         cells = "".join(f"{eff[p]:>10.1%}" if p in eff else f"{'-':>10}" for p in phases)
         r = f"{row['rmse']:>11.5f}" if row["rmse"] is not None else f"{'-':>11}"
+        trav = row["traversal_efficiency"].get("closest", float("nan"))
         lines.append(f"{name:<28}{row['seconds']:>9.2f}{row['samples_per_second']:>12,.0f}{cells}"
-                     f"{eff.get('overall', float('nan')):>10.1%}{r}")
+                     f"{eff.get('overall', float('nan')):>10.1%}{trav:>10.1%}{r}")
     names = list(table)
     if len(names) > 1:
         lines.append("RMSE between techniques: " + ", ".join(
@@ -114,22 +116,41 @@ def save_plots(scene_name, results, ref, out_dir, warp_width):
 
 
 def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=None):
-    """Each technique renders for about `seconds` (its spp chosen from a short timing run);
-    returns {technique: {"spp", "seconds", "rmse"}} against the scene's reference."""
+    """Each technique renders for `seconds` of wall time: chunks of samples (independent seeds)
+    until the time is spent, so every technique gets the same time whatever its speed.
+    Returns {technique: {"spp", "seconds", "rmse"}} against the scene's reference."""
+    import time
     scene = as_scene(scene)
     width, height = resolution
-    ref, _ = reference_at(scene, width, height)
+    ref, ref_err = reference_at(scene, width, height)
     if ref is None:
         raise ValueError(f"{scene.name} has no reference image at {width}x{height}")
+    hard = hard_pixels(ref, ref_err)
     out = {}
     for name in techniques:
-        # Warm-up (kernel builds, PoCL's first-launch compile), then a timing probe.
+        # Warm-up (kernel builds, PoCL's first-launch compile) and a probe to size the chunks.
         render(scene, technique=name, spp=1, seed=seed + 999, resolution=resolution, device=device, count_simd=False)
-        probe = render(scene, technique=name, spp=8, seed=seed + 1000, resolution=resolution,
-                       device=device, count_simd=False)
-        per_spp = probe.stats["seconds"] / 8
-        spp = max(1, int(seconds / per_spp))
-        result = render(scene, technique=name, spp=spp, seed=seed, resolution=resolution, device=device,
-                        count_simd=False)
-        out[name] = {"spp": spp, "seconds": result.stats["seconds"], "rmse": rmse(result.image, ref)}
+        probe = render(scene, technique=name, spp=8, seed=seed + 998, resolution=resolution, device=device,
+                       count_simd=False)
+        chunk = max(1, int(seconds / 10 / (probe.stats["seconds"] / 8)))
+        total, spp, k = np.zeros((height, width, 3)), 0, 0
+        start = time.perf_counter()
+        while time.perf_counter() - start < seconds:
+            result = render(scene, technique=name, spp=chunk, seed=seed + k, resolution=resolution,
+                            device=device, count_simd=False)
+            total += result.image * chunk
+            spp += chunk
+            k += 1
+        image = total / spp
+        out[name] = {"spp": spp, "seconds": time.perf_counter() - start, "rmse": rmse(image, ref),
+                     "rmse_hard_pixels": rmse(image[hard], ref[hard])}
     return out
+
+
+def hard_pixels(ref, ref_err, fraction=0.1):
+    """The pixels that are hardest for a path tracer: the `fraction` with the largest relative
+    standard error in the reference (itself a path-traced render: Mitsuba's path integrator).
+    In cornell_spheres these are the caustics and the light seen through the spheres."""
+    rel = (ref_err / np.maximum(ref, 1e-6)).mean(-1)
+    rel[ref.mean(-1) <= 0] = 0.0
+    return rel >= np.quantile(rel, 1.0 - fraction)
