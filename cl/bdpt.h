@@ -170,6 +170,15 @@ inline bool visible(const SceneView* s, const BdptVertex* a, const BdptVertex* b
     return !trace_any(s, from, seg / len, 0.0f, len, steps);
 }
 
+/* What the light subpath's end y_{s-1} sends towards w: the emitted radiance at the light
+ * origin (one-sided), otherwise its BSDF for light arriving from y_{s-2}. */
+inline float3 light_end_f(const SceneView* s, const BdptVertex* qs, int s_len, float3 w) {
+    if (s_len == 1)
+        return dot(qs->normal.xyz, w) > 0.0f ? s->lights[qs->light].emission.xyz : (float3)(0.0f);
+    float unused;
+    return vertex_bsdf(s, qs, qs->wo.xyz, w, &unused);
+}
+
 /* Evaluate strategy (s, t) of the sample whose subpaths are `eye` (t_max vertices) and `light`.
  * `own_pixel` is where eye-path strategies land. Returns value 0 / pixel -1 when the strategy
  * cannot make a path (delta endpoint, light's back side, occluded, outside the image...). */
@@ -199,13 +208,7 @@ inline Connection connect_strategy(const SceneView* s, const Camera* cam, __glob
         float3 w = d * rsqrt(dist2);            /* from qs towards the camera */
         pixel = camera_pixel(cam, -w);
         if (pixel < 0) return out;
-        float3 f;
-        if (s_len == 1) {
-            f = dot(qs.normal.xyz, w) > 0.0f ? s->lights[qs.light].emission.xyz : (float3)(0.0f);
-        } else {
-            float unused;
-            f = vertex_bsdf(s, &qs, qs.wo.xyz, w, &unused);
-        }
+        float3 f = light_end_f(s, &qs, s_len, w);
         if (is_black(f)) return out;
         float cos_cam = dot(-w, cam->forward.xyz);
         float we = 1.0f / (film_area(cam) * cos_cam * cos_cam * cos_cam * cos_cam);
@@ -223,13 +226,7 @@ inline Connection connect_strategy(const SceneView* s, const Camera* cam, __glob
         float3 d = pt.pos.xyz - qs.pos.xyz;
         float dist2 = dot(d, d);
         float3 w = d * rsqrt(dist2);            /* from qs towards pt */
-        float3 fq;
-        if (s_len == 1) {
-            fq = dot(qs.normal.xyz, w) > 0.0f ? s->lights[qs.light].emission.xyz : (float3)(0.0f);
-        } else {
-            float unused;
-            fq = vertex_bsdf(s, &qs, qs.wo.xyz, w, &unused);
-        }
+        float3 fq = light_end_f(s, &qs, s_len, w);
         float unused;
         float3 fp = vertex_bsdf(s, &pt, pt.wo.xyz, -w, &unused);
         if (is_black(fq) || is_black(fp)) return out;

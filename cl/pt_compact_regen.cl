@@ -70,12 +70,7 @@ __kernel void pt_compact_regen_extend_flags(SCENE_PARAMS, const uint seed, const
     if (gid >= length) return;
     LaneCounters count = {0, 0, 0};
     SceneView s = SCENE_INIT;
-    PathStateSoA paths = PATH_STATE_SOA(path);
-    PathState p = path_state_load(paths, gid);
-    bool continues = path_extend(&s, &p, seed, &count);
-    if (continues) path_state_store(paths, gid, &p);
-    else path_finish(radiance, &p);
-    alive[gid] = continues;
+    alive[gid] = path_extend_in_place(&s, PATH_STATE_SOA(path), gid, seed, &count, radiance);
 #if COUNT_SIMD
     lane_counts[gid] = (int4)(1, count.traversal_steps, count.shadow_rays, count.shadow_steps);
 #endif
