@@ -268,3 +268,17 @@ def test_device_helper_compacts_struct_records(queue, record_program, n):
     np.testing.assert_array_equal(alive["generation"], records["generation"][alive["source"]] + 1)
     np.testing.assert_array_equal(dead["payload"], records["payload"][dead["source"]])
     np.testing.assert_array_equal(dead["generation"], records["generation"][dead["source"]])
+
+
+def test_exclusive_scan_on_a_fresh_compactor(queue):
+    """exclusive_scan works as the first call on a new Compactor (it once relied on state set
+    by compact_indices)."""
+    import pyopencl as cl
+    from toolkit.compaction import Compactor
+    counts = np.array([0, 3, 0, 2, 8, 0, 5, 7], np.int32)
+    buf = cl.Buffer(queue.context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=counts)
+    out, total = Compactor(queue).exclusive_scan(buf, len(counts))
+    firsts = np.empty_like(counts)
+    cl.enqueue_copy(queue, firsts, out)
+    assert total == counts.sum()
+    np.testing.assert_array_equal(firsts, np.concatenate([[0], np.cumsum(counts)[:-1]]))

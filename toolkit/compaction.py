@@ -39,6 +39,7 @@ class Compactor:
         self._kernels = {name: cl.Kernel(self.program, name) for name in
                          ("scan_blocks", "scan_add_block_offsets", "compact_scatter", "compact_immediate")}
         self.last_stats = None
+        self._launches = 0
 
     # -- public API -------------------------------------------------------------------------
 

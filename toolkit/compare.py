@@ -78,13 +78,13 @@ def save_plots(scene_name, results, ref, out_dir, warp_width):
     fig = Figure(figsize=(12, 4))
     ax1, ax2 = fig.subplots(1, 2)
     for name, result in results.items():
-        steps = [it for it in result.iterations if it["phase"] == "extend"]
+        steps = [it for it in result.iterations if it["phase"] in ("extend", "walk")]
         if not steps:
             continue
         x = [it["iteration"] for it in steps]
         ax1.plot(x, [100 * it["efficiency"] for it in steps], label=name, lw=1)
         ax2.plot(x, [100 * it["active"] / it["capacity"] for it in steps], label=name, lw=1)
-    ax1.set(xlabel="extension iteration", ylabel=f"SIMD efficiency of extend (%), W={warp_width}",
+    ax1.set(xlabel="extension iteration", ylabel=f"SIMD efficiency of extend/walk (%), W={warp_width}",
             title=f"{scene_name}: active lanes per issued lane", ylim=(0, 105))
     ax2.set(xlabel="extension iteration", ylabel="stream occupancy (% of lanes with a live path)",
             title=f"{scene_name}: live paths in the stream", ylim=(0, 105))

@@ -100,7 +100,8 @@ class BdptTechnique(Technique):
                 survivors = int(self.read_ints(out_length, 1)[0])
                 if self.count_simd:
                     lanes = self.read_ints(lane_counts, length, 4)
-                    self.simd.add_stream_step("walk", length)
+                    self.simd.add_stream_step("walk", length, iteration=self.iterations, capacity=pool)
+                    self.iterations += 1
                     self.simd.add_stream_step("compact", length)
                     self.traversal.add_warp_loops("closest", lanes[:, 1])
                     mask = np.zeros(pool, bool)      # without compaction each path keeps its slot's lane
