@@ -41,12 +41,13 @@ class Film:
 
     def add_pass(self, image, spp, nonfinite=0):
         """A whole pass as one image of spp samples per pixel (techniques whose samples add to
-        other pixels, like BDPT's light tracing): the pixel's passes are its independent
-        estimates, each counted with weight spp. All passes of a render have the same spp."""
+        other pixels, like BDPT's light tracing): each pass is an independent estimate of the
+        image. Passes may differ in size: a pass of n samples has variance sigma^2 / n, so
+        passes are weighted by n and sigma^2 is estimated from their spread (see stderr)."""
         value = image.reshape(-1, 3).astype(np.float64)
         self.passes += 1
-        self.pass_sum += value
-        self.pass_sum_sq += value ** 2
+        self.pass_sum += spp * value
+        self.pass_sum_sq += spp * value ** 2
         self.count += spp
         self.nonfinite_samples += int(nonfinite)
 
@@ -62,16 +63,17 @@ class Film:
 
     def image(self):
         if self.passes:
-            return (self.pass_sum / self.passes).reshape(self.height, self.width, 3)
+            return (self.pass_sum / self.count[:, None]).reshape(self.height, self.width, 3)
         n = np.maximum(self.count, 1)[:, None]
         return (self.sum / n).reshape(self.height, self.width, 3)
 
     def stderr(self):
         if self.passes:
-            k = self.passes
-            mean = self.pass_sum / k
-            var = np.maximum(self.pass_sum_sq / k - mean ** 2, 0.0) * (k / max(k - 1, 1))
-            return np.sqrt(var / k).reshape(self.height, self.width, 3)
+            # sigma^2 per sample from sum_i n_i (x_i - mean)^2 / (k - 1); the mean of N samples has sigma^2 / N.
+            n = self.count[:, None].astype(np.float64)
+            mean = self.pass_sum / n
+            sigma2 = np.maximum(self.pass_sum_sq - n * mean ** 2, 0.0) / max(self.passes - 1, 1)
+            return np.sqrt(sigma2 / n).reshape(self.height, self.width, 3)
         n = np.maximum(self.count, 1)[:, None]
         mean = self.sum / n
         var = np.maximum(self.sum_sq / n - mean ** 2, 0.0) * (n / np.maximum(n - 1, 1))

@@ -42,15 +42,11 @@ class BdptTechnique(Technique):
         self.uncompacted = PhaseCounter(self.warp_width)   # the walk as it would be without compaction
         self.walk_seconds = 0.0
 
-    # The film gets one image per pass (splats make samples of one pass dependent).
-    def render(self, width, height, spp, seed=0, progress=None):
-        return super().render(width, height, spp, seed=seed, progress=progress)
-
     def passes(self, width, height, spp):
-        per_pass = max(1, min(spp, self.target_batch // (width * height)))
-        while spp % per_pass:       # equal passes: the pass-to-pass spread is the error estimate
-            per_pass -= 1
-        return per_pass
+        """Samples per pixel in one pass: the error comes from the spread between passes, so
+        aim for at least 16 of them (a t-test with few degrees of freedom has little power)."""
+        by_batch = super().passes(width, height, spp)
+        return max(1, min(by_batch, -(-spp // 16)))
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         ctx, q = self.queue.context, self.queue
