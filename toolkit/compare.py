@@ -12,7 +12,7 @@ from .api import as_scene, render
 from .images import to_srgb8, write_image
 from .reference import reference_at, rmse
 
-PHASES = ["generate", "extend", "shadow", "compact", "walk", "connect"]
+PHASES = ["generate", "extend", "walk", "shadow", "compact", "connect"]
 
 
 def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=32, out_dir="out/compare",
