@@ -54,11 +54,14 @@ class BdptTechnique(Technique):
         budget = width * height * spp
         pool = min(self.pool_size, budget)
         mv = self.max_vertices
-        eye_stream, eye_spare = SUBPATH.soa_buffers(ctx, pool), SUBPATH.soa_buffers(ctx, pool)
-        light_stream, light_spare = SUBPATH.soa_buffers(ctx, pool), SUBPATH.soa_buffers(ctx, pool)
-        vertex_bytes = BDPT_VERTEX.dtype.itemsize * pool * mv
-        self.eye_vertices = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes)
-        self.light_vertices = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes)
+        # The streams and the vertex memory (tens of MB) are allocated once per pool size, not per pass.
+        if getattr(self, "_pool_buffers", (None,))[0] != pool:
+            vertex_bytes = BDPT_VERTEX.dtype.itemsize * pool * mv
+            self._pool_buffers = (pool, [SUBPATH.soa_buffers(ctx, pool) for _ in range(4)],
+                                  cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes),
+                                  cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes))
+        _, (eye_stream, eye_spare, light_stream, light_spare), self.eye_vertices, self.light_vertices = \
+            self._pool_buffers
         eye_count, light_count = self.int_buffer(pool), self.int_buffer(pool)
         live = self.int_buffer(pool, fill=-1)
         sample_ids = self.int_buffer(pool)
