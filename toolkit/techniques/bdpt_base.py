@@ -42,12 +42,6 @@ class BdptTechnique(Technique):
         self.uncompacted = PhaseCounter(self.warp_width)   # the walk as it would be without compaction
         self.walk_seconds = 0.0
 
-    def passes(self, width, height, spp):
-        """Samples per pixel in one pass: the error comes from the spread between passes, so
-        aim for at least 16 of them (a t-test with few degrees of freedom has little power)."""
-        by_batch = super().passes(width, height, spp)
-        return max(1, min(by_batch, -(-spp // 16)))
-
     def run_pass(self, film, camera, seed, sample_base, spp):
         ctx, q = self.queue.context, self.queue
         width, height = int(camera["width"]), int(camera["height"])
