@@ -129,3 +129,13 @@ def test_render_from_python_rejects_bad_spp():
     import toolkit
     with pytest.raises(ValueError, match="spp"):
         toolkit.render(None, spp=0, resolution=(8, 8))
+
+
+def test_device_option_before_or_after_the_command(tmp_path):
+    out = str(tmp_path / "d.exr")
+    for args in (["--device", "0:0", "render"], ["render", "--device", "0:0"]):
+        result = run_cli(*args, "--json", "--spp", "1", "--resolution", "8x8", "--out", out)
+        assert result.returncode == 0, result.stderr
+        assert summary(result)["device"]
+    bad = run_cli("render", "--device", "9:9", "--spp", "1", "--resolution", "8x8", "--out", out)
+    assert bad.returncode == 2 and "no OpenCL device 9:9" in bad.stderr and "Traceback" not in bad.stderr

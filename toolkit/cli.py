@@ -33,7 +33,13 @@ def build_parser():
     parser.add_argument("--device", help="OpenCL device: P:D indices or a name part (overrides PYOPENCL_CTX)")
     sub = parser.add_subparsers(dest="command", required=True)
 
+    def device_option(p):
+        # Also accepted after the command; SUPPRESS keeps a value given before it.
+        p.add_argument("--device", default=argparse.SUPPRESS,
+                       help="OpenCL device: P:D indices or a name part (overrides PYOPENCL_CTX)")
+
     p = sub.add_parser("render", help="render a scene with one technique")
+    device_option(p)
     p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
     p.add_argument("--technique", default="pt_naive", choices=sorted(TECHNIQUES))
     p.add_argument("--spp", type=_positive, default=64, help="samples per pixel (default 64)")
@@ -46,6 +52,7 @@ def build_parser():
     sub.add_parser("devices", help="list OpenCL platforms and devices, and which one the toolkit picks")
 
     p = sub.add_parser("crosscheck", help="our BVH traversal against Embree: agreement figures")
+    device_option(p)
     p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
     p.add_argument("--rays", type=_positive, default=100_000, help="random rays besides the camera rays")
     p.add_argument("--seed", type=int, default=0)
@@ -54,6 +61,7 @@ def build_parser():
     from .techniques import VARIANTS
     names = ", ".join([*sorted(TECHNIQUES), *VARIANTS])
     p = sub.add_parser("compare", help="several techniques side by side: time, SIMD efficiency, error")
+    device_option(p)
     p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
     p.add_argument("--techniques", default="pt_naive,pt_inplace_regen,pt_compact_regen",
                    help=f"comma-separated, from: {names}")
@@ -66,6 +74,7 @@ def build_parser():
     p.add_argument("--no-progress", action="store_true")
 
     p = sub.add_parser("bench", help="samples/s of each technique and their ratios, measured in one run")
+    device_option(p)
     p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
     from .bench import DEFAULT
     p.add_argument("--techniques", default=",".join(DEFAULT), help=f"comma-separated, from: {names}")
