@@ -31,7 +31,7 @@ inline LightSample sample_light(const SceneView* s, float u_pick, float u1, floa
     float r = sqrt(u1);              /* uniform on the triangle (Shirley's square-root map) */
     float b1 = u2 * r, b2 = 1.0f - r;
     LightSample ls;
-    ls.p = tri.v0.xyz + b1 * tri.e1.xyz + b2 * tri.e2.xyz;
+    ls.p = tri.v0.xyz + b1 * (tri.v1.xyz - tri.v0.xyz) + b2 * (tri.v2.xyz - tri.v0.xyz);
     ls.n = triangle_normal(&tri);
     ls.emission = light.emission.xyz;
     ls.pdf_area = tri.light_pdf;

@@ -33,6 +33,8 @@ inline float3 offset_point(const SceneView* s, float3 p, float3 n, float3 w) {
     return p + (dot(n, w) >= 0.0f ? e : -e) * n;
 }
 
-inline float3 triangle_normal(const Triangle* t) { return normalize(cross(t->e1.xyz, t->e2.xyz)); }
+inline float3 triangle_normal(const Triangle* t) {
+    return normalize(cross(t->v1.xyz - t->v0.xyz, t->v2.xyz - t->v0.xyz));
+}
 
 #endif

@@ -42,8 +42,8 @@ class DeviceScene:
         tv = tri_vertices[order].astype(np.float32)
         self.triangles = TRIANGLE.zeros(len(order))
         self.triangles["v0"][:, :3] = tv[:, 0]
-        self.triangles["e1"][:, :3] = tv[:, 1] - tv[:, 0]
-        self.triangles["e2"][:, :3] = tv[:, 2] - tv[:, 0]
+        self.triangles["v1"][:, :3] = tv[:, 1]
+        self.triangles["v2"][:, :3] = tv[:, 2]
         self.triangles["material"] = scene.material_of[order]
         self.triangles["prim"] = order
         self.triangles["light"] = -1

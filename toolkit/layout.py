@@ -72,13 +72,13 @@ BVH_NODE = Record("BvhNode", [
 
 TRIANGLE = Record("Triangle", [
     ("v0", "float4"),   # .w unused
-    ("e1", "float4"),   # v1 - v0
-    ("e2", "float4"),   # v2 - v0
+    ("v1", "float4"),   # the vertices themselves, not edges: a shared vertex is bit-identical
+    ("v2", "float4"),   #   in every triangle, which the watertight ray test needs
     ("material", "int"),
     ("prim", "int"),    # index of the triangle in the scene (BVH order differs)
     ("light_pdf", "float"),  # density per unit area with which light sampling picks a point here
     ("light", "int"),        # index into the light array, -1: not a light
-], "A triangle in BVH leaf order with precomputed edges, 64 bytes.")
+], "A triangle in BVH leaf order, 64 bytes.")
 
 MATERIAL = Record("Material", [
     ("reflectance", "float4"),
