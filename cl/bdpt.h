@@ -32,8 +32,6 @@
 #define MAX_VERTICES 64  /* per subpath; set by the host (toolkit/techniques/bdpt_base.py) */
 #endif
 
-inline float pdf_fwd(const BdptVertex* v) { return v->pos.w; }
-inline float prev_pdf_rev(const BdptVertex* v) { return v->normal.w; }
 inline bool is_delta(const BdptVertex* v) { return (v->flags & VERTEX_DELTA) != 0; }
 inline bool is_camera(const BdptVertex* v) { return (v->flags & VERTEX_CAMERA) != 0; }
 inline bool is_light_origin(const BdptVertex* v) { return (v->flags & VERTEX_LIGHT) != 0; }

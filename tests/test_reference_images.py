@@ -49,3 +49,9 @@ def test_z_test_detects_a_wrong_image(cornell_box):
     ref, ref_err = reference_at(cornell_box, res, res)
     assert z_test(result.image, result.stderr, ref, ref_err).passed
     assert not z_test(result.image * 0.97, result.stderr, ref, ref_err).passed
+
+
+def test_z_test_refuses_too_few_passes(cornell_box):
+    ref, ref_err = reference_at(cornell_box, 8, 8)
+    with pytest.raises(ValueError, match="degrees of freedom"):
+        z_test(ref + 1.0, ref_err + 1e-3, ref, ref_err, dof=1)

@@ -79,7 +79,6 @@ class DeviceScene:
         self.lights["triangle"] = slot_of[light_tris]
         self.triangles["light"][slot_of[light_tris]] = np.arange(len(light_tris))
         self.triangles["light_pdf"][slot_of[light_tris]] = prob / area
-        self.light_probabilities = prob
 
     def camera(self, width, height):
         """The Camera record for an image of width x height (same field of view as the scene's)."""
@@ -96,7 +95,3 @@ class DeviceScene:
     def args(self):
         """The SCENE_PARAMS kernel arguments (cl/scene.h)."""
         return [*self.buffers, np.int32(len(self.lights)), self.epsilon]
-
-    def to_local(self, points):
-        """World points to the device's rebased coordinates (float64 -> float32)."""
-        return (np.asarray(points, np.float64) - self.center).astype(np.float32)

@@ -18,16 +18,6 @@ class Film:
         self.pass_sum = np.zeros((height * width, 3))
         self.pass_sum_sq = np.zeros((height * width, 3))
 
-    def add_samples(self, pixels, radiance):
-        """Add samples: pixel indices (n,) and radiance (n, 4) float32, .w = 1 marks a sample
-        whose value was not finite (the kernel zeroed it; counted here, and in the stats)."""
-        value = radiance[:, :3].astype(np.float64)
-        self.nonfinite_samples += int(np.count_nonzero(radiance[:, 3]))
-        for k in range(3):
-            self.sum[:, k] += np.bincount(pixels, value[:, k], minlength=len(self.count))
-            self.sum_sq[:, k] += np.bincount(pixels, value[:, k] ** 2, minlength=len(self.count))
-        self.count += np.bincount(pixels, minlength=len(self.count))
-
     def add_pixel_major(self, radiance):
         """Samples laid out as (samples, pixels) in one array: the common case, without bincount."""
         per_pixel = radiance.reshape(-1, len(self.count), 4)

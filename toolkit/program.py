@@ -156,7 +156,3 @@ def padded(n, local_size=LOCAL_SIZE):
 def launch(queue, kernel, n, *args, local_size=LOCAL_SIZE):
     """Run `kernel` over n work-items with the fixed local size and a padded global size."""
     return kernel(queue, (padded(n, local_size),), (local_size,), *args)
-
-
-def as_int(*values):
-    return [np.int32(v) for v in values]

@@ -1,6 +1,6 @@
 """Host side of cl/raycast.cl: closest-hit and any-hit ray casts through the device BVH.
 
-Rays are given in the device's rebased coordinates (see DeviceScene.to_local) as float32;
+Rays are given in the device's rebased coordinates (world points minus DeviceScene.center, in float64) as float32;
 results come back as numpy arrays, prims as the scene's original triangle indices.
 """
 import numpy as np

@@ -105,18 +105,26 @@ class ZTest:
                 f"at {self.worst_pixel}, mean |z| {self.mean_abs_z:.3f}")
 
 
+MIN_DEGREES_OF_FREEDOM = 10
+
+
 def z_test(image, stderr, expected, expected_stderr, alpha=0.01, min_stderr=1e-12, dof=None):
     """Per-pixel z-test of image against expected, Bonferroni-corrected over all pixel-channels.
 
     `dof`: when the render's standard error comes from few independent passes (BDPT), the
     statistic follows Student's t with passes - 1 degrees of freedom rather than a normal
-    (the reference's own error, from far more samples, is small next to ours).
+    (the reference's own error, from far more samples, is small next to ours). Fewer than
+    MIN_DEGREES_OF_FREEDOM is refused: with 1 or 2 a t-test passes almost anything (a Cauchy
+    tail gives |t| = 4000 a p-value of 1e-4), and a test that cannot fail checks nothing.
 
     z = (image - expected) / sqrt(stderr^2 + expected_stderr^2). Pixels where both standard
     errors vanish (e.g. black background in both) must match exactly and are not counted.
     Passes when the smallest two-sided p-value is above alpha / N: the chance that a correct
     renderer fails is at most alpha, whatever the number of pixels.
     """
+    if dof is not None and dof < MIN_DEGREES_OF_FREEDOM:
+        raise ValueError(f"{dof} degrees of freedom (passes - 1) are too few for a meaningful test; "
+                         f"render more passes (at least {MIN_DEGREES_OF_FREEDOM + 1})")
     var = stderr ** 2 + expected_stderr ** 2
     diff = image - expected
     tested = var > min_stderr ** 2

@@ -37,13 +37,14 @@ class PhaseCounter:
                                        "efficiency": active / issued if issued else 1.0,
                                        "active": active, "capacity": capacity or length or active})
 
-    def add_warp_loops(self, phase, lane_iterations):
-        """A loop run inside each lane: its warp issues as many iterations as its longest lane."""
+    def add_warp_loops(self, phase, lane_iterations, active=None):
+        """A loop run inside each lane: its warp issues as many iterations as its longest lane.
+        `active` (default: the iterations themselves) counts the lane-steps doing the phase's work."""
         w = self.warp_width
         x = np.asarray(lane_iterations, np.int64)
         pad = (-len(x)) % w
         warps = np.concatenate([x, np.zeros(pad, np.int64)]).reshape(-1, w)
-        self.add(phase, warps.sum(), warps.max(1).sum() * w)
+        self.add(phase, warps.sum() if active is None else active, warps.max(1).sum() * w)
 
     def add_loop_iterations(self, phase, lane_iterations, first_iteration=0):
         """Per-iteration figures of a loop inside each lane (for plots): at iteration k the

@@ -78,6 +78,14 @@ class Technique:
             raise RuntimeError(f"{self.name}: {missing} of {n} samples were never written (sample accounting bug)")
         film.add_pixel_major(result)
 
+    def reused(self, key, make):
+        """Device memory that keeps its size from pass to pass (streams, vertex memory) is made
+        once per technique: `key` names it with its size, `make()` allocates it."""
+        cache = self.__dict__.setdefault("_reused", {})
+        if key not in cache:
+            cache[key] = make()
+        return cache[key]
+
     def int_buffer(self, n, fill=None):
         buf = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * max(1, program.padded(n)))
         if fill is not None:

@@ -40,7 +40,6 @@ class BdptTechnique(Technique):
         self.pool_size = pool_size or self.pool_size
         self.compactor = Compactor(queue)
         self.uncompacted = PhaseCounter(self.warp_width)   # the walk as it would be without compaction
-        self.walk_seconds = 0.0
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         ctx, q = self.queue.context, self.queue
@@ -48,14 +47,13 @@ class BdptTechnique(Technique):
         budget = width * height * spp
         pool = min(self.pool_size, budget)
         mv = self.max_vertices
-        # The streams and the vertex memory (tens of MB) are allocated once per pool size, not per pass.
-        if getattr(self, "_pool_buffers", (None,))[0] != pool:
-            vertex_bytes = BDPT_VERTEX.dtype.itemsize * pool * mv
-            self._pool_buffers = (pool, [SUBPATH.soa_buffers(ctx, pool) for _ in range(4)],
-                                  cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes),
-                                  cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes))
-        _, (eye_stream, eye_spare, light_stream, light_spare), self.eye_vertices, self.light_vertices = \
-            self._pool_buffers
+        # The streams and the vertex memory (tens of MB) are made once per pool size, not per pass.
+        vertex_bytes = BDPT_VERTEX.dtype.itemsize * pool * mv
+        (eye_stream, eye_spare, light_stream, light_spare), self.eye_vertices, self.light_vertices = \
+            self.reused(("pool", pool), lambda: (
+                [SUBPATH.soa_buffers(ctx, pool) for _ in range(4)],
+                cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes),
+                cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes)))
         eye_count, light_count = self.int_buffer(pool), self.int_buffer(pool)
         live = self.int_buffer(pool, fill=-1)
         sample_ids = self.int_buffer(pool)

@@ -32,8 +32,9 @@ class BdptNaiveConnect(BdptTechnique):
             return np.zeros((npix, 3))
         pool = state["pool"]
         n = pool * (self.max_vertices + 1)
-        values = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * n)
-        pixels = self.int_buffer(n, fill=-1)
+        values, pixels = self.reused(("records", n), lambda: (
+            cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * n), self.int_buffer(n)))
+        cl.enqueue_fill_buffer(self.queue, pixels, np.int32(-1), 0, 4 * n)   # records a slot may leave unwritten
         program.launch(self.queue, self.kernel("bdpt_naive_connect"), pool, *self.scene.args(), camera,
                        np.int32(pool), state["live"], self.eye_vertices, self.light_vertices, state["eye_count"],
                        state["light_count"], state["sample_ids"], values, pixels, state["lane_counts"])

@@ -33,15 +33,14 @@ class PtCompactRegen(Technique):
     def run_pass(self, film, camera, seed, sample_base, spp):
         budget = camera["width"] * camera["height"] * spp
         size = min(self.stream_size, budget)
-        stream = PATH_STATE.soa_buffers(self.queue.context, size)
-        spare = PATH_STATE.soa_buffers(self.queue.context, size)   # compaction writes here
+        ctx = self.queue.context
+        stream, spare, shadow_rays = self.reused(("streams", size), lambda: (
+            PATH_STATE.soa_buffers(ctx, size), PATH_STATE.soa_buffers(ctx, size),  # compaction writes to spare
+            SHADOW_RAY.soa_buffers(ctx, size)))
+        lane_counts, alive, shadow_steps, out_length, shadow_length = self.reused(("lanes", size), lambda: (
+            self.lane_counts_buffer(size), self.int_buffer(size), self.int_buffer(size),
+            self.int_buffer(1), self.int_buffer(1)))
         radiance = self.output_buffer(budget)
-        lane_counts = self.lane_counts_buffer(size)
-        out_length = self.int_buffer(1)
-        alive = self.int_buffer(size)
-        shadow_rays = SHADOW_RAY.soa_buffers(self.queue.context, size)
-        shadow_length = self.int_buffer(1)
-        shadow_steps = self.int_buffer(size)
         generate = self.kernel("pt_compact_regen_generate")
 
         length, next_id = 0, 0

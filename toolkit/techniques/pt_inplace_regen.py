@@ -22,12 +22,12 @@ class PtInplaceRegen(Technique):
     def run_pass(self, film, camera, seed, sample_base, spp):
         budget = camera["width"] * camera["height"] * spp
         slots = min(self.stream_size, budget)
-        paths = PATH_STATE.soa_buffers(self.queue.context, slots)
+        paths, lane_counts, regenerated = self.reused(("slots", slots), lambda: (
+            PATH_STATE.soa_buffers(self.queue.context, slots), self.lane_counts_buffer(slots),
+            self.int_buffer(slots)))
         alive = self.int_buffer(slots, fill=0)
         next_sample = self.int_buffer(1, fill=0)
         radiance = self.output_buffer(budget)
-        lane_counts = self.lane_counts_buffer(slots)
-        regenerated = self.int_buffer(slots)
         extend = self.kernel("pt_inplace_regen_extend")
         regenerate = self.kernel("pt_inplace_regen_regenerate")
         while True:

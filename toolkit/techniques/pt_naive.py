@@ -35,13 +35,6 @@ class PtNaive(Technique):
             self.simd.add_loop_iterations("extend", lanes[:, 0], first_iteration=self.iterations)
             self.iterations += int(lanes[:, 0].max())
             # A shadow ray is cast once per vertex at most; the warp issues the shadow step in each of its iterations.
-            self.simd.add("shadow", lanes[:, 3].sum(),
-                          self._issued_per_warp(lanes[:, 0]))
+            self.simd.add_warp_loops("shadow", lanes[:, 0], active=lanes[:, 3].sum())
             self.traversal.add_warp_loops("closest", lanes[:, 1])
             self.traversal.add_warp_loops("shadow", lanes[:, 2])
-
-    def _issued_per_warp(self, iterations):
-        w = self.warp_width
-        pad = (-len(iterations)) % w
-        warps = np.concatenate([iterations, np.zeros(pad, iterations.dtype)]).reshape(-1, w)
-        return int(warps.max(1).sum()) * w
