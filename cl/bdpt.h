@@ -10,8 +10,14 @@
  *   - at a connection the densities that change (the two endpoints and their predecessors)
  *     are recomputed, and the balance heuristic weight is 1 / (1 + sum of ratios r_i) over
  *     the other strategies that could have made the same path (pbrt-v3 eq. 16.4 ff.);
- *   - delta (specular) vertices cannot be connected; densities of 0 next to them are
- *     treated as 1 in the ratios ("remap0") and their strategies skipped.
+ *   - delta (specular) vertices cannot be connected, so their strategies are skipped; a
+ *     specular bounce still enters the ratios of the others, with the density Veach uses
+ *     (thesis sec. 10.3.5): the delta's coefficient 1 per projected solid angle, i.e.
+ *     |cos| per solid angle (delta_pdf_dir). The geometry terms of a specular chain then
+ *     cancel between strategies. pbrt-v3 puts 0 there (then 1 in the ratio): also unbiased,
+ *     but it leaves a factor G(glass, floor) / G(light, glass) that hands caustics to the
+ *     eye path instead of to light tracing, which samples them far better (measured: see tests/test_bdpt.py).
+ * remap0 still turns a density of 0 into 1 in the ratios, as pbrt-v3 does.
  * A pinhole camera is a delta in position; its importance for the whole film is
  * We = 1 / (A cos^4 theta), A the image-plane area at distance 1 (pbrt-v3 sec. 16.1.1). */
 #ifndef BDPT_H
@@ -91,13 +97,19 @@ inline float to_area(float pdf_dir, float3 from, const BdptVertex* to) {
     return pdf_dir * fabs(dot(to->normal.xyz, d)) * rsqrt(dist2) / dist2;
 }
 
+/* The "density" of a specular bounce in direction w (cos_w = cos of w to the normal) for
+ * MIS: the delta's coefficient 1 per projected solid angle, so |cos_w| per solid angle. */
+inline float delta_pdf_dir(float cos_w) { return fabs(cos_w); }
+
 /* Area density at `next` of sampling it from vertex v, which was reached from `prev`
  * (prev may be 0 for the camera and the light origin, which have no predecessor). */
 inline float vertex_pdf(const SceneView* s, const Camera* cam, const BdptVertex* prev, const BdptVertex* v,
                         const BdptVertex* next) {
     float3 w = normalize(next->pos.xyz - v->pos.xyz);
     float pdf_dir;
-    if (is_camera(v)) {
+    if (is_delta(v)) {
+        pdf_dir = delta_pdf_dir(dot(v->normal.xyz, w));
+    } else if (is_camera(v)) {
         pdf_dir = camera_pdf_dir(cam, w);
     } else if (is_light_origin(v) && prev == 0) {
         pdf_dir = fmax(0.0f, dot(v->normal.xyz, w)) * INV_PI;   /* cosine-weighted emission */

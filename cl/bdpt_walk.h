@@ -61,7 +61,7 @@ inline bool subpath_extend(const SceneView* s, Subpath* p, Sampler* rng, bool li
     float dist2 = dot(from_prev, from_prev);
     int k = p->vertices;
     Material m = s->materials[tri.material];
-    /* pdf_fwd: the solid-angle density of the direction, as an area density here (0 after a delta bounce). */
+    /* pdf_fwd: the density of the direction (see delta_pdf_dir after a specular bounce), as an area density here. */
     v->pos = (float4)(x, p->origin.w * fabs(dot(ng, d)) / dist2);
     v->normal = (float4)(ng, 0.0f);
     v->wo = (float4)(-d, 0.0f);
@@ -95,13 +95,13 @@ inline bool subpath_extend(const SceneView* s, Subpath* p, Sampler* rng, bool li
         return false;
     float3 wi = to_world(bs.wi, ts, tt, n);
     /* Reverse density: of this vertex choosing the previous one, had it arrived along wi. */
-    float pdf_rev_dir = 0.0f;
+    float pdf_rev_dir = delta_pdf_dir(wo_local.z);
     if (!bs.specular) bsdf_eval(&m, bs.wi, wo_local, &pdf_rev_dir);
     if (!(p->prev_flags & VERTEX_CAMERA))
         v->normal.w = pdf_rev_dir * fabs(dot(p->prev_normal.xyz, from_prev)) * rsqrt(dist2) / dist2;
 
     p->beta.xyz *= bs.weight;
-    p->origin = (float4)(offset_point(s, x, ng, wi), bs.specular ? 0.0f : bs.pdf);
+    p->origin = (float4)(offset_point(s, x, ng, wi), bs.specular ? delta_pdf_dir(bs.wi.z) : bs.pdf);
     p->dir = (float4)(wi, 0.0f);
     p->prev_pos = (float4)(x, 0.0f);
     p->prev_normal = (float4)(ng, 0.0f);
