@@ -107,8 +107,12 @@ inline bool subpath_extend(const SceneView* s, Subpath* p, Sampler* rng, bool li
     p->prev_normal = (float4)(ng, 0.0f);
     p->prev_flags = v->flags;
 #if USE_RUSSIAN_ROULETTE
-    /* Roulette as in the path tracers; light paths compare with their throughput at y_1. */
-    if (k >= RR_DEPTH) {
+    /* Roulette as in the path tracers, but from BDPT_RR_DEPTH, half the scene's depth rounded
+     * up (host: bdpt_base.py): two subpaths of that depth and their connection already make
+     * a path longer than the path tracer's roulette-free part, and every vertex more costs
+     * connections to all vertices of the other subpath. Light paths compare with their
+     * throughput at y_1. */
+    if (k >= BDPT_RR_DEPTH) {
         float q = fmin(max3(p->beta.xyz) / p->beta.w, 0.95f);
         if (bdpt_sample(rng, bdpt_scatter_dim(k, light_path, 3)) >= q) return false;
         p->beta.xyz /= q;
@@ -117,14 +121,18 @@ inline bool subpath_extend(const SceneView* s, Subpath* p, Sampler* rng, bool li
     return !is_black(p->beta.xyz);
 }
 
+/* The walk's counters, one int buffer that the host reads once per step (one wait, not three). */
+#define EYE_SURVIVORS 0
+#define LIGHT_SURVIVORS 1
+#define TERMINATED_SAMPLES 2
+
 /* One random-walk step over a compacted subpath stream (eye or light). Survivors are packed
- * into `out`; a subpath that ends records its vertex count, and the sample whose second
- * subpath this was counts as terminated. */
+ * into `out` and counted in counters[EYE_ or LIGHT_SURVIVORS]; a subpath that ends records
+ * its vertex count, and the sample whose second subpath this was counts as terminated. */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
 void bdpt_extend(SCENE_PARAMS, const Camera cam, const uint seed, const int light_path, const int length,
-                 SUBPATH_SOA_PARAMS(in), SUBPATH_SOA_PARAMS(out), volatile __global int* out_length,
-                 __global BdptVertex* vertices, __global int* vertex_count,
-                 volatile __global int* live, volatile __global int* terminated,
+                 SUBPATH_SOA_PARAMS(in), SUBPATH_SOA_PARAMS(out), volatile __global int* counters,
+                 __global BdptVertex* vertices, __global int* vertex_count, volatile __global int* live,
                  __global const int* sample_ids, const int sample_base, __global int4* lane_counts)
 {
     int gid = get_global_id(0);
@@ -143,11 +151,11 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const uint seed, const int ligh
         alive = subpath_extend(&s, &p, &rng, light_path != 0, &v, &store_at, &steps);
         if (!alive) {
             vertex_count[p.slot] = p.vertices;
-            if (atomic_dec(&live[p.slot]) == 1) atomic_inc(terminated);
+            if (atomic_dec(&live[p.slot]) == 1) atomic_inc(&counters[TERMINATED_SAMPLES]);
         }
     }
     store_vertex(vertices, store_at, &v, stage, dest);
-    int slot = immediate_compact_slot(alive, scratch, out_length);
+    int slot = immediate_compact_slot(alive, scratch, &counters[light_path ? LIGHT_SURVIVORS : EYE_SURVIVORS]);
     if (slot >= 0) subpath_store(SUBPATH_SOA(out), slot, &p);
 #if COUNT_SIMD
     if (gid < length) lane_counts[gid] = (int4)(1, steps, p.slot, 0);

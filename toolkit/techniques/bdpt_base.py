@@ -30,7 +30,8 @@ class BdptTechnique(Technique):
                  **kwargs):
         scene = device_scene.scene
         self.max_vertices = min(self.max_vertices, scene.max_depth + 1) if scene.max_depth >= 0 else self.max_vertices
-        defines = {"MAX_VERTICES": self.max_vertices, "COALESCED_SCATTER": bool(coalesced_scatter)}
+        defines = {"MAX_VERTICES": self.max_vertices, "COALESCED_SCATTER": bool(coalesced_scatter),
+                   "BDPT_RR_DEPTH": (scene.rr_depth + 1) // 2}   # subpath roulette: see cl/bdpt_walk.h
         defines.update(kwargs.pop("extra_defines", None) or {})
         super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
         if not 0.0 < regenerate_fraction <= 1.0:
@@ -57,14 +58,13 @@ class BdptTechnique(Technique):
         eye_count, light_count = self.int_buffer(pool), self.int_buffer(pool)
         live = self.int_buffer(pool, fill=-1)
         sample_ids = self.int_buffer(pool)
-        terminated = self.int_buffer(1, fill=0)
-        out_length = self.int_buffer(1)
+        counters = self.int_buffer(3, fill=0)      # eye survivors, light survivors, terminated samples
         flags = self.int_buffer(pool)
-        lane_counts = self.lane_counts_buffer(pool)
+        lane_counts = [self.lane_counts_buffer(pool) for _ in range(2)]   # eye, light
         image = np.zeros((width * height, 3))
         self.pass_nonfinite = 0
         state = dict(eye_count=eye_count, light_count=light_count, live=live, sample_ids=sample_ids,
-                     pool=pool, camera=camera, seed=seed, lane_counts=lane_counts)
+                     pool=pool, camera=camera, seed=seed, lane_counts=lane_counts[0])
         self.last_pass = state   # kept for inspection (tests, notebooks): the vertex memory of the last samples
 
         # All slots start "terminated": regenerate the whole pool.
@@ -77,32 +77,24 @@ class BdptTechnique(Technique):
         extend = self.kernel("bdpt_extend")
         while in_flight > 0:
             # Random walk: one vertex more on every eye and light subpath, compacted at once.
-            for is_light in (0, 1):
-                length = light_len if is_light else eye_len
-                if length == 0:
-                    continue
-                stream, spare = (light_stream, light_spare) if is_light else (eye_stream, eye_spare)
-                cl.enqueue_fill_buffer(q, out_length, np.int32(0), 0, 4)
-                program.launch(q, extend, length, *self.scene.args(), camera, seed, np.int32(is_light),
-                               np.int32(length), *stream, *spare, out_length,
-                               self.light_vertices if is_light else self.eye_vertices,
-                               light_count if is_light else eye_count, live, terminated, sample_ids,
-                               np.int32(sample_base), lane_counts)
-                survivors = int(self.read_ints(out_length, 1)[0])
-                if self.count_simd:
-                    lanes = self.read_ints(lane_counts, length, 4)
-                    self.simd.add_stream_step("walk", length, iteration=self.iterations, capacity=pool)
-                    self.iterations += 1
-                    self.simd.add_stream_step("compact", length)
-                    self.traversal.add_warp_loops("closest", lanes[:, 1])
-                    mask = np.zeros(pool, bool)      # without compaction each path keeps its slot's lane
-                    mask[lanes[:, 2]] = True
-                    self.uncompacted.add_stream_step("walk", mask)
-                if is_light:
-                    light_stream, light_spare, light_len = spare, stream, survivors
-                else:
-                    eye_stream, eye_spare, eye_len = spare, stream, survivors
-            done = int(self.read_ints(terminated, 1)[0])
+            cl.enqueue_fill_buffer(q, counters, np.int32(0), 0, 8)    # the survivor counts
+            for is_light, length, stream, spare in ((0, eye_len, eye_stream, eye_spare),
+                                                    (1, light_len, light_stream, light_spare)):
+                if length:
+                    program.launch(q, extend, length, *self.scene.args(), camera, seed, np.int32(is_light),
+                                   np.int32(length), *stream, *spare, counters,
+                                   self.light_vertices if is_light else self.eye_vertices,
+                                   light_count if is_light else eye_count, live, sample_ids,
+                                   np.int32(sample_base), lane_counts[is_light])
+            eye_survivors, light_survivors, done = self.read_ints(counters, 3)
+            if self.count_simd:
+                for is_light, length in ((0, eye_len), (1, light_len)):
+                    if length:
+                        self.count_walk_step(lane_counts[is_light], length, pool)
+            if eye_len:
+                eye_stream, eye_spare, eye_len = eye_spare, eye_stream, int(eye_survivors)
+            if light_len:
+                light_stream, light_spare, light_len = light_spare, light_stream, int(light_survivors)
             # Postponed regeneration: connect and restart once enough samples have terminated.
             if done >= self.regenerate_fraction * in_flight or (eye_len == 0 and light_len == 0):
                 program.launch(q, self.kernel("bdpt_mark_terminated"), pool, np.int32(pool), live, flags)
@@ -115,8 +107,20 @@ class BdptTechnique(Technique):
                 light_len += fresh
                 next_id += fresh
                 in_flight += fresh - count
-                cl.enqueue_fill_buffer(q, terminated, np.int32(0), 0, 4)
+                cl.enqueue_fill_buffer(q, counters, np.int32(0), 8, 4)   # terminated samples
         film.add_pass(image.reshape(height, width, 3) / spp, spp, nonfinite=self.pass_nonfinite)
+
+    def count_walk_step(self, lane_counts, length, pool):
+        """SIMD counters of one walk step over a stream of `length` subpaths (lanes: active,
+        traversal steps, pool slot)."""
+        lanes = self.read_ints(lane_counts, length, 4)
+        self.simd.add_stream_step("walk", length, iteration=self.iterations, capacity=pool)
+        self.iterations += 1
+        self.simd.add_stream_step("compact", length)
+        self.traversal.add_warp_loops("closest", lanes[:, 1])
+        mask = np.zeros(pool, bool)      # without compaction each path keeps its slot's lane
+        mask[lanes[:, 2]] = True
+        self.uncompacted.add_stream_step("walk", mask)
 
     def regenerate(self, state, slots, count, fresh, first_id, sample_base, eye_stream, eye_base,
                    light_stream, light_base):
