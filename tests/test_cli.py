@@ -139,3 +139,16 @@ def test_device_option_before_or_after_the_command(tmp_path):
         assert summary(result)["device"]
     bad = run_cli("render", "--device", "9:9", "--spp", "1", "--resolution", "8x8", "--out", out)
     assert bad.returncode == 2 and "no OpenCL device 9:9" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_equal_time_report_says_what_a_bdpt_sample_costs_and_is_worth():
+    """The equal-time summary: cost = seconds per sample relative to the best path tracer,
+    worth = squared error x samples relative to it (both of a made-up report)."""
+    from toolkit.bench import format_equal_time
+    report = {"pt_naive": {"spp": 1000, "seconds": 10.0, "rmse": 0.010, "rmse_hard_pixels": 0.01},
+              "pt_compact_regen": {"spp": 800, "seconds": 10.0, "rmse": 0.012, "rmse_hard_pixels": 0.01},
+              "bdpt_parallel_connect": {"spp": 200, "seconds": 10.0, "rmse": 0.008, "rmse_hard_pixels": 0.004}}
+    text = format_equal_time(report, 10)
+    assert "best BDPT / best PT RMSE, whole image: 0.80" in text
+    # cost (10/200) / (10/1000) = 5.0; worth (0.01^2 * 1000) / (0.008^2 * 200) = 7.8
+    assert "one bdpt_parallel_connect sample costs 5.0 pt_naive samples here and is worth 7.8 of them" in text

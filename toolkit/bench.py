@@ -45,6 +45,17 @@ def format_equal_time(report, seconds):
         bd = [r[key] for n, r in report.items() if n.startswith("bdpt")]
         if pt and bd:
             lines.append(f"  best BDPT / best PT RMSE, {label}: {min(bd) / min(pt):.2f}")
+    pt = {n: r for n, r in report.items() if n.startswith("pt")}
+    bd = {n: r for n, r in report.items() if n.startswith("bdpt")}
+    if pt and bd:
+        # Squared error x samples does not depend on the time spent: what one sample is worth.
+        p_name = min(pt, key=lambda n: pt[n]["rmse"])
+        b_name = min(bd, key=lambda n: bd[n]["rmse"])
+        p, b = pt[p_name], bd[b_name]
+        cost = (b["seconds"] / b["spp"]) / (p["seconds"] / p["spp"])
+        worth = (p["rmse"] ** 2 * p["spp"]) / (b["rmse"] ** 2 * b["spp"])
+        lines.append(f"  one {b_name} sample costs {cost:.1f} {p_name} samples here and is worth {worth:.1f} of them "
+                     f"(squared error x samples, whole image): BDPT wins at equal time where worth > cost")
     return "\n".join(lines)
 
 
