@@ -142,10 +142,13 @@ class BdptTechnique(Technique):
     def reduce_records(self, values, pixels, npix):
         """Add connection records (value, pixel) per pixel in float64; non-finite ones are counted and dropped."""
         ok = pixels >= 0
-        v = values[ok, :3].astype(np.float64)
+        v, p = values[ok, :3], pixels[ok]
+        sums = np.stack([np.bincount(p, v[:, k], minlength=npix) for k in range(3)], axis=1)
+        if np.isfinite(sums).all():      # a non-finite record would show in its pixel's sum
+            return sums
         finite = np.isfinite(v).all(1)
         self.pass_nonfinite += int((~finite).sum())
-        v, p = v[finite], pixels[ok][finite]
+        v, p = v[finite], p[finite]
         return np.stack([np.bincount(p, v[:, k], minlength=npix) for k in range(3)], axis=1)
 
     def read_records(self, value_buffer, pixel_buffer, n):

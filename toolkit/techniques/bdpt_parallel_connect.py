@@ -19,15 +19,17 @@ class BdptParallelConnect(BdptTechnique):
         pool = state["pool"]
         if count == 0:
             return np.zeros((npix, 3))
-        counts = self.int_buffer(pool)
+        counts = self.reused(("counts", pool), lambda: self.int_buffer(pool))
         program.launch(self.queue, self.kernel("bdpt_parallel_connect_count"), pool, np.int32(pool),
                        state["live"], state["eye_count"], state["light_count"], counts)
         firsts, total = self.compactor.exclusive_scan(counts, pool)
         if total == 0:
             return np.zeros((npix, 3))
-        values = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * total)
-        pixels = self.int_buffer(total)
-        lanes = self.lane_counts_buffer(total)
+        # Record buffers grow by powers of two and are reused by the next connect phases.
+        capacity = 1 << max(12, (total - 1).bit_length())
+        values, pixels, lanes = self.reused(("records", capacity), lambda: (
+            cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * capacity),
+            self.int_buffer(capacity), self.lane_counts_buffer(capacity)))
         program.launch(self.queue, self.kernel("bdpt_parallel_connect"), total, *self.scene.args(), camera,
                        np.int32(total), np.int32(pool), firsts, self.eye_vertices, self.light_vertices,
                        state["eye_count"], state["light_count"], state["sample_ids"], values, pixels, lanes)
