@@ -9,6 +9,7 @@ from toolkit.device_scene import DeviceScene
 from toolkit.layout import BDPT_VERTEX
 from toolkit.techniques import BdptNaiveConnect, BdptParallelConnect
 
+VERTEX_DELTA = 1   # flags as in cl/bdpt.h
 VERTEX_LIGHT = 4
 
 
@@ -83,7 +84,7 @@ def test_caustic_paths_go_to_light_tracing(queue, cornell_spheres):
     for slot in range(len(light_count)):
         if light_count[slot] >= 4:
             y = light[slot, :4]
-            delta = (y["flags"] & 1) != 0
+            delta = (y["flags"] & VERTEX_DELTA) != 0
             if delta[1] and delta[2] and not delta[3]:
                 paths.append(np.concatenate([y, [camera]]))
     weights = np.array(list(split_weights(queue, tech, cornell_spheres, paths)))

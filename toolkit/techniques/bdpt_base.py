@@ -48,19 +48,24 @@ class BdptTechnique(Technique):
         budget = width * height * spp
         pool = min(self.pool_size, budget)
         mv = self.max_vertices
-        # The streams and the vertex memory (tens of MB) are made once per pool size, not per pass.
+        # The streams, the vertex memory (tens of MB) and the per-slot arrays are made once per
+        # pool size, not per pass.
         vertex_bytes = BDPT_VERTEX.dtype.itemsize * pool * mv
-        (eye_stream, eye_spare, light_stream, light_spare), self.eye_vertices, self.light_vertices = \
-            self.reused(("pool", pool), lambda: (
-                [SUBPATH.soa_buffers(ctx, pool) for _ in range(4)],
-                cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes),
-                cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes)))
-        eye_count, light_count = self.int_buffer(pool), self.int_buffer(pool)
-        live = self.int_buffer(pool, fill=-1)
-        sample_ids = self.int_buffer(pool)
-        counters = self.int_buffer(3, fill=0)      # eye survivors, light survivors, terminated samples
-        flags = self.int_buffer(pool)
-        lane_counts = [self.lane_counts_buffer(pool) for _ in range(2)]   # eye, light
+        buffers = self.reused(("pool", pool), lambda: dict(
+            streams=[SUBPATH.soa_buffers(ctx, pool) for _ in range(4)],
+            eye_vertices=cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes),
+            light_vertices=cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes),
+            slot_arrays=[self.int_buffer(pool) for _ in range(5)],   # eye/light counts, live, sample ids, flags
+            counters=self.int_buffer(3),       # eye survivors, light survivors, terminated samples
+            lane_counts=[self.lane_counts_buffer(pool) for _ in range(2)],   # eye, light
+            all_slots=cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                                hostbuf=np.arange(pool, dtype=np.int32))))
+        eye_stream, eye_spare, light_stream, light_spare = buffers["streams"]
+        self.eye_vertices, self.light_vertices = buffers["eye_vertices"], buffers["light_vertices"]
+        eye_count, light_count, live, sample_ids, flags = buffers["slot_arrays"]
+        counters, lane_counts = buffers["counters"], buffers["lane_counts"]
+        cl.enqueue_fill_buffer(q, live, np.int32(-1), 0, 4 * pool)
+        cl.enqueue_fill_buffer(q, counters, np.int32(0), 0, 12)
         image = np.zeros((width * height, 3))
         self.pass_nonfinite = 0
         state = dict(eye_count=eye_count, light_count=light_count, live=live, sample_ids=sample_ids,
@@ -68,10 +73,8 @@ class BdptTechnique(Technique):
         self.last_pass = state   # kept for inspection (tests, notebooks): the vertex memory of the last samples
 
         # All slots start "terminated": regenerate the whole pool.
-        all_slots = cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                              hostbuf=np.arange(pool, dtype=np.int32))
         fresh = min(pool, budget)
-        self.regenerate(state, all_slots, pool, fresh, 0, sample_base, eye_stream, 0, light_stream, 0)
+        self.regenerate(state, buffers["all_slots"], pool, fresh, 0, sample_base, eye_stream, 0, light_stream, 0)
         eye_len = light_len = fresh
         next_id, in_flight = fresh, fresh
         extend = self.kernel("bdpt_extend")
@@ -143,13 +146,12 @@ class BdptTechnique(Technique):
         """Add connection records (value, pixel) per pixel in float64; non-finite ones are counted and dropped."""
         ok = pixels >= 0
         v, p = values[ok, :3], pixels[ok]
-        sums = np.stack([np.bincount(p, v[:, k], minlength=npix) for k in range(3)], axis=1)
+        sums = per_pixel_sums(v, p, npix)
         if np.isfinite(sums).all():      # a non-finite record would show in its pixel's sum
             return sums
         finite = np.isfinite(v).all(1)
         self.pass_nonfinite += int((~finite).sum())
-        v, p = v[finite], p[finite]
-        return np.stack([np.bincount(p, v[:, k], minlength=npix) for k in range(3)], axis=1)
+        return per_pixel_sums(v[finite], p[finite], npix)
 
     def read_records(self, value_buffer, pixel_buffer, n):
         values = np.empty((n, 4), np.float32)
@@ -176,3 +178,8 @@ class BdptTechnique(Technique):
             cl.enqueue_copy(self.queue, v, buffer)
             out += [v.reshape(pool, self.max_vertices), self.read_ints(counts, pool)]
         return tuple(out)
+
+
+def per_pixel_sums(values, pixels, npix):
+    """(npix, 3) float64 sums of RGB `values` by pixel index."""
+    return np.stack([np.bincount(pixels, values[:, k], minlength=npix) for k in range(3)], axis=1)
