@@ -1,4 +1,6 @@
 """Image files through OpenImageIO: linear float32 EXR and an sRGB 8-bit PNG beside it."""
+import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -14,29 +16,60 @@ def read_exr(path):
 
 
 def write_image(path, image):
-    """Write float32 linear `image` (H,W,3) to path (.exr) and, for .exr, an sRGB PNG beside it."""
+    """Write float32 linear `image` (H,W,3) to path: .exr, with an sRGB 8-bit .png beside it,
+    or .png alone (sRGB 8-bit). Returns the paths written.
+
+    Each file is written to a temporary file in the same folder, every result checked, then
+    renamed over the old one: a failed write (disk full, no permission) raises OSError naming
+    the reason and leaves any old file untouched."""
     import OpenImageIO as oiio
     path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".exr", ".png"):
+        raise OSError(f"{path}: unsupported image type {path.suffix!r}; use .exr or .png")
     path.parent.mkdir(parents=True, exist_ok=True)
     image = np.ascontiguousarray(image, np.float32)
-    h, w, c = image.shape
-    if path.suffix.lower() == ".png":
-        return _write(oiio, path, to_srgb8(image), oiio.UINT8)
-    _write(oiio, path, image, oiio.FLOAT)
-    png = path.with_suffix(".png")
-    _write(oiio, png, to_srgb8(image), oiio.UINT8)
-    return path
+    files = [(path, to_srgb8(image), oiio.UINT8)] if suffix == ".png" else \
+        [(path, image, oiio.FLOAT), (path.with_suffix(".png"), to_srgb8(image), oiio.UINT8)]
+    temporary = []
+    try:
+        for target, pixels, fmt in files:
+            temporary.append(_write_temporary(oiio, target, pixels, fmt))
+        for (target, _, _), tmp in zip(files, temporary):
+            os.replace(tmp, target)
+    finally:
+        for tmp in temporary:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    return [target for target, _, _ in files]
 
 
-def _write(oiio, path, pixels, fmt):
+def _write_temporary(oiio, target, pixels, fmt):
+    """Write `pixels` to a new temporary file beside `target` (same suffix: OpenImageIO picks
+    the format by it); returns its name, or raises OSError with OpenImageIO's reason."""
+    try:
+        fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.stem}.", suffix=target.suffix)
+    except OSError as error:
+        raise OSError(f"{target}: cannot write there: {error.strerror or error}") from None
+    os.close(fd)
+    os.chmod(tmp, 0o666 & ~_umask())     # as an ordinary new file (mkstemp makes it private)
     h, w, c = pixels.shape
-    out = oiio.ImageOutput.create(str(path))
-    if out is None:
-        raise OSError(f"{path}: OpenImageIO cannot write this format: {oiio.geterror()}")
-    out.open(str(path), oiio.ImageSpec(w, h, c, fmt))
-    out.write_image(pixels)
-    out.close()
-    return path
+    out = oiio.ImageOutput.create(tmp)
+    ok = out is not None and out.open(tmp, oiio.ImageSpec(w, h, c, fmt))
+    ok = ok and out.write_image(pixels)
+    reason = (out.geterror() if out is not None else "") or oiio.geterror()
+    ok = out is not None and out.close() and ok
+    reason = reason or (out.geterror() if out is not None else "") or oiio.geterror()
+    if not ok:
+        os.unlink(tmp)
+        raise OSError(f"{target}: cannot write the image: {reason or 'unknown error'}")
+    return tmp
+
+
+def _umask():
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def to_srgb8(image):

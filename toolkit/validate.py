@@ -6,6 +6,7 @@ scenes/FORMAT.md states each limit of LIMITS in its "Limits" table; a test
 """
 import difflib
 import math
+import numbers
 import os
 import stat
 from pathlib import Path
@@ -75,13 +76,13 @@ def _show(value):
 
 def whole_number(name, value, where=None):
     """An int (not a bool, not 2.0) within LIMITS[name]."""
-    if isinstance(value, bool) or not isinstance(value, int):
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
         raise InputError(f"{where or name} must be a whole number, got {value!r}")
-    return in_range(name, value, where)
+    return in_range(name, int(value), where)
 
 
 def finite_number(name, value, where=None):
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
         raise InputError(f"{where or name} must be a number, got {value!r}")
     try:
         value = float(value)
@@ -181,13 +182,13 @@ def physical_memory():
 
 def render_args(spp, seed, width, height, warp_width=32):
     """The numeric arguments of a render (CLI and toolkit.render alike)."""
-    whole_number("spp", spp)
-    whole_number("seed", seed)
-    whole_number("camera.width", width, "resolution width")
-    whole_number("camera.height", height, "resolution height")
+    spp, seed = whole_number("spp", spp), whole_number("seed", seed)
+    width = whole_number("camera.width", width, "resolution width")
+    height = whole_number("camera.height", height, "resolution height")
     if warp_width not in (1, 2, 4, 8, 16, 32, 64, 128):
         raise InputError(f"warp width must be a power of two up to 128, got {warp_width!r}")
     need, have = memory_bytes(width, height, spp), physical_memory()
     if need > LIMITS["memory.fraction"][1] * have:
         raise InputError(f"resolution {width}x{height} needs about {need / 2**30:.1f} GiB for the film "
                          f"and buffers, more than half of this machine's {have / 2**30:.1f} GiB")
+    return spp, seed, width, height
