@@ -7,11 +7,20 @@ import numpy as np
 
 
 def read_exr(path):
+    """(H, W, 3) float32 pixels; OSError naming the problem for a missing, truncated or corrupt file."""
     import OpenImageIO as oiio
-    buf = oiio.ImageBuf(str(path))
-    if buf.has_error:
-        raise OSError(f"{path}: {buf.geterror()}")
-    pixels = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)
+    file = oiio.ImageInput.open(str(path))
+    if file is None:
+        raise OSError(f"{path}: {oiio.geterror() or 'cannot open the image'}")
+    try:
+        pixels = file.read_image(oiio.FLOAT)     # None when any part is missing or corrupt
+        if pixels is None:
+            raise OSError(f"{path}: {file.geterror() or 'cannot read the image'}")
+    finally:
+        file.close()
+    pixels = np.asarray(pixels, np.float32)
+    if pixels.ndim != 3 or pixels.shape[2] < 3:
+        raise OSError(f"{path}: expected an RGB image, got shape {pixels.shape}")
     return pixels[..., :3]
 
 

@@ -282,7 +282,8 @@ def _load_scene(path):
         path=path, info={"notes": data.get("notes", "")})
     scene = drop_degenerate(scene, where)
     check_scene(scene, where)
-    scene.reference, scene.reference_stderr = _load_reference(path.parent, camera)
+    scene.reference, scene.reference_stderr, problem = _load_reference(path.parent, camera)
+    scene.info.update(problem)
     return scene
 
 
@@ -331,15 +332,26 @@ def drop_degenerate(scene, where="scene"):
 def _load_reference(folder, camera):
     ref_path = folder / "reference.exr"
     if not ref_path.is_file():
-        return None, None
+        return None, None, {}
     from .images import read_exr
-    ref = read_exr(ref_path)
-    if ref.shape[:2] != (camera.height, camera.width):
-        warnings.warn(f"{ref_path}: size {ref.shape[1]}x{ref.shape[0]} differs from the camera; ignored")
-        return None, None
-    err_path = folder / "reference_stderr.exr"
-    err = read_exr(err_path) if err_path.is_file() else np.zeros_like(ref)
-    return ref, err
+    info = {}
+
+    def unusable(problem):
+        warnings.warn(problem + "; renders are not compared with it", stacklevel=4)
+        info["reference_problem"] = problem
+        return None, None, info
+    try:
+        ref = read_exr(ref_path)
+        err_path = folder / "reference_stderr.exr"
+        err = read_exr(err_path) if err_path.is_file() else np.zeros_like(ref)
+    except OSError as error:
+        return unusable(f"reference cannot be read: {error}")
+    if ref.shape[:2] != (camera.height, camera.width) or err.shape != ref.shape:
+        return unusable(f"{ref_path}: size {ref.shape[1]}x{ref.shape[0]} differs from the camera "
+                        f"({camera.width}x{camera.height}) or from reference_stderr.exr")
+    if not (np.isfinite(ref).all() and np.isfinite(err).all()):
+        return unusable(f"{ref_path}: NaN or infinite pixels")
+    return ref, err, info
 
 
 def bundled_scene_dir(name="cornell_box"):
