@@ -59,7 +59,8 @@ def _num(x):
         return f"2^{x.bit_length() - 1}"
     if isinstance(x, int) and x + 1 >= 1024 and ((x + 1) & x) == 0:
         return f"2^{x.bit_length()} - 1"
-    return f"{x:.10g}"
+    text, short = f"{x:.7g}", f"{x:.0e}"
+    return short if float(short) == x and len(short) < len(text) else text
 
 
 def in_range(name, value, where=None):
