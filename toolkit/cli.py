@@ -129,7 +129,7 @@ def main(argv=None):
         if args.command == "crosscheck":
             return cmd_crosscheck(args)
     except (SceneError, NoOpenCLError, KernelBuildError, ValueError, OSError) as error:
-        print(f"error: {error}", file=sys.stderr)
+        print("error: " + " ".join(str(error).split()), file=sys.stderr)   # one line, always
         return 2
     finally:
         warnings.showwarning = shown

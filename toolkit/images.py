@@ -69,7 +69,20 @@ def _write_temporary(oiio, target, pixels, fmt):
     reason = (out.geterror() if out is not None else "") or oiio.geterror()
     ok = out is not None and out.close() and ok
     reason = reason or (out.geterror() if out is not None else "") or oiio.geterror()
-    if not ok:
+    if ok:
+        # OpenImageIO does not report every failed write (a full disk can leave a truncated file
+        # and a success), so the file is read back and compared before it replaces anything.
+        file = oiio.ImageInput.open(tmp)
+        back = file.read_image(pixels.dtype == np.uint8 and oiio.UINT8 or oiio.FLOAT) if file else None
+        reason = "" if file is None else file.geterror()
+        if file is not None:
+            file.close()
+        ok = back is not None and np.array_equal(np.asarray(back).reshape(pixels.shape), pixels)
+        reason = reason or oiio.geterror() or "the file read back differs from the image (disk full?)"
+    if ok:
+        with open(tmp, "rb") as f:     # on disk before the rename makes it the only copy
+            os.fsync(f.fileno())
+    else:
         os.unlink(tmp)
         raise OSError(f"{target}: cannot write the image: {reason or 'unknown error'}")
     return tmp

@@ -96,12 +96,18 @@ def finite_number(name, value, where=None):
 
 # -- unknown keys ------------------------------------------------------------------------------
 
+# Names other renderers use for our keys: a misspelt "roughnes" should still lead to "alpha".
+SYNONYMS = {"roughness": "alpha", "albedo": "reflectance", "color": "reflectance", "eta": "ior",
+            "radiance": "emission", "fov": "fov_deg", "maxdepth": "max_depth", "rrdepth": "rr_depth"}
+
+
 def check_keys(where, obj, known, what):
     """Refuse keys of `obj` outside `known` (plus a free-form "notes"), suggesting the closest."""
     for key in obj:
         if key in known or key == "notes":
             continue
-        close = difflib.get_close_matches(key, sorted(known), n=1)
+        candidates = sorted(known | {s for s, k in SYNONYMS.items() if k in known})
+        close = [SYNONYMS.get(c, c) for c in difflib.get_close_matches(key, candidates, n=1)]
         hint = f"; did you mean {close[0]!r}?" if close else f" (known: {', '.join(sorted(known))})"
         raise InputError(f"{where}: unknown key {key!r} in {what}{hint}")
 
