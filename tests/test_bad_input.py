@@ -229,8 +229,8 @@ def test_scenes_at_the_scale_limits_render_like_the_box(cornell_box, technique):
     elsewhere), so the means agree to 1%."""
     low, high, _ = LIMITS["scene.extent"]
     plain = toolkit.render(cornell_box, technique=technique, spp=4, seed=3, resolution=(8, 8), count_simd=False)
-    for extent in (low, high):
-        scene = cornell_box.transformed(extent / cornell_box.extent * (1 - 1e-9))
+    for extent, inside in ((low, 1 + 1e-9), (high, 1 - 1e-9)):
+        scene = cornell_box.transformed(extent / cornell_box.extent * inside)
         r = toolkit.render(scene, technique=technique, spp=4, seed=3, resolution=(8, 8), count_simd=False)
         assert r.stats["nonfinite_samples"] == 0
         np.testing.assert_allclose(r.image.mean((0, 1)), plain.image.mean((0, 1)), rtol=0.01)
