@@ -61,7 +61,7 @@ def build_parser():
     p.add_argument("--spp", type=_positive, default=64, help="samples per pixel (default 64)")
     p.add_argument("--resolution", type=_resolution, help="WxH; keeps the scene's camera and field of view")
     p.add_argument("--seed", type=_whole, default=0, help="0 .. 2^32 - 1")
-    p.add_argument("--out", help="output .exr (an sRGB .png is written beside it); default out/<scene>_<technique>.exr")
+    p.add_argument("--out", help="output .exr (an sRGB .png is written beside it) or .png alone; default out/<scene>_<technique>.exr")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line of stdout")
     p.add_argument("--no-progress", action="store_true")
 

@@ -295,6 +295,9 @@ def check_scene(scene, where=None):
         in_range("scene.triangles", len(scene.triangles), f"{where}: triangle count")
         if not len(scene.light_triangles):
             _fail(where, "the scene has no lights (no shape with a positive 'emission'): it would render black")
+        lit = scene.emission_of[scene.emission_of > 0]
+        for e in (lit.min(), lit.max()):
+            in_range("shape.emission", float(e), f"{where}: emission component")
         lo, hi = scene.vertices.min(0), scene.vertices.max(0)
         extent = float(np.linalg.norm(hi - lo))
         in_range("scene.extent", extent, f"{where}: scene extent (bounding-box diagonal)")
