@@ -38,7 +38,7 @@ LIMITS = {
     "scene.triangles": (1, 1 << 24, "after dropping degenerate ones"),
     "mesh.bytes": (1, 1 << 31, "size of one OBJ file"),
     "scene.json.bytes": (1, 1 << 24, "size of scene.json"),
-    "scene.json.depth": (1, 16, "nesting of JSON objects and lists"),
+    "scene.json.depth": (0, 16, "nesting of JSON objects and lists"),
     "spp": (1, 1 << 24, "samples per pixel of one render"),
     "seed": (0, (1 << 32) - 1, "the device hashes it as a 32-bit unsigned integer"),
     "memory.fraction": (0.0, 0.5, "film and device buffers, as a share of this machine's memory"),
