@@ -34,8 +34,9 @@ inline bool is_specular(int type) {
 inline float ggx_d(float3 m, float alpha) {
     if (m.z <= 0.0f) return 0.0f;
     float a2 = alpha * alpha;
-    float c2 = m.z * m.z;
-    float k = c2 * (a2 - 1.0f) + 1.0f;
+    /* k = cos^2 (a2 - 1) + 1 written as sin^2 + cos^2 a2: the textbook form cancels to 0 in
+     * float32 for a2 below 6e-8 (alpha ~ 2.4e-4) at m = n, and D became infinite. */
+    float k = (m.x * m.x + m.y * m.y) + m.z * m.z * a2;
     return a2 / (PI * k * k);
 }
 inline float ggx_g1(float3 w, float alpha) {

@@ -53,6 +53,11 @@ inline float path_rand(const PathState* p, Sampler* rng, uint offset) {
 inline bool path_extend_deferred(const SceneView* s, PathState* p, uint seed, LaneCounters* count,
                                  ShadowRay* shadow) {
     shadow->slot = -1;
+#if USE_MAX_DEPTH
+    /* Only reached with max_depth 0 (longer limits end the path below): not even the camera
+     * segment, so the image is black in every technique (FORMAT.md). */
+    if (p->bounce >= MAX_DEPTH) return false;
+#endif
     Sampler rng = sampler_init(seed, (uint)p->pixel, (uint)p->sample);
     float3 o = p->origin.xyz, d = p->dir.xyz;
     Hit h = trace_closest(s, o, d, 0.0f, INFINITY, &count->traversal_steps);

@@ -1,6 +1,8 @@
 """`toolkit.render(...)`: the one entry point that the CLI, compare, bench and tests share."""
+import inspect
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -8,8 +10,13 @@ import numpy as np
 
 from .device import describe, get_queue
 from .device_scene import DeviceScene
-from .scene import Scene, bundled_scene_dir, load_scene
+from .scene import Scene, bundled_scene_dir, check_scene, load_scene
 from .techniques import get_technique
+from .validate import InputError, render_args
+
+
+class DroppedSamplesWarning(UserWarning):
+    """Samples that came out NaN or infinite were left out of the image: a bug, reported."""
 
 
 @dataclass
@@ -22,8 +29,25 @@ class RenderResult:
 
 def as_scene(scene):
     if isinstance(scene, Scene):
+        check_scene(scene)      # made in Python: the same limits as a loaded scene
         return scene
+    if not isinstance(scene, (str, Path)) and scene is not None:
+        raise InputError(f"scene must be a Scene, a folder or a scene.json path, got {type(scene).__name__}")
     return load_scene(bundled_scene_dir() if scene is None else scene)
+
+
+def _options(cls, options):
+    """Technique options must be keyword parameters of the technique's constructors."""
+    if not isinstance(options, dict):
+        raise InputError(f"options must be a dict, got {type(options).__name__}")
+    known = {name for c in cls.__mro__ if "__init__" in vars(c)
+             for name, p in inspect.signature(c.__init__).parameters.items()
+             if p.kind == p.KEYWORD_ONLY or (p.kind == p.POSITIONAL_OR_KEYWORD and p.default is not p.empty)}
+    known -= {"warp_width", "count_simd", "extra_defines"}
+    for key in options:
+        if key not in known:
+            raise InputError(f"unknown option {key!r} for {cls.name} (known: {', '.join(sorted(known)) or 'none'})")
+    return options
 
 
 def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, device=None,
@@ -35,17 +59,23 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     `options` are passed to the technique. Returns a RenderResult with the image, its
     standard-error image and stats (timings, SIMD efficiency).
     """
+    # Every argument is checked before any work (kernel builds, BVH) starts.
+    if not isinstance(technique, str):
+        raise InputError(f"technique must be a name, got {technique!r}")
+    cls, variant_options = get_technique(technique)
+    options = _options(cls, options if options is not None else {})
+    if resolution is not None and (isinstance(resolution, (str, bytes)) or not hasattr(resolution, "__len__")
+                                   or len(resolution) != 2):
+        raise InputError(f"resolution must be (width, height), got {resolution!r}")
+    if device is not None and not isinstance(device, str):
+        raise InputError(f"device must be a string like '0:0' or a name part, got {device!r}")
     scene = as_scene(scene)
     width, height = resolution or (scene.camera.width, scene.camera.height)
-    if warp_width not in (1, 2, 4, 8, 16, 32, 64, 128):
-        raise ValueError(f"warp width must be a power of two up to 128, got {warp_width}")
-    if spp < 1:
-        raise ValueError("spp must be at least 1")
+    spp, seed, width, height = render_args(spp, seed, width, height, warp_width)
     queue = get_queue(device)
     device_scene = DeviceScene(queue, scene)
-    cls, variant_options = get_technique(technique)
     tech = cls(queue, device_scene, warp_width=warp_width, count_simd=count_simd,
-               **{**variant_options, **(options or {})})
+               **{**variant_options, **options})
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -78,4 +108,8 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
         "degrees_of_freedom": film.degrees_of_freedom,
         **tech.extra_stats(),
     }
+    if film.nonfinite_samples:
+        # A non-finite sample is a bug to fix where it comes from; never only inside the stats.
+        warnings.warn(f"{technique} on {scene.name}: {film.nonfinite_samples} non-finite sample(s) "
+                      "were dropped from the image", DroppedSamplesWarning, stacklevel=2)
     return RenderResult(image, stderr, stats, tech.simd.per_iteration if count_simd else [])

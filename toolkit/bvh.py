@@ -3,12 +3,16 @@
 Nodes are stored depth-first: an inner node's left child follows it, `first` holds the right
 child. Leaves hold at most `leaf_size` triangles, reordered so each leaf's are contiguous.
 """
+import sys
 import time
 from dataclasses import dataclass
 
 import numpy as np
 
 from .layout import BVH_NODE
+
+# Builds of this many triangles or more show a progress bar (1M triangles take about a minute).
+PROGRESS_FROM = 100_000
 
 
 @dataclass
@@ -65,6 +69,9 @@ def _best_split(lo, hi, centroid, bins):
 def build_bvh(tri_vertices, leaf_size=4, bins=16):
     """Build over triangles given as (M, 3, 3) float64 vertex positions."""
     start = time.perf_counter()
+    from tqdm.auto import tqdm
+    bar = tqdm(total=len(tri_vertices), unit="tri", desc="BVH build", file=sys.stderr, leave=False,
+               disable=len(tri_vertices) < PROGRESS_FROM, mininterval=0.5)
     lo_all, hi_all = tri_vertices.min(1), tri_vertices.max(1)
     centroid_all = 0.5 * (lo_all + hi_all)
     nodes = []            # [lo, hi, first, count, axis]
@@ -88,12 +95,14 @@ def build_bvh(tri_vertices, leaf_size=4, bins=16):
         if split is None:
             nodes.append([lo, hi, len(order), len(ids), 0])
             order.extend(ids.tolist())
+            bar.update(len(ids))      # progress: triangles placed in leaves
             continue
         _, axis, left = split
         nodes.append([lo, hi, -1, 0, axis])
         # Right pushed first so the left child is built next and lands at me + 1.
         stack.append((ids[~left], me, depth + 1))
         stack.append((ids[left], None, depth + 1))
+    bar.close()
     flat = BVH_NODE.zeros(len(nodes))
     lo = np.array([n[0] for n in nodes])
     hi = np.array([n[1] for n in nodes])

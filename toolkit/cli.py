@@ -2,6 +2,7 @@
 import argparse
 import json
 import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -15,6 +16,21 @@ def _resolution(text):
         return w, h
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT like 64x64, got {text!r}") from None
+
+
+def _number(text):
+    """A float, checked for range later (validate.py), so the message names the limit."""
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
+def _whole(text):
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
 
 
 def _positive(text):
@@ -45,8 +61,8 @@ def build_parser():
     p.add_argument("--technique", default="pt_naive", choices=sorted(TECHNIQUES))
     p.add_argument("--spp", type=_positive, default=64, help="samples per pixel (default 64)")
     p.add_argument("--resolution", type=_resolution, help="WxH; keeps the scene's camera and field of view")
-    p.add_argument("--seed", type=int, default=0)
-    p.add_argument("--out", help="output .exr (an sRGB .png is written beside it); default out/<scene>_<technique>.exr")
+    p.add_argument("--seed", type=_whole, default=0, help="0 .. 2^32 - 1")
+    p.add_argument("--out", help="output .exr (an sRGB .png is written beside it) or .png alone; default out/<scene>_<technique>.exr")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line of stdout")
     p.add_argument("--no-progress", action="store_true")
 
@@ -56,7 +72,7 @@ def build_parser():
     device_option(p)
     p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
     p.add_argument("--rays", type=_positive, default=100_000, help="random rays besides the camera rays")
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_whole, default=0, help="0 .. 2^32 - 1")
     p.add_argument("--json", action="store_true")
 
     from .techniques import VARIANTS
@@ -68,7 +84,7 @@ def build_parser():
                    help=f"comma-separated, from: {names}")
     p.add_argument("--spp", type=_positive, default=16)
     p.add_argument("--resolution", type=_resolution, default=(64, 64))
-    p.add_argument("--seed", type=int, default=0)
+    p.add_argument("--seed", type=_whole, default=0, help="0 .. 2^32 - 1")
     p.add_argument("--warp-width", type=int, default=32, choices=[8, 16, 32, 64])
     p.add_argument("--json", action="store_true", help="print a JSON object as the last line of stdout")
     p.add_argument("--out", default="out/compare", help="folder for images and plots (default out/compare)")
@@ -82,10 +98,14 @@ def build_parser():
     p.add_argument("--spp", type=_positive, default=16, help="samples per pixel for path tracers (BDPT: an eighth)")
     p.add_argument("--resolution", type=_resolution, default=(128, 128))
     p.add_argument("--repeats", type=_positive, default=3)
-    p.add_argument("--equal-time", type=float, metavar="SECONDS",
+    p.add_argument("--equal-time", type=_number, metavar="SECONDS",
                    help="instead: render each technique for about SECONDS and compare RMSE against the reference")
     p.add_argument("--json", action="store_true")
     return parser
+
+
+def _warning_line(message, category, filename, lineno, file=None, line=None):
+    print(f"warning: {message}", file=sys.stderr)
 
 
 def main(argv=None):
@@ -96,6 +116,8 @@ def main(argv=None):
     from .device import NoOpenCLError
     from .program import KernelBuildError
     from .scene import SceneError
+    shown = warnings.showwarning
+    warnings.showwarning = _warning_line      # one "warning: ..." line, not file and source line
     try:
         if args.command == "devices":
             from .device import report
@@ -110,33 +132,42 @@ def main(argv=None):
         if args.command == "crosscheck":
             return cmd_crosscheck(args)
     except (SceneError, NoOpenCLError, KernelBuildError, ValueError, OSError) as error:
-        print(f"error: {error}", file=sys.stderr)
+        print("error: " + " ".join(str(error).split()), file=sys.stderr)   # one line, always
         return 2
+    finally:
+        warnings.showwarning = shown
     return 1
 
 
 def cmd_render(args):
     from .api import as_scene, render
     from .images import write_image
-    from .reference import reference_at, rmse
+    from .reference import reference_at, reference_problem, rmse
+    from .validate import check_output
+    if args.out:
+        check_output(args.out)      # before the render: a bad --out must not cost its time
     scene = as_scene(args.scene)
     width, height = args.resolution or (scene.camera.width, scene.camera.height)
+    out = check_output(args.out or f"out/{scene.name}_{args.technique}.exr")
     result = render(scene, technique=args.technique, spp=args.spp, seed=args.seed,
                     resolution=(width, height), device=args.device, progress=not args.no_progress)
-    out = Path(args.out or f"out/{scene.name}_{args.technique}.exr")
-    write_image(out, result.image.astype(np.float32))
+    written = write_image(out, result.image.astype(np.float32))
     stats = dict(result.stats, out=str(out))
     ref, _ = reference_at(scene, width, height)
     if ref is not None:
         stats["rmse"] = rmse(result.image, ref)
+    problem = reference_problem(scene, width, height)
     simd = stats["simd_efficiency"]
     lines = [f"{stats['technique']} on {stats['scene']} {width}x{height}, {args.spp} spp: "
              f"{stats['seconds']:.2f} s, {stats['samples_per_second']:,.0f} samples/s on {stats['device']}",
-             f"  image mean (linear RGB) {np.round(stats['mean'], 5).tolist()}, non-finite pixels {stats['nonfinite']}",
+             f"  image mean (linear RGB) {np.round(stats['mean'], 5).tolist()}, non-finite pixels "
+             f"{stats['nonfinite']}, dropped samples {stats['nonfinite_samples']}",
              "  SIMD efficiency (W=32): " + ", ".join(f"{k} {v:.1%}" for k, v in simd.items())]
     if "rmse" in stats:
         lines.append(f"  RMSE against the reference {stats['rmse']:.5f}")
-    lines.append(f"  wrote {out} and {out.with_suffix('.png')}")
+    elif problem:
+        lines.append(f"  no RMSE: {problem}")
+    lines.append("  wrote " + " and ".join(str(p) for p in written))
     print("\n".join(lines))
     if args.json:
         print(json.dumps(stats))
@@ -168,7 +199,10 @@ def cmd_compare(args):
 
 def cmd_bench(args):
     from .bench import bench, format_bench, format_equal_time
-    if args.equal_time:
+    from .validate import finite_number, whole_number
+    whole_number("bench.repeats", args.repeats, "--repeats")
+    if args.equal_time is not None:
+        finite_number("bench.equal_time", args.equal_time, "--equal-time")
         from .compare import equal_time
         scene = args.scene or "scenes/cornell_spheres"
         report = equal_time(scene, _technique_list(args.techniques), args.equal_time,
@@ -188,6 +222,9 @@ def cmd_bench(args):
 def cmd_crosscheck(args):
     from .api import as_scene
     from .crosscheck import compare_with_embree, format_figures
+    from .validate import whole_number
+    whole_number("seed", args.seed, "--seed")
+    whole_number("crosscheck.rays", args.rays, "--rays")
     figures = compare_with_embree(as_scene(args.scene), n_random=args.rays, seed=args.seed)
     print(format_figures(figures))
     if args.json:

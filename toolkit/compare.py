@@ -11,6 +11,7 @@ import numpy as np
 from .api import as_scene, render
 from .images import to_srgb8, write_image
 from .reference import reference_at, rmse
+from .validate import LIMITS
 
 PHASES = ["generate", "extend", "walk", "shadow", "compact", "connect"]
 
@@ -124,7 +125,9 @@ def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=N
     width, height = resolution
     ref, ref_err = reference_at(scene, width, height)
     if ref is None:
-        raise ValueError(f"{scene.name} has no reference image at {width}x{height}")
+        from .reference import reference_problem
+        raise ValueError(f"{scene.name}: no reference to compare with at {width}x{height}: "
+                         f"{reference_problem(scene, width, height) or 'the scene has none'}")
     hard = hard_pixels(ref, ref_err)
     out = {}
     for name in techniques:
@@ -132,7 +135,7 @@ def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=N
         render(scene, technique=name, spp=1, seed=seed + 999, resolution=resolution, device=device, count_simd=False)
         probe = render(scene, technique=name, spp=8, seed=seed + 998, resolution=resolution, device=device,
                        count_simd=False)
-        chunk = max(1, int(seconds / 10 / (probe.stats["seconds"] / 8)))
+        chunk = max(1, min(int(seconds / 10 / (probe.stats["seconds"] / 8)), LIMITS["spp"][1]))
         total, spp, k = np.zeros((height, width, 3)), 0, 0
         start = time.perf_counter()
         while time.perf_counter() - start < seconds:

@@ -1,42 +1,97 @@
 """Image files through OpenImageIO: linear float32 EXR and an sRGB 8-bit PNG beside it."""
+import os
+import tempfile
 from pathlib import Path
 
 import numpy as np
 
 
 def read_exr(path):
+    """(H, W, 3) float32 pixels; OSError naming the problem for a missing, truncated or corrupt file."""
     import OpenImageIO as oiio
-    buf = oiio.ImageBuf(str(path))
-    if buf.has_error:
-        raise OSError(f"{path}: {buf.geterror()}")
-    pixels = np.asarray(buf.get_pixels(oiio.FLOAT), np.float32)
+    file = oiio.ImageInput.open(str(path))
+    if file is None:
+        raise OSError(f"{path}: {oiio.geterror() or 'cannot open the image'}")
+    try:
+        pixels = file.read_image(oiio.FLOAT)     # None when any part is missing or corrupt
+        if pixels is None:
+            raise OSError(f"{path}: {file.geterror() or 'cannot read the image'}")
+    finally:
+        file.close()
+    pixels = np.asarray(pixels, np.float32)
+    if pixels.ndim != 3 or pixels.shape[2] < 3:
+        raise OSError(f"{path}: expected an RGB image, got shape {pixels.shape}")
     return pixels[..., :3]
 
 
 def write_image(path, image):
-    """Write float32 linear `image` (H,W,3) to path (.exr) and, for .exr, an sRGB PNG beside it."""
+    """Write float32 linear `image` (H,W,3) to path: .exr, with an sRGB 8-bit .png beside it,
+    or .png alone (sRGB 8-bit). Returns the paths written.
+
+    Each file is written to a temporary file in the same folder, every result checked, then
+    renamed over the old one: a failed write (disk full, no permission) raises OSError naming
+    the reason and leaves any old file untouched."""
     import OpenImageIO as oiio
     path = Path(path)
+    suffix = path.suffix.lower()
+    if suffix not in (".exr", ".png"):
+        raise OSError(f"{path}: unsupported image type {path.suffix!r}; use .exr or .png")
     path.parent.mkdir(parents=True, exist_ok=True)
     image = np.ascontiguousarray(image, np.float32)
-    h, w, c = image.shape
-    if path.suffix.lower() == ".png":
-        return _write(oiio, path, to_srgb8(image), oiio.UINT8)
-    _write(oiio, path, image, oiio.FLOAT)
-    png = path.with_suffix(".png")
-    _write(oiio, png, to_srgb8(image), oiio.UINT8)
-    return path
+    files = [(path, to_srgb8(image), oiio.UINT8)] if suffix == ".png" else \
+        [(path, image, oiio.FLOAT), (path.with_suffix(".png"), to_srgb8(image), oiio.UINT8)]
+    temporary = []
+    try:
+        for target, pixels, fmt in files:
+            temporary.append(_write_temporary(oiio, target, pixels, fmt))
+        for (target, _, _), tmp in zip(files, temporary):
+            os.replace(tmp, target)
+    finally:
+        for tmp in temporary:
+            if os.path.exists(tmp):
+                os.unlink(tmp)
+    return [target for target, _, _ in files]
 
 
-def _write(oiio, path, pixels, fmt):
+def _write_temporary(oiio, target, pixels, fmt):
+    """Write `pixels` to a new temporary file beside `target` (same suffix: OpenImageIO picks
+    the format by it); returns its name, or raises OSError with OpenImageIO's reason."""
+    try:
+        fd, tmp = tempfile.mkstemp(dir=target.parent, prefix=f".{target.stem}.", suffix=target.suffix)
+    except OSError as error:
+        raise OSError(f"{target}: cannot write there: {error.strerror or error}") from None
+    os.close(fd)
+    os.chmod(tmp, 0o666 & ~_umask())     # as an ordinary new file (mkstemp makes it private)
     h, w, c = pixels.shape
-    out = oiio.ImageOutput.create(str(path))
-    if out is None:
-        raise OSError(f"{path}: OpenImageIO cannot write this format: {oiio.geterror()}")
-    out.open(str(path), oiio.ImageSpec(w, h, c, fmt))
-    out.write_image(pixels)
-    out.close()
-    return path
+    out = oiio.ImageOutput.create(tmp)
+    ok = out is not None and out.open(tmp, oiio.ImageSpec(w, h, c, fmt))
+    ok = ok and out.write_image(pixels)
+    reason = (out.geterror() if out is not None else "") or oiio.geterror()
+    ok = out is not None and out.close() and ok
+    reason = reason or (out.geterror() if out is not None else "") or oiio.geterror()
+    if ok:
+        # OpenImageIO does not report every failed write (a full disk can leave a truncated file
+        # and a success), so the file is read back and compared before it replaces anything.
+        file = oiio.ImageInput.open(tmp)
+        back = file.read_image(pixels.dtype == np.uint8 and oiio.UINT8 or oiio.FLOAT) if file else None
+        reason = "" if file is None else file.geterror()
+        if file is not None:
+            file.close()
+        ok = back is not None and np.array_equal(np.asarray(back).reshape(pixels.shape), pixels)
+        reason = reason or oiio.geterror() or "the file read back differs from the image (disk full?)"
+    if ok:
+        with open(tmp, "rb") as f:     # on disk before the rename makes it the only copy
+            os.fsync(f.fileno())
+    else:
+        os.unlink(tmp)
+        raise OSError(f"{target}: cannot write the image: {reason or 'unknown error'}")
+    return tmp
+
+
+def _umask():
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def to_srgb8(image):

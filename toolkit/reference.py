@@ -26,9 +26,24 @@ def downsample_stderr(stderr, width, height):
     return np.sqrt(downsample(stderr ** 2, width, height) * k) / k
 
 
-def reference_at(scene, width, height):
-    """(reference, reference_stderr) at width x height, or (None, None) if not available."""
+def reference_problem(scene, width, height):
+    """Why the scene's reference cannot be compared with a width x height render, or None.
+    Only like with like: each render pixel must cover the same k x k block of reference
+    pixels, so the field of view is the same (a non-square render of a square camera crops it)."""
     if scene.reference is None:
+        return scene.info.get("reference_problem")
+    h, w = scene.reference.shape[:2]
+    if w % width or h % height or w // width != h // height:
+        return (f"the reference is {w}x{h}; a {width}x{height} render sees another part of the scene "
+                f"or cannot be averaged from it (use {w // max(1, w // width)}x{h // max(1, w // width)} or another "
+                f"divisor of the same aspect ratio)")
+    return None
+
+
+def reference_at(scene, width, height):
+    """(reference, reference_stderr) at width x height, or (None, None) if not available
+    (reference_problem says why)."""
+    if scene.reference is None or reference_problem(scene, width, height):
         return None, None
     try:
         return (downsample(scene.reference.astype(np.float64), width, height),

@@ -11,15 +11,22 @@ from pathlib import Path
 import numpy as np
 
 from .obj import ObjError, read_obj
+from .validate import LIMITS, InputError, check_keys, finite_number, in_range, json_depth, \
+    regular_file_inside, whole_number
 
 FORMAT = "toolkit-scene/1"
 # Material type codes shared with cl/materials.h through the MAT_* defines (see features()).
 MATERIAL_TYPES = {"diffuse": 0, "mirror": 1, "dielectric": 2, "glossy": 3}
 MATERIAL_PARAMS = {"diffuse": {"reflectance"}, "mirror": {"reflectance"},
                    "dielectric": {"ior"}, "glossy": {"reflectance", "alpha"}}
+# The keys of each object in scene.json (a free-form "notes" is allowed in every one).
+TOP_KEYS = {"format", "camera", "materials", "shapes", "integrator"}
+CAMERA_KEYS = {"origin", "target", "up", "fov_deg", "fov_axis", "width", "height"}
+SHAPE_KEYS = {"mesh", "material", "emission"}
+INTEGRATOR_KEYS = {"max_depth", "rr_depth"}
 
 
-class SceneError(ValueError):
+class SceneError(InputError):
     """A scene that cannot be rendered, with the file and the problem named."""
 
 
@@ -105,10 +112,10 @@ def _fail(where, message):
 def _vector(where, value, n=3, positive=False):
     try:
         v = np.asarray(value, np.float64)
-    except (TypeError, ValueError):
-        _fail(where, f"expected {n} numbers, got {value!r}")
-    if v.shape != (n,):
-        _fail(where, f"expected {n} numbers, got {value!r}")
+    except (TypeError, ValueError, OverflowError):
+        _fail(where, f"expected {n} finite numbers, got {_short(value)}")
+    if v.shape != (n,) or isinstance(value, (str, dict)) or any(isinstance(x, bool) for x in value):
+        _fail(where, f"expected {n} numbers, got {_short(value)}")
     if not np.all(np.isfinite(v)):
         _fail(where, f"NaN or infinite value in {value!r}")
     if positive and np.any(v < 0):
@@ -116,17 +123,31 @@ def _vector(where, value, n=3, positive=False):
     return v
 
 
-def _number(where, value, low=-math.inf, high=math.inf):
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+def _short(value, n=60):
+    text = repr(value)
+    return text if len(text) <= n else text[:n] + "..."
+
+
+def _number(where, value, limit):
+    """A finite number within LIMITS[limit]."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        _fail(where, f"expected a finite number, got {_short(value)}")
+    if isinstance(value, float) and not math.isfinite(value):
         _fail(where, f"expected a finite number, got {value!r}")
-    if not low <= value <= high:
-        _fail(where, f"{value!r} is outside [{low}, {high}]")
-    return float(value)
+    return finite_number(limit, value, where)
+
+
+def _object(where, value, what, known):
+    if not isinstance(value, dict):
+        _fail(where, f"{what} must be an object, got {_short(value)}")
+    check_keys(where, value, known, what)
+    return value
 
 
 def _parse_camera(where, cam):
     if not isinstance(cam, dict):
         _fail(where, "'camera' must be an object")
+    check_keys(where, cam, CAMERA_KEYS, "the camera")
     for key in ("origin", "target", "up", "fov_deg", "width", "height"):
         if key not in cam:
             _fail(where, f"camera has no '{key}'")
@@ -134,12 +155,12 @@ def _parse_camera(where, cam):
         origin=_vector(f"{where}: camera.origin", cam["origin"]),
         target=_vector(f"{where}: camera.target", cam["target"]),
         up=_vector(f"{where}: camera.up", cam["up"]),
-        fov_deg=_number(f"{where}: camera.fov_deg", cam["fov_deg"], 1e-3, 179.0),
+        fov_deg=_number(f"{where}: camera.fov_deg", cam["fov_deg"], "camera.fov_deg"),
         fov_axis=cam.get("fov_axis", "x"),
-        width=int(_number(f"{where}: camera.width", cam["width"], 1, 1 << 15)),
-        height=int(_number(f"{where}: camera.height", cam["height"], 1, 1 << 15)))
-    if camera.fov_axis not in ("x", "y"):
-        _fail(where, f"camera.fov_axis must be 'x' or 'y', got {camera.fov_axis!r}")
+        width=whole_number("camera.width", cam["width"], f"{where}: camera.width"),
+        height=whole_number("camera.height", cam["height"], f"{where}: camera.height"))
+    if not isinstance(camera.fov_axis, str) or camera.fov_axis not in ("x", "y"):
+        _fail(where, f"camera.fov_axis must be 'x' or 'y', got {_short(camera.fov_axis)}")
     f = camera.target - camera.origin
     if np.linalg.norm(f) == 0:
         _fail(where, "camera.target equals camera.origin")
@@ -152,42 +173,67 @@ def _parse_material(where, name, m):
     if not isinstance(m, dict) or "type" not in m:
         _fail(where, f"material {name!r} needs a 'type'")
     kind = m["type"]
-    if kind not in MATERIAL_TYPES:
-        _fail(where, f"material {name!r} has unknown type {kind!r} "
+    if not isinstance(kind, str) or kind not in MATERIAL_TYPES:
+        _fail(where, f"material {name!r} has unknown type {_short(kind)} "
                      f"(known: {', '.join(MATERIAL_TYPES)})")
+    check_keys(where, m, {"type"} | MATERIAL_PARAMS[kind], f"material {name!r} ({kind})")
     missing = MATERIAL_PARAMS[kind] - set(m)
     if missing:
         _fail(where, f"material {name!r} ({kind}) is missing {', '.join(sorted(missing))}")
     out = {"name": name, "type": kind, "reflectance": np.zeros(3), "ior": 1.0, "alpha": 0.0}
     if "reflectance" in MATERIAL_PARAMS[kind]:
         out["reflectance"] = _vector(f"{where}: material {name!r}.reflectance", m["reflectance"], positive=True)
-        if np.any(out["reflectance"] > 1):
+        if np.any(out["reflectance"] > LIMITS["material.reflectance"][1]):
             _fail(where, f"material {name!r}: reflectance above 1 creates energy")
     if kind == "dielectric":
-        out["ior"] = _number(f"{where}: material {name!r}.ior", m["ior"], 1.0 + 1e-6, 10.0)
+        out["ior"] = _number(f"{where}: material {name!r}.ior", m["ior"], "material.ior")
     if kind == "glossy":
-        out["alpha"] = _number(f"{where}: material {name!r}.alpha", m["alpha"], 1e-4, 1.0)
+        out["alpha"] = _number(f"{where}: material {name!r}.alpha", m["alpha"], "material.alpha")
     return out
+
+
+def _no_duplicates(pairs):
+    keys = [k for k, _ in pairs]
+    for k in keys:
+        if keys.count(k) > 1:
+            raise SceneError(f"key {k!r} appears twice in one object (the second would silently win)")
+    return dict(pairs)
 
 
 def load_scene(path):
     """Load and validate a scene folder or scene.json; raises SceneError naming the problem."""
+    try:
+        return _load_scene(path)
+    except SceneError:
+        raise
+    except InputError as error:      # from the shared checks in validate.py
+        raise SceneError(str(error)) from None
+
+
+def _load_scene(path):
     path = Path(path)
     if path.is_dir():
         path = path / "scene.json"
-    if not path.is_file():
+    if not path.exists() and not path.is_symlink():
         raise SceneError(f"{path}: scene file not found")
     where = str(path)
+    regular_file_inside(path, path.parent, "scene file", "scene.json.bytes")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = json.loads(path.read_text(encoding="utf-8"), object_pairs_hook=_no_duplicates)
     except json.JSONDecodeError as error:
         raise SceneError(f"{where}:{error.lineno}:{error.colno}: malformed JSON: {error.msg}") from None
     except (OSError, UnicodeDecodeError) as error:
         raise SceneError(f"{where}: cannot read the scene file: {error}") from None
+    except SceneError as error:
+        raise SceneError(f"{where}: {error}") from None
+    except RecursionError:
+        in_range("scene.json.depth", math.inf, f"{where}: JSON nesting depth")
+    in_range("scene.json.depth", json_depth(data), f"{where}: JSON nesting depth")
     if not isinstance(data, dict):
         _fail(where, "top level must be a JSON object")
     if data.get("format") != FORMAT:
-        _fail(where, f"'format' must be {FORMAT!r}, got {data.get('format')!r}")
+        _fail(where, f"'format' must be {FORMAT!r}, got {_short(data.get('format'))}")
+    check_keys(where, data, TOP_KEYS, "the top level")
     camera = _parse_camera(where, data.get("camera"))
     materials_in = data.get("materials")
     if not isinstance(materials_in, dict) or not materials_in:
@@ -203,36 +249,69 @@ def load_scene(path):
         swhere = f"{where}: shapes[{k}]"
         if not isinstance(shape, dict) or "mesh" not in shape or "material" not in shape:
             _fail(swhere, "a shape needs 'mesh' and 'material'")
+        check_keys(swhere, shape, SHAPE_KEYS, "a shape")
         if not isinstance(shape["mesh"], str) or not isinstance(shape["material"], str):
             _fail(swhere, "'mesh' (a path) and 'material' (a name) must be strings")
         if shape["material"] not in index_of:
             _fail(swhere, f"unknown material {shape['material']!r}")
         emission = _vector(f"{swhere}.emission", shape.get("emission", [0, 0, 0]), positive=True)
+        for e in emission[emission > 0]:   # 0 turns a channel off; others must survive float32 products
+            in_range("shape.emission", float(e), f"{swhere}.emission component")
         try:
-            v, t = read_obj(path.parent / shape["mesh"])
-        except ObjError as error:
+            mesh = regular_file_inside(path.parent / shape["mesh"], path.parent, "mesh", "mesh.bytes")
+            v, t = read_obj(path.parent / shape["mesh"])   # checked above; named as written
+        except (ObjError, InputError) as error:
             raise SceneError(f"{swhere}: {error}") from None
         vertices.append(v)
         triangles.append(t + offset)
         offset += len(v)
         material_of.append(np.full(len(t), index_of[shape["material"]]))
         emission_of.append(np.repeat(emission[None], len(t), 0))
-    integrator = data.get("integrator", {})
-    if not isinstance(integrator, dict):
-        _fail(where, "'integrator' must be an object")
+    integrator = _object(where, data.get("integrator", {}), "'integrator'", INTEGRATOR_KEYS)
+    max_depth = whole_number("integrator.max_depth", integrator.get("max_depth", -1), f"{where}: integrator.max_depth")
+    rr_depth = whole_number("integrator.rr_depth", integrator.get("rr_depth", 5), f"{where}: integrator.rr_depth")
+    if max_depth < 0 and rr_depth < 0:
+        _fail(where, "integrator: max_depth -1 (unbounded) needs Russian roulette (rr_depth >= 0); "
+                     "without either, paths only end at each technique's own hard cap")
     scene = Scene(
         name=path.parent.name, camera=camera,
         vertices=np.concatenate(vertices), triangles=np.concatenate(triangles),
         material_of=np.concatenate(material_of), emission_of=np.concatenate(emission_of),
         materials=materials,
-        max_depth=int(_number(f"{where}: integrator.max_depth", integrator.get("max_depth", -1), -1, 1 << 20)),
-        rr_depth=int(_number(f"{where}: integrator.rr_depth", integrator.get("rr_depth", 5), -1, 1 << 20)),
+        max_depth=max_depth, rr_depth=rr_depth,
         path=path, info={"notes": data.get("notes", "")})
     scene = drop_degenerate(scene, where)
-    if not len(scene.light_triangles):
-        _fail(where, "the scene has no lights (no shape with a positive 'emission'): it would render black")
-    scene.reference, scene.reference_stderr = _load_reference(path.parent, camera)
+    check_scene(scene, where)
+    scene.reference, scene.reference_stderr, problem = _load_reference(path.parent, camera)
+    scene.info.update(problem)
     return scene
+
+
+def check_scene(scene, where=None):
+    """What the device needs of a scene, however it was made (loaded, transformed, built in
+    Python): lights, a triangle count and a scale within LIMITS. Raises SceneError."""
+    where = where or f"scene {scene.name!r}"
+    try:
+        in_range("scene.triangles", len(scene.triangles), f"{where}: triangle count")
+        if not len(scene.light_triangles):
+            _fail(where, "the scene has no lights (no shape with a positive 'emission'): it would render black")
+        lit = scene.emission_of[scene.emission_of > 0]
+        for e in (lit.min(), lit.max()):
+            in_range("shape.emission", float(e), f"{where}: emission component")
+        lo, hi = scene.vertices.min(0), scene.vertices.max(0)
+        extent = float(np.linalg.norm(hi - lo))
+        in_range("scene.extent", extent, f"{where}: scene extent (bounding-box diagonal)")
+        center = 0.5 * (lo + hi)
+        in_range("scene.offset", float(np.linalg.norm(center)) / extent,
+                 f"{where}: distance of the scene's centre from the origin, in extents,")
+        in_range("camera.distance", float(np.linalg.norm(scene.camera.origin - center)) / extent,
+                 f"{where}: camera distance from the scene's centre, in extents,")
+        in_range("integrator.max_depth", scene.max_depth, f"{where}: integrator.max_depth")
+        in_range("integrator.rr_depth", scene.rr_depth, f"{where}: integrator.rr_depth")
+    except SceneError:
+        raise
+    except InputError as error:
+        raise SceneError(str(error)) from None
 
 
 def drop_degenerate(scene, where="scene"):
@@ -256,15 +335,26 @@ def drop_degenerate(scene, where="scene"):
 def _load_reference(folder, camera):
     ref_path = folder / "reference.exr"
     if not ref_path.is_file():
-        return None, None
+        return None, None, {}
     from .images import read_exr
-    ref = read_exr(ref_path)
-    if ref.shape[:2] != (camera.height, camera.width):
-        warnings.warn(f"{ref_path}: size {ref.shape[1]}x{ref.shape[0]} differs from the camera; ignored")
-        return None, None
-    err_path = folder / "reference_stderr.exr"
-    err = read_exr(err_path) if err_path.is_file() else np.zeros_like(ref)
-    return ref, err
+    info = {}
+
+    def unusable(problem):
+        warnings.warn(problem + "; renders are not compared with it", stacklevel=4)
+        info["reference_problem"] = problem
+        return None, None, info
+    try:
+        ref = read_exr(ref_path)
+        err_path = folder / "reference_stderr.exr"
+        err = read_exr(err_path) if err_path.is_file() else np.zeros_like(ref)
+    except OSError as error:
+        return unusable(f"reference cannot be read: {error}")
+    if ref.shape[:2] != (camera.height, camera.width) or err.shape != ref.shape:
+        return unusable(f"{ref_path}: size {ref.shape[1]}x{ref.shape[0]} differs from the camera "
+                        f"({camera.width}x{camera.height}) or from reference_stderr.exr")
+    if not (np.isfinite(ref).all() and np.isfinite(err).all()):
+        return unusable(f"{ref_path}: NaN or infinite pixels")
+    return ref, err, info
 
 
 def bundled_scene_dir(name="cornell_box"):

@@ -29,7 +29,8 @@ class BdptTechnique(Technique):
     def __init__(self, queue, device_scene, regenerate_fraction=0.6, coalesced_scatter=True, pool_size=None,
                  **kwargs):
         scene = device_scene.scene
-        self.max_vertices = min(self.max_vertices, scene.max_depth + 1) if scene.max_depth >= 0 else self.max_vertices
+        # At least 2: the walk stores its first hit (vertex 1) before it checks the depth.
+        self.max_vertices = max(2, min(self.max_vertices, scene.max_depth + 1)) if scene.max_depth >= 0 else self.max_vertices
         defines = {"MAX_VERTICES": self.max_vertices, "COALESCED_SCATTER": bool(coalesced_scatter),
                    "BDPT_RR_DEPTH": (scene.rr_depth + 1) // 2}   # subpath roulette: see cl/bdpt_walk.h
         defines.update(kwargs.pop("extra_defines", None) or {})

@@ -1,0 +1,127 @@
+"""Fuzz the scene loader with hypothesis: random, malformed scene.json documents and OBJ files
+(750 per run, a few seconds: every example is a few small files). Each must load or raise the
+toolkit's own SceneError; any other exception (or a hang: the loader reads only small regular
+files) is a bug. Examples are derandomized so a failure reproduces; hypothesis prints the
+smallest failing example."""
+import copy
+import json
+import os
+import shutil
+import tempfile
+import warnings
+from pathlib import Path
+
+import pytest
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from toolkit.scene import SceneError, load_scene
+
+CORNELL = Path(__file__).resolve().parent.parent / "scenes" / "cornell_box"
+BASE = json.loads((CORNELL / "scene.json").read_text())
+SETTINGS = settings(max_examples=250, deadline=None, derandomize=True, database=None,
+                    suppress_health_check=list(HealthCheck))
+
+# Values a user (or a broken tool) might put anywhere: every JSON type, extreme numbers, paths.
+numbers = st.one_of(st.integers(-3, 70), st.integers(), st.sampled_from([2 ** 64, -2 ** 63, 10 ** 400]),
+                    st.floats(), st.sampled_from([1e-46, 1e39, 1e-300, 1e300, -0.0, 0.5, 1.0]))
+strings = st.one_of(st.text(max_size=12), st.sampled_from(
+    ["x", "y", "diffuse", "glossy", "mirror", "dielectric", "white", "meshes/floor.obj", "/dev/zero",
+     "../scene.json", "meshes", "", "meshes/pipe.obj", "toolkit-scene/1", "notes"]))
+leaves = st.one_of(st.none(), st.booleans(), numbers, strings)
+values = st.recursive(leaves, lambda inner: st.one_of(st.lists(inner, max_size=4),
+                                                      st.dictionaries(strings, inner, max_size=4)), max_leaves=12)
+
+
+def paths(doc, prefix=()):
+    """Every (path) into a JSON document, the root included."""
+    yield prefix
+    if isinstance(doc, dict):
+        for k, v in doc.items():
+            yield from paths(v, prefix + (k,))
+    elif isinstance(doc, list):
+        for i, v in enumerate(doc):
+            yield from paths(v, prefix + (i,))
+
+
+@st.composite
+def mutated_scenes(draw):
+    """The Cornell box's scene.json with 1-4 random edits: replace, delete or add a key anywhere."""
+    doc = copy.deepcopy(BASE)
+    rnd = draw(st.randoms())   # uniform over the document's places (sampled_from favours the first)
+    for _ in range(draw(st.integers(1, 4))):
+        where = rnd.choice(list(paths(doc)))
+        if not where:
+            continue
+        parent = doc
+        for p in where[:-1]:
+            parent = parent[p]
+        key, kind = where[-1], draw(st.sampled_from(["replace", "delete", "add"]))
+        if kind == "replace":     # mostly a number or string where one was: deep into the checks
+            parent[key] = draw(st.one_of(numbers, strings, values))
+        elif kind == "delete":
+            del parent[key]
+        elif isinstance(parent, dict):
+            parent[draw(strings)] = draw(values)
+        else:
+            parent.insert(key, draw(values))
+    return json.dumps(doc)
+
+
+@st.composite
+def broken_texts(draw):
+    """The scene.json text cut, with bytes inserted or deleted (malformed JSON and encodings)."""
+    text = json.dumps(BASE).encode()
+    i = draw(st.integers(0, len(text)))
+    j = draw(st.integers(i, min(len(text), i + 20)))
+    return text[:i] + draw(st.binary(max_size=8)) + text[j:]
+
+
+token = st.one_of(numbers.map(str), st.sampled_from(["1/2/3", "-1", "0", "nan", "inf", "1e999", "//", "1//2", "x"]),
+                  st.text(alphabet=st.characters(blacklist_categories=["Cs"]), max_size=5))
+obj_line = st.one_of(
+    st.tuples(st.just("v"), st.lists(token, max_size=4)), st.tuples(st.just("f"), st.lists(token, max_size=5)),
+    st.tuples(st.sampled_from(["vn", "vt", "o", "g", "#", "usemtl", ""]), st.lists(token, max_size=3)),
+    st.tuples(st.just("v"), st.lists(st.floats(-2, 2).map(repr), min_size=3, max_size=3)),
+    st.tuples(st.just("f"), st.lists(st.integers(-6, 6).map(str), min_size=3, max_size=4))
+).map(lambda line: " ".join([line[0], *line[1]]))
+obj_files = st.lists(obj_line, max_size=12).map("\n".join)
+
+
+@pytest.fixture(scope="module")
+def folder():
+    with tempfile.TemporaryDirectory() as tmp:
+        box = Path(tmp) / "box"
+        shutil.copytree(CORNELL, box, ignore=shutil.ignore_patterns("*.exr"))
+        os.mkfifo(box / "meshes" / "pipe.obj")      # a mesh path may name it: must fail, not hang
+        yield box
+
+
+def loads_or_scene_error(path):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")   # dropped degenerate triangles
+        try:
+            load_scene(path)
+        except SceneError as error:
+            assert str(error) and "\n" not in str(error)
+
+
+@SETTINGS
+@given(text=mutated_scenes())
+def test_mutated_scene_json(folder, text):
+    (folder / "scene.json").write_text(text)
+    loads_or_scene_error(folder)
+
+
+@SETTINGS
+@given(data=broken_texts())
+def test_broken_scene_json_text(folder, data):
+    (folder / "scene.json").write_bytes(data)
+    loads_or_scene_error(folder)
+
+
+@SETTINGS
+@given(text=obj_files)
+def test_random_obj_file(folder, text):
+    (folder / "scene.json").write_text(json.dumps(BASE))
+    (folder / "meshes" / "floor.obj").write_text(text, encoding="utf-8", errors="surrogatepass")
+    loads_or_scene_error(folder)

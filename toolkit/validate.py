@@ -1,0 +1,201 @@
+"""Every limit on what the toolkit accepts, in one table, and the checks shared by the scene
+loader (scene.py), the command line (cli.py) and `toolkit.render` (api.py).
+
+scenes/FORMAT.md states each limit of LIMITS in its "Limits" table; a test
+(tests/test_bad_input.py) checks the document against this table, so they cannot drift apart.
+"""
+import difflib
+import math
+import numbers
+import os
+import stat
+from pathlib import Path
+
+
+class InputError(ValueError):
+    """A bad argument of the command line or of toolkit.render, with the problem named."""
+
+
+# name: (lowest, highest, why). Names are how FORMAT.md and the error messages call them.
+LIMITS = {
+    "camera.width": (1, 1 << 15, "pixels"),
+    "camera.height": (1, 1 << 15, "pixels"),
+    "camera.fov_deg": (1e-3, 179.0, "a pinhole cannot see 180 degrees"),
+    "material.reflectance": (0.0, 1.0, "above 1 creates energy"),
+    "material.ior": (1.000001, 10.0, "relative to the exterior (index 1)"),
+    "material.alpha": (1e-4, 1.0, "GGX roughness; smoother: use a mirror"),
+    "shape.emission": (1e-10, 1e10, "each non-zero component; 0 means no light. Products with "
+                                    "areas and densities must stay inside float32"),
+    "integrator.max_depth": (-1, 63, "-1: unbounded. BDPT stores at most 64 vertices per subpath"),
+    "integrator.rr_depth": (-1, 63, "-1: no Russian roulette (then max_depth must be set)"),
+    # Measured: the Cornell box renders the same at scales 1e-12 .. 1e12; the margin leaves room
+    # for extreme emission, whose products with areas and densities also live in float32.
+    "scene.extent": (1e-6, 1e6, "bounding-box diagonal"),
+    "scene.offset": (0.0, 1e6, "distance of the scene's centre from the origin, in extents "
+                               "(float64 rebasing keeps 1e-10 of the extent)"),
+    "camera.distance": (0.0, 100.0, "camera origin from the scene's centre, in extents: float32 hit "
+                                    "points stay within the ray offset (1e-5 extents)"),
+    "scene.triangles": (1, 1 << 24, "after dropping degenerate ones"),
+    "mesh.bytes": (1, 1 << 31, "size of one OBJ file"),
+    "scene.json.bytes": (1, 1 << 24, "size of scene.json"),
+    "scene.json.depth": (0, 16, "nesting of JSON objects and lists"),
+    "spp": (1, 1 << 24, "samples per pixel of one render"),
+    "seed": (0, (1 << 32) - 1, "the device hashes it as a 32-bit unsigned integer"),
+    "memory.fraction": (0.0, 0.5, "film and device buffers, as a share of this machine's memory"),
+    "bench.equal_time": (0.01, 86400.0, "seconds per technique"),
+    "bench.repeats": (1, 1000, "interleaved repetitions"),
+    "crosscheck.rays": (1, 1 << 26, "random rays"),
+}
+
+
+def limit_text(name):
+    """`low .. high` as FORMAT.md writes it."""
+    low, high, _ = LIMITS[name]
+    return f"{_num(low)} .. {_num(high)}"
+
+
+def _num(x):
+    if isinstance(x, int) and x >= 1024 and (x & (x - 1)) == 0:
+        return f"2^{x.bit_length() - 1}"
+    if isinstance(x, int) and x + 1 >= 1024 and ((x + 1) & x) == 0:
+        return f"2^{x.bit_length()} - 1"
+    text, short = f"{x:.7g}", f"{x:.0e}"
+    return short if float(short) == x and len(short) < len(text) else text
+
+
+def in_range(name, value, where=None):
+    """`value` if it lies within LIMITS[name], else an InputError naming `where` (default the name)."""
+    low, high, _ = LIMITS[name]
+    if not low <= value <= high:
+        raise InputError(f"{where or name} {_show(value)} is outside {limit_text(name)}")
+    return value
+
+
+def _show(value):
+    return repr(value)
+
+
+def whole_number(name, value, where=None):
+    """An int (not a bool, not 2.0) within LIMITS[name]."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise InputError(f"{where or name} must be a whole number, got {value!r}")
+    return in_range(name, int(value), where)
+
+
+def finite_number(name, value, where=None):
+    if isinstance(value, bool) or not isinstance(value, numbers.Real):
+        raise InputError(f"{where or name} must be a number, got {value!r}")
+    try:
+        value = float(value)
+    except OverflowError:
+        raise InputError(f"{where or name} {value!r} is outside {limit_text(name)}") from None
+    if not math.isfinite(value):
+        raise InputError(f"{where or name} must be finite, got {value!r}")
+    return in_range(name, value, where)
+
+
+# -- unknown keys ------------------------------------------------------------------------------
+
+# Names other renderers use for our keys: a misspelt "roughnes" should still lead to "alpha".
+SYNONYMS = {"roughness": "alpha", "albedo": "reflectance", "color": "reflectance", "eta": "ior",
+            "radiance": "emission", "fov": "fov_deg", "maxdepth": "max_depth", "rrdepth": "rr_depth"}
+
+
+def check_keys(where, obj, known, what):
+    """Refuse keys of `obj` outside `known` (plus a free-form "notes"), suggesting the closest."""
+    for key in obj:
+        if key in known or key == "notes":
+            continue
+        candidates = sorted(known | {s for s, k in SYNONYMS.items() if k in known})
+        close = [SYNONYMS.get(c, c) for c in difflib.get_close_matches(key, candidates, n=1)]
+        hint = f"; did you mean {close[0]!r}?" if close else f" (known: {', '.join(sorted(known))})"
+        raise InputError(f"{where}: unknown key {key!r} in {what}{hint}")
+
+
+def json_depth(value):
+    """Nesting depth of a parsed JSON value (iterative: no recursion limit)."""
+    deepest, stack = 0, [(value, 1)]
+    while stack:
+        v, d = stack.pop()
+        if isinstance(v, (dict, list)):
+            deepest = max(deepest, d)
+            stack.extend((x, d + 1) for x in (v.values() if isinstance(v, dict) else v))
+    return deepest
+
+
+# -- files -------------------------------------------------------------------------------------
+
+def regular_file_inside(path, folder, what, size_limit):
+    """`path` resolved, if it is a regular file inside `folder` no larger than LIMITS[size_limit];
+    else InputError. (A device or FIFO would be read forever; a file outside the scene's folder
+    is not part of the scene.)"""
+    path = Path(path)
+    try:
+        resolved = path.resolve()
+        inside = resolved.is_relative_to(Path(folder).resolve())
+    except (OSError, RuntimeError) as error:     # RuntimeError: a symlink loop
+        raise InputError(f"{path}: cannot resolve the {what} path: {error}") from None
+    if not inside:
+        raise InputError(f"{path}: the {what} must be inside the scene folder {folder}")
+    try:
+        info = os.stat(resolved)
+    except FileNotFoundError:
+        raise InputError(f"{path}: {what} file not found") from None
+    except OSError as error:
+        raise InputError(f"{path}: cannot read the {what}: {error}") from None
+    if not stat.S_ISREG(info.st_mode):
+        raise InputError(f"{path}: the {what} is not a regular file")
+    in_range(size_limit, max(info.st_size, 1), f"{path}: {what} size (bytes)")
+    return resolved
+
+
+def check_output(path):
+    """Refuse an output image path before any work is done: it must end in .exr (an sRGB .png
+    is written beside it) or .png (sRGB 8-bit only), must not be a folder, and its folder must
+    accept a new file (tried with a temporary file that is removed at once)."""
+    import tempfile
+    path = Path(path)
+    if path.suffix.lower() not in (".exr", ".png"):
+        raise InputError(f"--out {path}: unsupported image type {path.suffix or '(none)'!r}; use .exr "
+                         "(linear float, with an sRGB .png beside it) or .png (sRGB 8-bit)")
+    if path.is_dir():
+        raise InputError(f"--out {path}: is a folder, not an image file")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", suffix=".probe"):
+            pass
+    except OSError as error:
+        raise InputError(f"--out {path}: cannot write there: {error.strerror or error}") from None
+    return path
+
+
+# -- what a render needs -----------------------------------------------------------------------
+
+def memory_bytes(width, height, spp):
+    """Host and device bytes a render of width x height needs at most, estimated: the float64
+    film (sum, sum of squares, pass sums, counts: ~13 numbers per pixel), the image and
+    standard-error copies (6), float64 BDPT records per pass (3), and the float32 sample
+    output of one pass (4 per pixel-sample of a pass, at least one sample per pixel)."""
+    pixels = width * height
+    return pixels * (8 * (13 + 6 + 3) + 16) + 16 * min(pixels * spp, max(pixels, 1 << 18))
+
+
+def physical_memory():
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (ValueError, OSError, AttributeError):
+        return 16 << 30
+
+
+def render_args(spp, seed, width, height, warp_width=32):
+    """The numeric arguments of a render (CLI and toolkit.render alike)."""
+    spp, seed = whole_number("spp", spp), whole_number("seed", seed)
+    width = whole_number("camera.width", width, "resolution width")
+    height = whole_number("camera.height", height, "resolution height")
+    if warp_width not in (1, 2, 4, 8, 16, 32, 64, 128):
+        raise InputError(f"warp width must be a power of two up to 128, got {warp_width!r}")
+    need, have = memory_bytes(width, height, spp), physical_memory()
+    if need > LIMITS["memory.fraction"][1] * have:
+        raise InputError(f"resolution {width}x{height} needs about {need / 2**30:.1f} GiB for the film "
+                         f"and buffers, more than half of this machine's {have / 2**30:.1f} GiB")
+    return spp, seed, width, height
