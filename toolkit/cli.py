@@ -131,8 +131,12 @@ def main(argv=None):
             return cmd_bench(args)
         if args.command == "crosscheck":
             return cmd_crosscheck(args)
-    except (SceneError, NoOpenCLError, KernelBuildError, ValueError, OSError) as error:
-        print("error: " + " ".join(str(error).split()), file=sys.stderr)   # one line, always
+    except (NoOpenCLError, KernelBuildError) as error:
+        # A compiler log and the list of devices with their fixes keep their lines.
+        print(f"error: {error}", file=sys.stderr)
+        return 2
+    except (SceneError, ValueError, OSError) as error:
+        print("error: " + " ".join(str(error).split()), file=sys.stderr)   # bad input: one line
         return 2
     finally:
         warnings.showwarning = shown
