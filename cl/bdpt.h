@@ -30,9 +30,7 @@
 #include "lights.h"
 #include "materials.h"
 
-#define VERTEX_DELTA 1
-#define VERTEX_CAMERA 2
-#define VERTEX_LIGHT 4   /* y_0: the point sampled on a light */
+/* VERTEX_DELTA, VERTEX_CAMERA, VERTEX_LIGHT (y_0, the point sampled on a light): VertexFlag in toolkit/layout.py. */
 
 #ifndef MAX_VERTICES
 #define MAX_VERTICES 64  /* per subpath; set by the host (toolkit/techniques/bdpt_base.py) */

@@ -121,10 +121,8 @@ inline bool subpath_extend(const SceneView* s, Subpath* p, Sampler* rng, bool li
     return !is_black(p->beta.xyz);
 }
 
-/* The walk's counters, one int buffer that the host reads once per step (one wait, not three). */
-#define EYE_SURVIVORS 0
-#define LIGHT_SURVIVORS 1
-#define TERMINATED_SAMPLES 2
+/* The walk's counters, one int buffer that the host reads once per step (one wait, not three):
+ * counters[EYE_SURVIVORS], [LIGHT_SURVIVORS], [TERMINATED_SAMPLES] (WalkCounter in toolkit/layout.py). */
 
 /* One random-walk step over a compacted subpath stream (eye or light). Survivors are packed
  * into `out` and counted in counters[EYE_ or LIGHT_SURVIVORS]; a subpath that ends records

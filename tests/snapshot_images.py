@@ -3,7 +3,9 @@ compare the images, so that a refactor can prove it leaves every image bit-ident
 
     python tests/snapshot_images.py save /tmp/wt9_before     # before the change
     python tests/snapshot_images.py check /tmp/wt9_before    # after it: exit 1 on any difference
+    python tests/snapshot_images.py check /tmp/wt9_before pt # only the techniques named pt...
 """
+import json
 import sys
 from pathlib import Path
 
@@ -20,9 +22,9 @@ SCENES = ["cornell_box", "cornell_spheres"]
 SPP = {"pt": 8, "bdpt": 2}
 
 
-def renders():
+def renders(only=""):
     for scene in SCENES:
-        for technique in TECHNIQUES:
+        for technique in (t for t in TECHNIQUES if t.startswith(only)):
             spp = SPP[technique.split("_")[0]]
             for count_simd in (True, False):
                 result = toolkit.render(ROOT / "scenes" / scene, technique=technique, spp=spp, seed=7,
@@ -30,11 +32,20 @@ def renders():
                 yield f"{scene}_{technique}_{'counted' if count_simd else 'plain'}", result
 
 
-def main(mode, folder):
+def main(mode, folder, only=""):
     folder = Path(folder)
     folder.mkdir(parents=True, exist_ok=True)
     differ = []
-    for name, result in renders():
+    for name, result in renders(only):
+        stats = json.dumps({k: result.stats.get(k) for k in ("simd_efficiency", "traversal_efficiency",
+                                                           "walk_efficiency_without_compaction",
+                                                           "connect_efficiency_terminated_packed")}, sort_keys=True)
+        stats_path = folder / f"{name}_stats.json"
+        if mode == "save":
+            stats_path.write_text(stats)
+        elif stats != stats_path.read_text():
+            print(f"DIFFERENT {stats_path.name}: {stats}")
+            differ.append(stats_path.name)
         for kind, array in (("image", result.image), ("stderr", result.stderr)):
             path = folder / f"{name}_{kind}.npy"
             if mode == "save":
@@ -50,4 +61,4 @@ def main(mode, folder):
 
 
 if __name__ == "__main__":
-    main(*sys.argv[1:3])
+    main(*sys.argv[1:4])

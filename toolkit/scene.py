@@ -10,11 +10,11 @@ from pathlib import Path
 
 import numpy as np
 
+from .layout import MATERIAL_TYPES
 from .obj import ObjError, read_obj
 
 FORMAT = "toolkit-scene/1"
-# Material type codes shared with cl/materials.h through the MAT_* defines (see features()).
-MATERIAL_TYPES = {"diffuse": 0, "mirror": 1, "dielectric": 2, "glossy": 3}
+# MATERIAL_TYPES: the type codes, shared with the kernels as MAT_* (toolkit/layout.py MaterialType).
 MATERIAL_PARAMS = {"diffuse": {"reflectance"}, "mirror": {"reflectance"},
                    "dielectric": {"ior"}, "glossy": {"reflectance", "alpha"}}
 
@@ -72,7 +72,7 @@ class Scene:
     def features(self):
         """Compile-time defines: only what this scene uses is built into the kernels."""
         used = {self.materials[i]["type"] for i in np.unique(self.material_of)}
-        defines = {f"MAT_{name.upper()}": code for name, code in MATERIAL_TYPES.items()}
+        defines = {}
         for name in MATERIAL_TYPES:
             defines[f"HAS_{name.upper()}"] = name in used
         defines["HAS_SPECULAR"] = bool(used & {"mirror", "dielectric"})
