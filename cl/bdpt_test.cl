@@ -22,34 +22,34 @@ __kernel void bdpt_test_mis_splits(SCENE_PARAMS, const Camera cam, const int n,
     /* Directions to the previous vertex of each subpath. */
     for (int i = 1; i < s_len; ++i) L[i].wo = (float4)(normalize(L[i - 1].pos.xyz - L[i].pos.xyz), 0.0f);
     for (int j = 1; j < t_len; ++j) E[j].wo = (float4)(normalize(E[j - 1].pos.xyz - E[j].pos.xyz), 0.0f);
-    /* pdf_fwd and prev_pdf_rev as the walk stores them. */
+    /* pdf_fwd and pdf_rev as the walk stores them. */
     for (int i = 0; i < s_len; ++i) {
         BdptVertex v = L[i];
         if (i == 0) {
-            v.pos.w = light_origin_pdf(&s, &v);
+            v.pdf_fwd = light_origin_pdf(&s, &v);
         } else {
             BdptVertex a = L[i - 1], b = L[max(i - 2, 0)];
-            v.pos.w = vertex_pdf(&s, &cam, i >= 2 ? &b : 0, &a, &v);
+            v.pdf_fwd = vertex_pdf(&s, &cam, i >= 2 ? &b : 0, &a, &v);
         }
-        v.normal.w = 0.0f;
+        v.pdf_rev = 0.0f;
         if (i >= 1 && i + 1 < s_len) {
             BdptVertex next = L[i + 1], prev = L[i - 1];
-            v.normal.w = vertex_pdf(&s, &cam, &next, &v, &prev);
+            v.pdf_rev = vertex_pdf(&s, &cam, &next, &v, &prev);
         }
         L[i] = v;
     }
     for (int j = 0; j < t_len; ++j) {
         BdptVertex v = E[j];
         if (j == 0) {
-            v.pos.w = 1.0f;
+            v.pdf_fwd = 1.0f;
         } else {
             BdptVertex a = E[j - 1], b = E[max(j - 2, 0)];
-            v.pos.w = vertex_pdf(&s, &cam, j >= 2 ? &b : 0, &a, &v);
+            v.pdf_fwd = vertex_pdf(&s, &cam, j >= 2 ? &b : 0, &a, &v);
         }
-        v.normal.w = 0.0f;
+        v.pdf_rev = 0.0f;
         if (j >= 2 && j + 1 < t_len) {
             BdptVertex next = E[j + 1], prev = E[j - 1];
-            v.normal.w = vertex_pdf(&s, &cam, &next, &v, &prev);
+            v.pdf_rev = vertex_pdf(&s, &cam, &next, &v, &prev);
         }
         E[j] = v;
     }

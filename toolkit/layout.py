@@ -186,6 +186,9 @@ BDPT_VERTEX = Record("BdptVertex", [
     ("pdf_fwd", "float"),    # area density with which its own subpath generated this vertex
     ("pdf_rev", "float"),    # area density of generating the *previous* vertex of the subpath
                              #   from this one, in the reverse direction (0: not known yet)
+    ("pad0", "int"),
+    ("pad1", "int"),
+    ("pad2", "int"),
 ], "A stored BDPT path vertex, 96 bytes (the talk's vertex is 128).")
 
 SUBPATH = Record("Subpath", [

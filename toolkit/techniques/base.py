@@ -99,9 +99,9 @@ class Technique:
                          LANE_COUNTS.dtype.itemsize * program.padded(max(n, 1)))
 
     def read_lane_counts(self, buffer, n):
-        return self.read_records(LANE_COUNTS, buffer, n)
+        return self.read_structs(LANE_COUNTS, buffer, n)
 
-    def read_records(self, record, buffer, n, offset=0):
+    def read_structs(self, record, buffer, n, offset=0):
         """n records of layout `record` from `buffer` (starting `offset` bytes in)."""
         out = record.zeros(n)
         if n:
