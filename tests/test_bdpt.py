@@ -6,11 +6,11 @@ import pytest
 import toolkit
 from toolkit import program
 from toolkit.device_scene import DeviceScene
-from toolkit.layout import BDPT_VERTEX
+from toolkit.layout import BDPT_VERTEX, VertexFlag
 from toolkit.techniques import BdptNaiveConnect, BdptParallelConnect
 
-VERTEX_DELTA = 1   # flags as in cl/bdpt.h
-VERTEX_LIGHT = 4
+VERTEX_DELTA = VertexFlag.DELTA   # flags of BdptVertex (toolkit/layout.py, emitted into layout.h)
+VERTEX_LIGHT = VertexFlag.LIGHT
 
 
 def run(queue, scene, cls, spp=4, res=(16, 16), seed=1, **options):
