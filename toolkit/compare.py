@@ -10,6 +10,7 @@ import numpy as np
 
 from .api import as_scene, render
 from .images import to_srgb8, write_image
+from .bench import equal_time, hard_pixels  # noqa: F401 (equal time lives with its report in bench.py)
 from .reference import reference_at, rmse
 
 PHASES = ["generate", "extend", "walk", "shadow", "compact", "connect"]
@@ -113,44 +114,3 @@ def save_plots(scene_name, results, ref, out_dir, warp_width):
     paths["images"] = str(out_dir / f"{scene_name}_image_strip.png")
     fig.savefig(paths["images"], dpi=100)
     return paths
-
-
-def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=None):
-    """Each technique renders for `seconds` of wall time: chunks of samples (independent seeds)
-    until the time is spent, so every technique gets the same time whatever its speed.
-    Returns {technique: {"spp", "seconds", "rmse"}} against the scene's reference."""
-    import time
-    scene = as_scene(scene)
-    width, height = resolution
-    ref, ref_err = reference_at(scene, width, height)
-    if ref is None:
-        raise ValueError(f"{scene.name} has no reference image at {width}x{height}")
-    hard = hard_pixels(ref, ref_err)
-    out = {}
-    for name in techniques:
-        # Warm-up (kernel builds, PoCL's first-launch compile) and a probe to size the chunks.
-        render(scene, technique=name, spp=1, seed=seed + 999, resolution=resolution, device=device, count_simd=False)
-        probe = render(scene, technique=name, spp=8, seed=seed + 998, resolution=resolution, device=device,
-                       count_simd=False)
-        chunk = max(1, int(seconds / 10 / (probe.stats["seconds"] / 8)))
-        total, spp, k = np.zeros((height, width, 3)), 0, 0
-        start = time.perf_counter()
-        while time.perf_counter() - start < seconds:
-            result = render(scene, technique=name, spp=chunk, seed=seed + k, resolution=resolution,
-                            device=device, count_simd=False)
-            total += result.image * chunk
-            spp += chunk
-            k += 1
-        image = total / spp
-        out[name] = {"spp": spp, "seconds": time.perf_counter() - start, "rmse": rmse(image, ref),
-                     "rmse_hard_pixels": rmse(image[hard], ref[hard])}
-    return out
-
-
-def hard_pixels(ref, ref_err, fraction=0.1):
-    """The pixels that are hardest for a path tracer: the `fraction` with the largest relative
-    standard error in the reference (itself a path-traced render: Mitsuba's path integrator).
-    In cornell_spheres these are the caustics and the light seen through the spheres."""
-    rel = (ref_err / np.maximum(ref, 1e-6)).mean(-1)
-    rel[ref.mean(-1) <= 0] = 0.0
-    return rel >= np.quantile(rel, 1.0 - fraction)

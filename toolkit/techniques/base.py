@@ -15,6 +15,7 @@ class Technique:
     """Base class. A technique sets `name`, `source` (its cl/ file) and implements `run_pass`."""
     name = None
     source = None
+    family = None    # "pt" (path tracing) or "bdpt" (bidirectional): what a technique's samples are
     # Work-items per launch we aim for: enough to fill a GPU, small enough to read back often.
     target_batch = 1 << 18
     # Whether shadow rays go to a queue traced by a kernel of their own (counted there).

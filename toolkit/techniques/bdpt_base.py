@@ -66,6 +66,7 @@ class PassState:
 
 
 class BdptTechnique(Technique):
+    family = "bdpt"
     pool_size = 1 << 12         # samples in flight (each has MAX_VERTICES eye + light vertices stored)
     target_batch = 1 << 14      # samples per pass: many passes give the standard error
     max_vertices = 64           # per subpath when the depth is unbounded; paths this long carry ~1e-10 of the energy at albedo 0.7

@@ -19,6 +19,7 @@ from .base import Technique
 
 class PtCompactRegen(Technique):
     name = "pt_compact_regen"
+    family = "pt"
     source = "pt_compact_regen.cl"
     stream_size = 1 << 15
 

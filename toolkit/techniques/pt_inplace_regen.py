@@ -16,6 +16,7 @@ from .base import Technique
 
 class PtInplaceRegen(Technique):
     name = "pt_inplace_regen"
+    family = "pt"
     source = "pt_inplace_regen.cl"
     stream_size = 1 << 15   # slots (work-items) that stay resident
 

@@ -12,6 +12,7 @@ from .base import Technique
 
 class PtNaive(Technique):
     name = "pt_naive"
+    family = "pt"
     source = "pt_naive.cl"
     iterations = 0   # loop iterations over all passes so far (for per-iteration plots)
 
