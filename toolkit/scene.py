@@ -10,11 +10,11 @@ from pathlib import Path
 
 import numpy as np
 
-from .layout import MATERIAL_TYPES
 from .obj import ObjError, read_obj
 
 FORMAT = "toolkit-scene/1"
-# MATERIAL_TYPES: the type codes, shared with the kernels as MAT_* (toolkit/layout.py MaterialType).
+# Material type codes, shared with the kernels as MAT_*: MaterialType in toolkit/layout.py.
+from .layout import MATERIAL_TYPES  # noqa: E402
 MATERIAL_PARAMS = {"diffuse": {"reflectance"}, "mirror": {"reflectance"},
                    "dielectric": {"ior"}, "glossy": {"reflectance", "alpha"}}
 
