@@ -1,3 +1,4 @@
+import os
 import sys
 from pathlib import Path
 
@@ -8,6 +9,25 @@ SCENES = ROOT / "scenes"
 
 
 sys.path.insert(0, str(ROOT))   # the checkout's toolkit, also when another copy is installed
+
+# Every kernel the suite builds is built with -Werror: a compiler warning fails the test that
+# built it, on whichever OpenCL implementation the suite runs (subprocesses inherit this too).
+os.environ["TOOLKIT_WERROR"] = "1"
+
+
+def pytest_report_header(config):
+    """The device the suite runs on, so that a failure report says where it ran."""
+    try:
+        from toolkit.device import candidates, describe, describe_implementation, get_queue
+        device = get_queue().device
+        lines = [f"toolkit device: {describe(device)}; {describe_implementation(device)}"]
+        others = [f"{c.implementation} ({'usable' if c.usable else c.reason})"
+                  for c in candidates() if c.device.int_ptr != device.int_ptr]
+        if others:
+            lines.append("other OpenCL implementations: " + "; ".join(others))
+        return lines
+    except Exception as error:  # the header must never stop the run; the tests will say more
+        return [f"toolkit device: none ({str(error).splitlines()[0]})"]
 
 
 def spp_for(technique, spp):

@@ -12,6 +12,7 @@ import pyopencl as cl
 import pytest
 
 from toolkit import program
+from toolkit.device import candidates
 from toolkit.program import KernelBuildError
 
 
@@ -40,11 +41,22 @@ __kernel void use_broken(__global int* out) {
 """
 
 
-def test_error_in_included_header_names_its_file_and_line(queue, tmp_path):
+IMPLEMENTATIONS = [c for c in candidates() if c.usable]
+
+
+def context_of(implementation):
+    from toolkit.device import _queue_for_device
+    return _queue_for_device(implementation.device).context
+
+
+@pytest.mark.parametrize("implementation", IMPLEMENTATIONS, ids=lambda c: c.implementation)
+def test_error_in_included_header_names_its_file_and_line(implementation, tmp_path):
+    """On every implementation: compilers write the location in different places (PoCL after
+    "error:", Intel before it, and Intel's log only reaches us through pyopencl's error text)."""
     write(tmp_path, "broken.h", BROKEN_H)
     write(tmp_path, "broken.cl", BROKEN_CL)
     with pytest.raises(KernelBuildError) as info:
-        program.build(queue.context, "broken.cl", {}, directory=tmp_path)
+        program.build(context_of(implementation), "broken.cl", {}, directory=tmp_path)
     message = str(info.value)
     assert "OpenCL build of broken.cl failed" in message
     assert "broken.h:3" in message, message
@@ -249,3 +261,27 @@ def test_launch_uses_fixed_local_size_and_padded_global_size(queue, tmp_path, n)
     assert got.tolist() == [program.padded(n), program.LOCAL_SIZE]
     np.testing.assert_array_equal(values[:n], np.arange(1, n + 1))
     assert values[n] == -1   # the padding work-items wrote nothing
+
+
+WARNING_CL = "__kernel void k(__global int* out) { int truncated = 1.5f; out[0] = truncated; }\n"
+
+
+@pytest.mark.parametrize("implementation", IMPLEMENTATIONS, ids=lambda c: c.implementation)
+def test_compiler_warnings_are_shown_and_fail_the_suite(implementation, tmp_path, monkeypatch):
+    """On every implementation: a warning is shown once as a KernelBuildWarning that names our
+    file and line (not pyopencl's CompilerWarning for any non-empty log, which Intel's progress
+    remarks would trigger on every build), and with -Werror (the suite's setting) it fails."""
+    import warnings
+    from toolkit.device import _queue_for_device
+    # A source never built before: a cached binary comes without its build log (and warnings).
+    write(tmp_path, "warns.cl", WARNING_CL + f"/* {tmp_path} {time.time()} */\n")
+    context = context_of(implementation)
+    monkeypatch.delenv("TOOLKIT_WERROR")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        program.build(context, "warns.cl", {}, directory=tmp_path)
+    assert [w.category for w in caught] == [program.KernelBuildWarning], [str(w.message) for w in caught]
+    assert "warns.cl:1:" in str(caught[0].message)
+    monkeypatch.setenv("TOOLKIT_WERROR", "1")
+    with pytest.raises(KernelBuildError, match="warns.cl:1:"):
+        program.build(context, "warns.cl", {}, directory=tmp_path)

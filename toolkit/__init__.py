@@ -1,5 +1,6 @@
 """A PyOpenCL teaching toolkit for SIMD-efficient Monte Carlo light transport
 (after van Antwerpen, HPG 2011). Start with `toolkit.render(...)` or `python -m toolkit`."""
+from . import runtimes  # first: registers pip's OpenCL runtimes before any OpenCL call
 from .api import RenderResult, render
 from .scene import Scene, SceneError, load_scene
 

@@ -114,7 +114,7 @@ def format_bench(report):
     lines = [f"bench: {report['scene']} {report['resolution'][0]}x{report['resolution'][1]}, {report['spp']} spp, "
              f"median of {report['repeats']} interleaved runs on {report['device']}"]
     if not report["gpu"]:
-        lines.append("No GPU here: these figures describe PoCL on a CPU, where idle SIMD lanes cost little; "
+        lines.append("No GPU here: these figures describe a CPU, where idle SIMD lanes cost little; "
                      "the SIMD-efficiency counters (python -m toolkit compare) are what predict GPU behaviour.")
     lines.append(f"{'technique':<38}{'samples/s':>12}{'ratio to ' + base:>22}")
     for name, row in report["techniques"].items():

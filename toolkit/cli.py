@@ -31,6 +31,7 @@ def build_parser():
     from .techniques import TECHNIQUES
     parser = argparse.ArgumentParser(prog="python -m toolkit", description=__doc__)
     parser.add_argument("--device", help="OpenCL device: P:D indices or a name part (overrides PYOPENCL_CTX)")
+    parser.add_argument("--verbose", action="store_true", help="print every kernel build log in full")
     sub = parser.add_subparsers(dest="command", required=True)
 
     def device_option(p):
@@ -90,6 +91,8 @@ def build_parser():
 def main(argv=None):
     parser = build_parser()
     args = parser.parse_args(argv)
+    from . import program
+    program.verbose = program.verbose or args.verbose
     from .device import NoOpenCLError
     from .program import KernelBuildError
     from .scene import SceneError

@@ -8,7 +8,9 @@ processes pyopencl's binary cache and PoCL's kernel cache keep compiled code on 
 import hashlib
 import os
 import re
+import sys
 import time
+import warnings
 from importlib import resources
 from pathlib import Path
 
@@ -38,6 +40,19 @@ def _pyopencl_include_dir():
 
 class KernelBuildError(RuntimeError):
     """An OpenCL build failure, with the compiler log pointing into cl/ files."""
+
+
+class KernelBuildWarning(UserWarning):
+    """A compiler warning in one of our kernels (the log's `warning:` lines)."""
+
+
+# Set by `--verbose`: print every build log in full (Intel's compiler reports its progress and
+# vectorization there; pyopencl would show any non-empty log as a CompilerWarning).
+verbose = os.environ.get("TOOLKIT_VERBOSE") == "1"
+
+def warning_lines(log):
+    """The lines of a build log that are warnings (not progress or vectorization remarks)."""
+    return [line for line in log.splitlines() if "warning:" in line.lower()]
 
 
 def expand_includes(name, directory=None, _seen=None):
@@ -98,6 +113,8 @@ def build(context, name, defines=None, directory=None):
     defines.setdefault("LOCAL_SIZE", LOCAL_SIZE)
     source = expand_includes(name, directory)
     options = define_options(defines) + ["-I", str(_pyopencl_include_dir())]
+    if os.environ.get("TOOLKIT_WERROR") == "1":
+        options.append("-Werror")  # the test suite: any compiler warning fails the build
     device = context.devices[0]
     key = hashlib.sha256("\0".join([source, " ".join(options), device.name, device.platform.name,
                                     device.driver_version, cl.VERSION_TEXT]).encode()).hexdigest()
@@ -107,9 +124,18 @@ def build(context, name, defines=None, directory=None):
     start = time.perf_counter()
     program = cl.Program(context, source)
     try:
-        program = program.build(options=options, cache_dir=_cache_dir())
+        with warnings.catch_warnings():
+            # pyopencl warns about any non-empty log; we show real warnings ourselves below.
+            warnings.simplefilter("ignore", cl.CompilerWarning)
+            program = program.build(options=options, cache_dir=_cache_dir())
     except cl.RuntimeError as error:
-        raise KernelBuildError(_format_build_error(name, error, program, options)) from None
+        raise KernelBuildError(_format_build_error(name, error, options)) from None
+    log = _build_log_text(program)
+    if verbose and log.strip():
+        print(f"--- build log of {name} on {device.name.strip()} ---\n{log}", file=sys.stderr)
+    real = warning_lines(log)
+    if real:
+        warnings.warn(KernelBuildWarning(f"{name}: " + "\n".join(real)), stacklevel=2)
     build_log.append((name, time.perf_counter() - start, False))
     _memo[(key, context.int_ptr)] = program
     return program
@@ -120,12 +146,18 @@ def _cache_dir():
     return directory or None  # None: pyopencl's default per-user cache
 
 
-def _format_build_error(name, error, program, options):
+def _build_log_text(program):
     try:
-        logs = [program.get_build_info(d, cl.program_build_info.LOG) for d in program.get_info(cl.program_info.DEVICES)]
-        log = "\n".join(logs)
+        return "\n".join(program.get_build_info(d, cl.program_build_info.LOG) or ""
+                         for d in program.get_info(cl.program_info.DEVICES))
     except cl.Error:
-        log = str(error)
+        return ""
+
+
+def _format_build_error(name, error, options):
+    # pyopencl's error text holds every device's build log: one source of the log for every
+    # implementation (asking the failed program for it returns nothing on some, e.g. Intel's).
+    log = str(error)
     # Keep the compiler's lines that point into our sources first, they are what a learner reads.
     # Compilers put the location first ("broken.h:3:36: error: ...") or after the severity
     # (PoCL: "error: broken.h:3:36: ..."); layout.h's #line name has a note in parentheses.
