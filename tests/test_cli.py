@@ -141,6 +141,13 @@ def test_device_option_before_or_after_the_command(tmp_path):
     assert bad.returncode == 2 and "no OpenCL device 9:9" in bad.stderr and "Traceback" not in bad.stderr
 
 
+def test_crosscheck_runs_on_the_device_it_is_given():
+    ok = run_cli("crosscheck", "--device", "0:0", "--rays", "1000", "--json")
+    assert ok.returncode == 0, ok.stderr
+    bad = run_cli("crosscheck", "--device", "9:9", "--rays", "1000")
+    assert bad.returncode == 2 and "no OpenCL device 9:9" in bad.stderr and "Traceback" not in bad.stderr
+
+
 def test_equal_time_report_says_what_a_bdpt_sample_costs_and_is_worth():
     """The equal-time summary: cost = seconds per sample relative to the best path tracer,
     worth = squared error x samples relative to it (both of a made-up report)."""

@@ -188,7 +188,9 @@ def cmd_bench(args):
 def cmd_crosscheck(args):
     from .api import as_scene
     from .crosscheck import compare_with_embree, format_figures
-    figures = compare_with_embree(as_scene(args.scene), n_random=args.rays, seed=args.seed)
+    from .device import get_queue
+    figures = compare_with_embree(as_scene(args.scene), n_random=args.rays, seed=args.seed,
+                                  queue=get_queue(args.device))
     print(format_figures(figures))
     if args.json:
         print(json.dumps(figures, default=lambda x: x.item() if hasattr(x, "item") else str(x)))
