@@ -51,8 +51,7 @@ class PtCompactRegen(Technique):
             if count > 0:
                 program.launch(self.queue, generate, count, camera, seed, np.int32(length), np.int32(count),
                                np.int32(next_id), np.int32(sample_base), capacity, stream)
-                if self.count_simd:
-                    self.simd.add_stream_step("generate", count)
+                self.count_generate(count)
                 length += count
                 next_id += count
             if length == 0:
@@ -60,16 +59,12 @@ class PtCompactRegen(Technique):
             # Extend every path by one vertex, then compact the survivors into `spare`.
             survivors, queued = self.extend_and_compact(seed, length, capacity, stream, spare, alive, counters,
                                                         shadow_rays, radiance, lane_counts)
-            if self.count_simd:
-                self.count_stream_step(self.read_lane_counts(lane_counts, length), capacity=size)
-                self.simd.add_stream_step("compact", length)
+            self.count_extend_and_compact(lane_counts, length, size)
             # Trace the queued shadow rays: a packed stream of its own.
             if queued:
                 program.launch(self.queue, self.kernel("pt_compact_regen_shadow"), queued, *self.scene.args(),
                                np.int32(queued), capacity, shadow_rays, radiance, shadow_steps)
-                if self.count_simd:
-                    self.simd.add_stream_step("shadow", queued)
-                    self.traversal.add_warp_loops("shadow", self.read_ints(shadow_steps, queued))
+                self.count_shadow(shadow_steps, queued)
             stream, spare = spare, stream
             length = survivors
         self.collect(film, radiance, budget)
@@ -92,3 +87,22 @@ class PtCompactRegen(Technique):
             program.launch(self.queue, self.kernel("pt_compact_regen_gather"), survivors,
                            np.int32(survivors), indices, capacity, stream, spare)
         return survivors, 0
+
+    # --- SIMD counting: one hook per stage, no-ops unless count_simd ----------------------
+
+    def count_generate(self, count):
+        """Regeneration fills `count` consecutive stream entries: every lane busy."""
+        if self.count_simd:
+            self.simd.add_stream_step("generate", count)
+
+    def count_extend_and_compact(self, lane_counts, length, size):
+        """The extension step over the `length` paths of the stream, and their compaction."""
+        if self.count_simd:
+            self.count_stream_step(self.read_lane_counts(lane_counts, length), capacity=size)
+            self.simd.add_stream_step("compact", length)
+
+    def count_shadow(self, shadow_steps, queued):
+        """The packed queue of `queued` shadow rays: every lane busy, traversal loops per warp."""
+        if self.count_simd:
+            self.simd.add_stream_step("shadow", queued)
+            self.traversal.add_warp_loops("shadow", self.read_ints(shadow_steps, queued))
