@@ -162,7 +162,7 @@ def test_sample_weight_is_f_cos_over_pdf(checker, case):
 # --- energy ----------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("theta", INCIDENCE_DEG)
-def test_diffuse_white_furnace(checker, theta):
+def test_diffuse_sample_weight_is_the_reflectance(checker, theta):
     """Every diffuse sample has weight = reflectance, so the furnace estimate is exact."""
     s = checker.sample(DIFFUSE, wo(theta), 100_000, seed=4000 + int(theta))
     assert s.ok.all()

@@ -44,7 +44,7 @@ def test_counting_does_not_change_the_image(cornell_box):
         assert off.stats["simd_efficiency"] == {}
 
 
-def test_phase_counter_by_hand():
+def test_phase_counter_counts_hand_made_warps_exactly():
     c = PhaseCounter(warp_width=4)
     # Two warps: lanes (1,1,0,0) and (0,0,0,0): only the first warp issues -> 2 of 4.
     c.add_stream_step("extend", np.array([1, 1, 0, 0, 0, 0, 0, 0], bool))
