@@ -124,10 +124,12 @@ class Technique:
             cl.enqueue_copy(self.queue, out, buffer)
         return out
 
-    def count_stream_step(self, lanes, capacity):
+    def count_stream_step(self, lanes, capacity, draining=False):
         """SIMD counters of one extension step over a stream, from the LaneCounts of the lanes
-        that ran it; `capacity` is the stream's size (for the occupancy plot)."""
-        self.simd.add_stream_step("extend", lanes["work"] > 0, iteration=self.iterations, capacity=capacity)
+        that ran it; `capacity` is the stream's size (for the occupancy plot), `draining` whether
+        the pass's budget is spent (no sample left to start: the final drain)."""
+        self.simd.add_stream_step("extend", lanes["work"] > 0, iteration=self.iterations, capacity=capacity,
+                                  draining=draining)
         self.iterations += 1
         self.traversal.add_warp_loops("closest", lanes["closest_steps"])
         if not self.shadow_queue:   # shadow rays traced inside the extension step

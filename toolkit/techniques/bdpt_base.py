@@ -187,7 +187,8 @@ class BdptTechnique(Technique):
         if not self.count_simd:
             return
         lanes = self.read_lane_counts(p.pool.lane_counts, stream.length)
-        self.simd.add_stream_step("walk", stream.length, iteration=self.iterations, capacity=p.pool.size)
+        self.simd.add_stream_step("walk", stream.length, iteration=self.iterations, capacity=p.pool.size,
+                                  draining=p.next_id == p.budget)
         self.iterations += 1
         self.simd.add_stream_step("compact", stream.length)
         self.traversal.add_warp_loops("closest", lanes["closest_steps"])

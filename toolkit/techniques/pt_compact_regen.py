@@ -59,7 +59,7 @@ class PtCompactRegen(Technique):
             # Extend every path by one vertex, then compact the survivors into `spare`.
             survivors, queued = self.extend_and_compact(seed, length, capacity, stream, spare, alive, counters,
                                                         shadow_rays, radiance, lane_counts)
-            self.count_extend_and_compact(lane_counts, length, size)
+            self.count_extend_and_compact(lane_counts, length, size, draining=next_id == budget)
             # Trace the queued shadow rays: a packed stream of its own.
             if queued:
                 program.launch(self.queue, self.kernel("pt_compact_regen_shadow"), queued, *self.scene.args(),
@@ -95,10 +95,11 @@ class PtCompactRegen(Technique):
         if self.count_simd:
             self.simd.add_stream_step("generate", count)
 
-    def count_extend_and_compact(self, lane_counts, length, size):
-        """The extension step over the `length` paths of the stream, and their compaction."""
+    def count_extend_and_compact(self, lane_counts, length, size, draining):
+        """The extension step over the `length` paths of the stream, and their compaction;
+        `draining`: every sample of the budget has started (the final drain)."""
         if self.count_simd:
-            self.count_stream_step(self.read_lane_counts(lane_counts, length), capacity=size)
+            self.count_stream_step(self.read_lane_counts(lane_counts, length), capacity=size, draining=draining)
             self.simd.add_stream_step("compact", length)
 
     def count_shadow(self, shadow_steps, queued):

@@ -42,13 +42,16 @@ class PtInplaceRegen(Technique):
             # Extend: every slot with a live path traces one more vertex.
             program.launch(self.queue, self.kernel("extend_in_place"), slots, *self.scene.args(), seed,
                            np.int32(slots), capacity, paths, alive, radiance, lane_counts)
-            self.count_extend(lane_counts, slots)
+            self.count_extend(lane_counts, slots, next_sample, budget)
         self.collect(film, radiance, budget)
 
     def count_regenerate(self, regenerated, slots):
         if self.count_simd:
             self.simd.add_stream_step("generate", self.read_ints(regenerated, slots) > 0)
 
-    def count_extend(self, lane_counts, slots):
+    def count_extend(self, lane_counts, slots, next_sample, budget):
+        """The extension step; once the sample counter has passed the budget, nothing regenerates
+        any more and the step belongs to the final drain."""
         if self.count_simd:
-            self.count_stream_step(self.read_lane_counts(lane_counts, slots), capacity=slots)
+            draining = self.read_ints(next_sample, 1)[0] >= budget
+            self.count_stream_step(self.read_lane_counts(lane_counts, slots), capacity=slots, draining=draining)
