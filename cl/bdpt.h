@@ -4,7 +4,7 @@
  *
  * Conventions follow Veach's thesis (ch. 10) and pbrt-v3's bdpt.cpp (section 16.3):
  *   - every stored vertex keeps pdf_fwd, the area density with which its own subpath
- *     generated it, and prev_pdf_rev, the area density of generating the *previous* vertex
+ *     generated it, and pdf_rev, the area density of generating the *previous* vertex
  *     of its subpath from it in the reverse direction (so pdf_rev of vertex i is read from
  *     vertex i + 1);
  *   - at a connection the densities that change (the two endpoints and their predecessors)
@@ -30,9 +30,7 @@
 #include "lights.h"
 #include "materials.h"
 
-#define VERTEX_DELTA 1
-#define VERTEX_CAMERA 2
-#define VERTEX_LIGHT 4   /* y_0: the point sampled on a light */
+/* VERTEX_DELTA, VERTEX_CAMERA, VERTEX_LIGHT (y_0, the point sampled on a light): VertexFlag in toolkit/layout.py. */
 
 #ifndef MAX_VERTICES
 #define MAX_VERTICES 64  /* per subpath; set by the host (toolkit/techniques/bdpt_base.py) */
@@ -70,13 +68,7 @@ inline int camera_pixel(const Camera* cam, float3 w) {
 
 /* Shading frame of a surface vertex seen from direction `toward` (two-sided materials flip). */
 inline void vertex_frame(const SceneView* s, const BdptVertex* v, float3 toward, float3* n, float3* ts, float3* tt) {
-    float3 ng = v->normal.xyz;
-    *n = ng;
-#if HAS_DIELECTRIC
-    if (s->materials[v->material].type != MAT_DIELECTRIC && dot(ng, toward) < 0.0f) *n = -ng;
-#else
-    if (dot(ng, toward) < 0.0f) *n = -ng;
-#endif
+    *n = shading_normal(s->materials[v->material].type, v->normal.xyz, toward);
     make_basis(*n, ts, tt);
 }
 
@@ -144,8 +136,8 @@ inline float mis_weight(__global const BdptVertex* eye, __global const BdptVerte
     /* Hypothetical strategies with more light vertices: walk the eye subpath backwards. */
     float r = 1.0f;
     for (int i = t - 1; i > 0; --i) {
-        float rev = i == t - 1 ? c->pt_rev : i == t - 2 ? c->ptm_rev : eye[i + 1].normal.w;
-        r *= remap0(rev) / remap0(eye[i].pos.w);
+        float rev = i == t - 1 ? c->pt_rev : i == t - 2 ? c->ptm_rev : eye[i + 1].pdf_rev;
+        r *= remap0(rev) / remap0(eye[i].pdf_fwd);
         bool delta_i = i == t - 1 ? false : (eye[i].flags & VERTEX_DELTA) != 0;
         bool delta_prev = i - 1 == t - 1 ? false : (eye[i - 1].flags & VERTEX_DELTA) != 0;
         if (!delta_i && !delta_prev) sum += r;
@@ -153,8 +145,8 @@ inline float mis_weight(__global const BdptVertex* eye, __global const BdptVerte
     /* Hypothetical strategies with more eye vertices: walk the light subpath backwards. */
     r = 1.0f;
     for (int i = s - 1; i >= 0; --i) {
-        float rev = i == s - 1 ? c->qs_rev : i == s - 2 ? c->qsm_rev : light[i + 1].normal.w;
-        r *= remap0(rev) / remap0(light[i].pos.w);
+        float rev = i == s - 1 ? c->qs_rev : i == s - 2 ? c->qsm_rev : light[i + 1].pdf_rev;
+        r *= remap0(rev) / remap0(light[i].pdf_fwd);
         bool delta_i = i == s - 1 ? false : (light[i].flags & VERTEX_DELTA) != 0;
         bool delta_prev = i > 0 ? (light[i - 1].flags & VERTEX_DELTA) != 0 : false;  /* area lights are not delta */
         if (!delta_i && !delta_prev) sum += r;

@@ -3,50 +3,52 @@
  * strategies grows with the product of the two subpath lengths, so the lanes of a warp wait
  * for the sample with the longest paths, and lanes whose sample is still walking wait too
  * (the talk: ~17% active threads). The random walk is shared with bdpt_parallel_connect
- * (bdpt_walk.h). */
+ * (bdpt_walk.h).
+ * Kernels this technique launches, in the order of one pass (toolkit/techniques/bdpt_base.py):
+ *   bdpt_regenerate        cl/bdpt_walk.h   start samples in free pool slots
+ *   bdpt_extend            cl/bdpt_walk.h   one random-walk step of the eye or the light stream
+ *   bdpt_mark_terminated   cl/bdpt_walk.h   flag the slots that wait for their connections
+ *   the compaction         toolkit/compaction.py (cl/compact.cl): list the flagged slots
+ *   bdpt_naive_connect     here             every (s, t) strategy of a terminated sample, in its slot's work-item */
 #include "bdpt_walk.h"
 
 /* Records: for pool slot k, the t = 1 splats at k * MAX_VERTICES + (s - 1), and the sum of
  * its eye-path strategies at pool * MAX_VERTICES + k (pixel -1: nothing; the host pre-fills). */
-__kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool, __global const int* live,
+__kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool, __global const BdptSlot* slots,
                                  __global const BdptVertex* eye_vertices, __global const BdptVertex* light_vertices,
-                                 __global const int* eye_vertex_count, __global const int* light_vertex_count,
-                                 __global const int* sample_ids,
                                  __global float4* record_value, __global int* record_pixel,
-                                 __global int4* lane_counts)
+                                 __global LaneCounts* lane_counts)
 {
     int gid = get_global_id(0);
     if (gid >= pool) return;
     SceneView s = SCENE_INIT;
     int slot = gid;
-    if (live[slot] != 0) {   /* still walking (or idle): nothing to connect */
-#if COUNT_SIMD
-        lane_counts[gid] = (int4)(0);
-#endif
-        return;
-    }
-    int n_eye = eye_vertex_count[slot], n_light = light_vertex_count[slot];
-    int own_pixel = sample_ids[slot] % (cam.width * cam.height);
-    __global const BdptVertex* eye = eye_vertices + vertex_index(slot, 0);
-    __global const BdptVertex* light = light_vertices + vertex_index(slot, 0);
-    int connections = connection_count(n_light, n_eye);
-    int steps = 0;
-    float3 sum = (float3)(0.0f);
-    for (int k = 0; k < connections; ++k) {
-        int s_len, t_len;
-        connection_strategy(k, n_light, &s_len, &t_len);
-        Connection c = connect_strategy(&s, &cam, eye, light, s_len, t_len, own_pixel, &steps);
-        if (c.pixel < 0) continue;
-        if (t_len == 1) {
-            record_value[gid * MAX_VERTICES + s_len - 1] = (float4)(c.value, c.weight);
-            record_pixel[gid * MAX_VERTICES + s_len - 1] = c.pixel;
-        } else {
-            sum += c.value;
+    BdptSlot sample = slots[slot];
+    int connections = 0, steps = 0;
+    if (sample.live == SLOT_TERMINATED) {   /* otherwise still walking (or idle): nothing to connect */
+        int n_eye = sample.eye_vertices, n_light = sample.light_vertices;
+        int own_pixel = sample_pixel(&cam, sample.sample_id);
+        __global const BdptVertex* eye = eye_vertices + vertex_index(slot, 0);
+        __global const BdptVertex* light = light_vertices + vertex_index(slot, 0);
+        connections = connection_count(n_light, n_eye);
+        float3 sum = (float3)(0.0f);
+        for (int k = 0; k < connections; ++k) {
+            int s_len, t_len;
+            connection_strategy(k, n_light, &s_len, &t_len);
+            Connection c = connect_strategy(&s, &cam, eye, light, s_len, t_len, own_pixel, &steps);
+            if (c.pixel < 0) continue;
+            if (t_len == 1) {
+                record_value[gid * MAX_VERTICES + s_len - 1] = (float4)(c.value, c.weight);
+                record_pixel[gid * MAX_VERTICES + s_len - 1] = c.pixel;
+            } else {
+                sum += c.value;
+            }
         }
+        record_value[pool * MAX_VERTICES + gid] = (float4)(sum, 0.0f);
+        record_pixel[pool * MAX_VERTICES + gid] = own_pixel;
     }
-    record_value[pool * MAX_VERTICES + gid] = (float4)(sum, 0.0f);
-    record_pixel[pool * MAX_VERTICES + gid] = own_pixel;
 #if COUNT_SIMD
-    lane_counts[gid] = (int4)(connections, steps, 0, 0);
+    LaneCounts lane = {.work = connections, .shadow_rays = 0, .shadow_steps = steps};
+    lane_counts[gid] = lane;
 #endif
 }

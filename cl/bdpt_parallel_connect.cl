@@ -9,16 +9,23 @@
  *   g = 0, 1, 2: the last slot with first <= g is slot 1 (slot 0 has the same first but
  *   comes before); local indices 0, 1, 2.  g = 3, 4: slot 3, local 0, 1.
  *   With n_light = 1 (only y_0) and n_eye = 2 (z_0, z_1), slot 1's 3 strategies are
- *   local 0 -> (s, t) = (1, 1), local 1 -> (0, 2), local 2 -> (1, 2)   (k + 1 = (t - 1)(n_light + 1) + s). */
+ *   local 0 -> (s, t) = (1, 1), local 1 -> (0, 2), local 2 -> (1, 2)   (k + 1 = (t - 1)(n_light + 1) + s).
+ * Kernels this technique launches, in the order of one pass (toolkit/techniques/bdpt_base.py):
+ *   bdpt_regenerate              cl/bdpt_walk.h   start samples in free pool slots
+ *   bdpt_extend                  cl/bdpt_walk.h   one random-walk step of the eye or the light stream
+ *   bdpt_mark_terminated         cl/bdpt_walk.h   flag the slots that wait for their connections
+ *   the compaction               toolkit/compaction.py (cl/compact.cl): list the flagged slots
+ *   bdpt_parallel_connect_count  here             step 1
+ *   the exclusive scan           toolkit/compaction.py (cl/compact.cl): step 2
+ *   bdpt_parallel_connect        here             step 3 */
 #include "bdpt_walk.h"
 
-__kernel void bdpt_parallel_connect_count(const int pool, __global const int* live,
-                                          __global const int* eye_vertex_count, __global const int* light_vertex_count,
-                                          __global int* counts)
+__kernel void bdpt_parallel_connect_count(const int pool, __global const BdptSlot* slots, __global int* counts)
 {
     int gid = get_global_id(0);
     if (gid >= pool) return;
-    counts[gid] = live[gid] == 0 ? connection_count(light_vertex_count[gid], eye_vertex_count[gid]) : 0;
+    BdptSlot sample = slots[gid];
+    counts[gid] = sample.live == SLOT_TERMINATED ? connection_count(sample.light_vertices, sample.eye_vertices) : 0;
 }
 
 /* The last index i in [0, n) with firsts[i] <= g (firsts is non-decreasing, firsts[0] = 0). */
@@ -33,28 +40,27 @@ inline int find_sample(__global const int* firsts, int n, int g) {
 
 /* One connection per work-item; record g holds its value and target pixel (-1: none). */
 __kernel void bdpt_parallel_connect(SCENE_PARAMS, const Camera cam, const int total, const int pool,
-                                    __global const int* firsts,
+                                    __global const int* firsts, __global const BdptSlot* slots,
                                     __global const BdptVertex* eye_vertices, __global const BdptVertex* light_vertices,
-                                    __global const int* eye_vertex_count, __global const int* light_vertex_count,
-                                    __global const int* sample_ids,
                                     __global float4* record_value, __global int* record_pixel,
-                                    __global int4* lane_counts)
+                                    __global LaneCounts* lane_counts)
 {
     int gid = get_global_id(0);
     if (gid >= total) return;
     SceneView s = SCENE_INIT;
     int slot = find_sample(firsts, pool, gid);
     int local_index = gid - firsts[slot];
-    int n_light = light_vertex_count[slot], n_eye = eye_vertex_count[slot];
+    BdptSlot sample = slots[slot];
     int s_len, t_len;
-    connection_strategy(local_index, n_light, &s_len, &t_len);
+    connection_strategy(local_index, sample.light_vertices, &s_len, &t_len);
     int steps = 0;
     Connection c = connect_strategy(&s, &cam, eye_vertices + vertex_index(slot, 0),
                                     light_vertices + vertex_index(slot, 0), s_len, t_len,
-                                    sample_ids[slot] % (cam.width * cam.height), &steps);
+                                    sample_pixel(&cam, sample.sample_id), &steps);
     record_value[gid] = (float4)(c.value, c.weight);
     record_pixel[gid] = c.pixel;
 #if COUNT_SIMD
-    lane_counts[gid] = (int4)(1, steps, 0, 0);
+    LaneCounts lane = {.work = 1, .shadow_rays = 0, .shadow_steps = steps};
+    lane_counts[gid] = lane;
 #endif
 }

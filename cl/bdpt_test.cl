@@ -5,6 +5,29 @@
  * with the same connect_strategy() the renderers use. The weights must sum to one. */
 #include "bdpt.h"
 
+/* The densities the random walk (cl/bdpt_walk.h) stores on the vertices v[0..len) of one
+ * subpath: pdf_fwd of each vertex from the two before it (of the origin: the light's area
+ * density, or 1 for the pinhole), and pdf_rev from the next vertex, for the vertices that have
+ * both neighbours, except z_1, whose previous vertex is the pinhole (a delta in position). */
+inline void store_walk_densities(const SceneView* s, const Camera* cam, __global BdptVertex* v, int len, int is_light)
+{
+    for (int i = 0; i < len; ++i) {
+        BdptVertex x = v[i];
+        if (i == 0) {
+            x.pdf_fwd = is_light ? light_origin_pdf(s, &x) : 1.0f;
+        } else {
+            BdptVertex a = v[i - 1], b = v[max(i - 2, 0)];
+            x.pdf_fwd = vertex_pdf(s, cam, i >= 2 ? &b : 0, &a, &x);
+        }
+        x.pdf_rev = 0.0f;
+        if (i >= (is_light ? 1 : 2) && i + 1 < len) {
+            BdptVertex next = v[i + 1], prev = v[i - 1];
+            x.pdf_rev = vertex_pdf(s, cam, &next, &x, &prev);
+        }
+        v[i] = x;
+    }
+}
+
 __kernel void bdpt_test_mis_splits(SCENE_PARAMS, const Camera cam, const int n,
                                    __global const BdptVertex* path,
                                    __global BdptVertex* light_scratch, __global BdptVertex* eye_scratch,
@@ -22,37 +45,9 @@ __kernel void bdpt_test_mis_splits(SCENE_PARAMS, const Camera cam, const int n,
     /* Directions to the previous vertex of each subpath. */
     for (int i = 1; i < s_len; ++i) L[i].wo = (float4)(normalize(L[i - 1].pos.xyz - L[i].pos.xyz), 0.0f);
     for (int j = 1; j < t_len; ++j) E[j].wo = (float4)(normalize(E[j - 1].pos.xyz - E[j].pos.xyz), 0.0f);
-    /* pdf_fwd and prev_pdf_rev as the walk stores them. */
-    for (int i = 0; i < s_len; ++i) {
-        BdptVertex v = L[i];
-        if (i == 0) {
-            v.pos.w = light_origin_pdf(&s, &v);
-        } else {
-            BdptVertex a = L[i - 1], b = L[max(i - 2, 0)];
-            v.pos.w = vertex_pdf(&s, &cam, i >= 2 ? &b : 0, &a, &v);
-        }
-        v.normal.w = 0.0f;
-        if (i >= 1 && i + 1 < s_len) {
-            BdptVertex next = L[i + 1], prev = L[i - 1];
-            v.normal.w = vertex_pdf(&s, &cam, &next, &v, &prev);
-        }
-        L[i] = v;
-    }
-    for (int j = 0; j < t_len; ++j) {
-        BdptVertex v = E[j];
-        if (j == 0) {
-            v.pos.w = 1.0f;
-        } else {
-            BdptVertex a = E[j - 1], b = E[max(j - 2, 0)];
-            v.pos.w = vertex_pdf(&s, &cam, j >= 2 ? &b : 0, &a, &v);
-        }
-        v.normal.w = 0.0f;
-        if (j >= 2 && j + 1 < t_len) {
-            BdptVertex next = E[j + 1], prev = E[j - 1];
-            v.normal.w = vertex_pdf(&s, &cam, &next, &v, &prev);
-        }
-        E[j] = v;
-    }
+    /* pdf_fwd and pdf_rev as the walk stores them. */
+    store_walk_densities(&s, &cam, L, s_len, 1);
+    store_walk_densities(&s, &cam, E, t_len, 0);
     int steps = 0;
     Connection c = connect_strategy(&s, &cam, E, L, s_len, t_len, 0, &steps);
     weights[s_len] = c.pixel >= 0 ? c.weight : 0.0f;

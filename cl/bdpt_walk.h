@@ -41,10 +41,9 @@ inline void store_vertex(__global BdptVertex* memory, int index, const BdptVerte
 #endif
 }
 
-/* The sampler of the sample in pool slot `slot` (see the dimension table in rng.h). */
-inline Sampler bdpt_sampler(const Camera* cam, uint seed, int id, int sample_base) {
-    int pixels = cam->width * cam->height;
-    return sampler_init(seed, (uint)(id % pixels), (uint)(sample_base + id / pixels));
+/* The sampler of sample `id` of the pass (see the dimension table in rng.h). */
+inline Sampler bdpt_sampler(const Camera* cam, const BdptPass* pass, int id) {
+    return sampler_init(pass->seed, (uint)sample_pixel(cam, id), (uint)sample_number(cam, id, pass->sample_base));
 }
 
 /* Extend a subpath by one vertex: intersect, store the vertex, sample the BSDF, roulette.
@@ -61,15 +60,14 @@ inline bool subpath_extend(const SceneView* s, Subpath* p, Sampler* rng, bool li
     float dist2 = dot(from_prev, from_prev);
     int k = p->vertices;
     Material m = s->materials[tri.material];
-    /* pdf_fwd: the density of the direction (see delta_pdf_dir after a specular bounce), as an area density here. */
-    v->pos = (float4)(x, p->origin.w * fabs(dot(ng, d)) / dist2);
-    v->normal = (float4)(ng, 0.0f);
-    v->wo = (float4)(-d, 0.0f);
-    v->beta = (float4)(p->beta.xyz, 0.0f);
-    v->material = tri.material;
-    v->flags = is_specular(m.type) ? VERTEX_DELTA : 0;
-    v->light = tri.light;
-    v->pad = 0;
+    BdptVertex stored = {
+        .pos = (float4)(x, 0.0f), .normal = (float4)(ng, 0.0f), .wo = (float4)(-d, 0.0f),
+        .beta = (float4)(p->beta.xyz, 0.0f), .material = tri.material,
+        .flags = is_specular(m.type) ? VERTEX_DELTA : 0, .light = tri.light,
+        /* the density of the direction (see delta_pdf_dir after a specular bounce), as an area density here */
+        .pdf_fwd = p->origin.w * fabs(dot(ng, d)) / dist2,
+        .pdf_rev = 0.0f};   /* set below once the next direction is known */
+    *v = stored;
     *store_at = vertex_index(p->slot, k);
     p->vertices = k + 1;
 
@@ -79,12 +77,7 @@ inline bool subpath_extend(const SceneView* s, Subpath* p, Sampler* rng, bool li
 #endif
     if (!can_continue) return false;
 
-    float3 n = ng;
-#if HAS_DIELECTRIC
-    if (m.type != MAT_DIELECTRIC && dot(ng, -d) < 0.0f) n = -ng;
-#else
-    if (dot(ng, -d) < 0.0f) n = -ng;
-#endif
+    float3 n = shading_normal(m.type, ng, -d);
     float3 ts, tt;
     make_basis(n, &ts, &tt);
     float3 wo_local = to_local(-d, ts, tt, n);
@@ -98,7 +91,7 @@ inline bool subpath_extend(const SceneView* s, Subpath* p, Sampler* rng, bool li
     float pdf_rev_dir = delta_pdf_dir(wo_local.z);
     if (!bs.specular) bsdf_eval(&m, bs.wi, wo_local, &pdf_rev_dir);
     if (!(p->prev_flags & VERTEX_CAMERA))
-        v->normal.w = pdf_rev_dir * fabs(dot(p->prev_normal.xyz, from_prev)) * rsqrt(dist2) / dist2;
+        v->pdf_rev = pdf_rev_dir * fabs(dot(p->prev_normal.xyz, from_prev)) * rsqrt(dist2) / dist2;
 
     p->beta.xyz *= bs.weight;
     p->origin = (float4)(offset_point(s, x, ng, wi), bs.specular ? delta_pdf_dir(bs.wi.z) : bs.pdf);
@@ -107,33 +100,34 @@ inline bool subpath_extend(const SceneView* s, Subpath* p, Sampler* rng, bool li
     p->prev_normal = (float4)(ng, 0.0f);
     p->prev_flags = v->flags;
 #if USE_RUSSIAN_ROULETTE
-    /* Roulette as in the path tracers, but from BDPT_RR_DEPTH, half the scene's depth rounded
-     * up (host: bdpt_base.py): two subpaths of that depth and their connection already make
-     * a path longer than the path tracer's roulette-free part, and every vertex more costs
-     * connections to all vertices of the other subpath. Light paths compare with their
-     * throughput at y_1. */
+    /* Russian roulette (common.h) as in the path tracers, but from BDPT_RR_DEPTH, half the
+     * scene's depth rounded up (host: bdpt_base.py): two subpaths of that depth and their
+     * connection already make a path longer than the path tracer's roulette-free part, and
+     * every vertex more costs connections to all vertices of the other subpath. Light paths
+     * compare with their throughput at y_1 (beta.w). */
     if (k >= BDPT_RR_DEPTH) {
-        float q = fmin(max3(p->beta.xyz) / p->beta.w, 0.95f);
-        if (bdpt_sample(rng, bdpt_scatter_dim(k, light_path, 3)) >= q) return false;
-        p->beta.xyz /= q;
+        float3 beta = p->beta.xyz;
+        if (!roulette(&beta, p->beta.w, bdpt_sample(rng, bdpt_scatter_dim(k, light_path, 3)))) return false;
+        p->beta.xyz = beta;
     }
 #endif
     return !is_black(p->beta.xyz);
 }
 
-/* The walk's counters, one int buffer that the host reads once per step (one wait, not three). */
-#define EYE_SURVIVORS 0
-#define LIGHT_SURVIVORS 1
-#define TERMINATED_SAMPLES 2
+/* The walk's counters, one int buffer that the host reads once per step (one wait, not three):
+ * counters[EYE_SURVIVORS], [LIGHT_SURVIVORS], [TERMINATED_SAMPLES] (WalkCounter in toolkit/layout.py).
+ * A slot's `live` counts its subpaths still walking (SlotState in toolkit/layout.py):
+ * SLOT_BOTH_WALKING after regeneration, SLOT_ONE_WALKING, SLOT_TERMINATED when both have
+ * ended (it waits for its connections), SLOT_IDLE when the pass's budget left it empty. */
 
 /* One random-walk step over a compacted subpath stream (eye or light). Survivors are packed
  * into `out` and counted in counters[EYE_ or LIGHT_SURVIVORS]; a subpath that ends records
- * its vertex count, and the sample whose second subpath this was counts as terminated. */
+ * its vertex count, and the sample whose second subpath this was counts as terminated.
+ * `in` and `out` are Subpath structures of arrays of pass.capacity records (layout.h). */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
-void bdpt_extend(SCENE_PARAMS, const Camera cam, const uint seed, const int light_path, const int length,
-                 SUBPATH_SOA_PARAMS(in), SUBPATH_SOA_PARAMS(out), volatile __global int* counters,
-                 __global BdptVertex* vertices, __global int* vertex_count, volatile __global int* live,
-                 __global const int* sample_ids, const int sample_base, __global int4* lane_counts)
+void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass, const int light_path, const int length,
+                 __global void* in, __global void* out, volatile __global int* counters,
+                 __global BdptVertex* vertices, volatile __global BdptSlot* slots, __global LaneCounts* lane_counts)
 {
     int gid = get_global_id(0);
     __local int scratch[COMPACT_SCRATCH_INTS];
@@ -146,62 +140,64 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const uint seed, const int ligh
     /* No early return: every work-item must reach the barriers of the scatter and compaction. */
     if (gid < length) {
         SceneView s = SCENE_INIT;
-        p = subpath_load(SUBPATH_SOA(in), gid);
-        Sampler rng = bdpt_sampler(&cam, seed, sample_ids[p.slot], sample_base);
+        p = subpath_load(subpath_soa(in, pass.capacity), gid);
+        Sampler rng = bdpt_sampler(&cam, &pass, slots[p.slot].sample_id);
         alive = subpath_extend(&s, &p, &rng, light_path != 0, &v, &store_at, &steps);
         if (!alive) {
-            vertex_count[p.slot] = p.vertices;
-            if (atomic_dec(&live[p.slot]) == 1) atomic_inc(&counters[TERMINATED_SAMPLES]);
+            if (light_path) slots[p.slot].light_vertices = p.vertices;
+            else slots[p.slot].eye_vertices = p.vertices;
+            if (atomic_dec(&slots[p.slot].live) == SLOT_ONE_WALKING) atomic_inc(&counters[TERMINATED_SAMPLES]);
         }
     }
     store_vertex(vertices, store_at, &v, stage, dest);
     int slot = immediate_compact_slot(alive, scratch, &counters[light_path ? LIGHT_SURVIVORS : EYE_SURVIVORS]);
-    if (slot >= 0) subpath_store(SUBPATH_SOA(out), slot, &p);
+    if (slot >= 0) subpath_store(subpath_soa(out, pass.capacity), slot, &p);
 #if COUNT_SIMD
-    if (gid < length) lane_counts[gid] = (int4)(1, steps, p.slot, 0);
+    if (gid < length) {
+        LaneCounts lane = {.work = 1, .closest_steps = steps};
+        lane_counts[gid] = lane;
+    }
 #endif
 }
 
-/* Start new samples in the terminated pool slots listed in `slots`: the first `fresh` get
- * samples first_id, first_id + 1, ... (consecutive pixels); the rest go idle (budget spent).
- * Writes z_0 (camera) and y_0 (point on a light) and appends both subpaths to their streams. */
-__kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const uint seed, const int count, const int fresh,
-                              __global const int* slots, const int first_id, const int sample_base,
-                              SUBPATH_SOA_PARAMS(eye_stream), const int eye_base,
-                              SUBPATH_SOA_PARAMS(light_stream), const int light_base,
+/* Start new samples in the terminated pool slots listed in `slot_list`: the first r.fresh get
+ * samples r.first_id, r.first_id + 1, ... (consecutive pixels); the rest go idle (budget spent).
+ * Writes z_0 (camera) and y_0 (point on a light) and appends both subpaths to their streams
+ * at r.eye_base + i and r.light_base + i. */
+__kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pass, const BdptRegeneration r,
+                              __global const int* slot_list, __global void* eye_stream, __global void* light_stream,
                               __global BdptVertex* eye_vertices, __global BdptVertex* light_vertices,
-                              __global int* eye_vertex_count, __global int* light_vertex_count,
-                              __global int* live, __global int* sample_ids)
+                              __global BdptSlot* slots)
 {
     int gid = get_global_id(0);
-    if (gid >= count) return;
-    int slot = slots[gid];
-    if (gid >= fresh) { live[slot] = -1; return; }
+    if (gid >= r.count) return;
+    int slot = slot_list[gid];
+    if (gid >= r.fresh) { slots[slot].live = SLOT_IDLE; return; }
     SceneView s = SCENE_INIT;
-    int id = first_id + gid;
-    sample_ids[slot] = id;
-    Sampler rng = bdpt_sampler(&cam, seed, id, sample_base);
+    int id = r.first_id + gid;
+    Sampler rng = bdpt_sampler(&cam, &pass, id);
     float3 eye_pos = cam.origin.xyz, forward = cam.forward.xyz;
 
-    /* Eye subpath: z_0 is the pinhole; the first direction goes through the pixel. */
-    int pixel = id % (cam.width * cam.height);
-    float x = (float)(pixel % cam.width) + bdpt_sample(&rng, BDPT_DIM_PIXEL);
-    float y = (float)(pixel / cam.width) + bdpt_sample(&rng, BDPT_DIM_PIXEL + 1);
-    float3 w = camera_direction(&cam, x, y);
-    BdptVertex z0 = {(float4)(eye_pos, 1.0f), (float4)(forward, 0.0f), (float4)(0.0f), (float4)(1.0f, 1.0f, 1.0f, 0.0f),
-                     -1, VERTEX_CAMERA, -1, 0};
+    /* Eye subpath: z_0 is the pinhole; the first direction is the camera sample (camera.h). */
+    float3 w = camera_sample(&cam, sample_pixel(&cam, id), bdpt_sample(&rng, BDPT_DIM_PIXEL),
+                             bdpt_sample(&rng, BDPT_DIM_PIXEL + 1));
+    BdptVertex z0 = {.pos = (float4)(eye_pos, 0.0f), .normal = (float4)(forward, 0.0f), .wo = (float4)(0.0f),
+                     .beta = (float4)(1.0f, 1.0f, 1.0f, 0.0f), .material = -1, .flags = VERTEX_CAMERA,
+                     .light = -1, .pdf_fwd = 1.0f, .pdf_rev = 0.0f};
     eye_vertices[vertex_index(slot, 0)] = z0;
-    Subpath e = {(float4)(eye_pos, camera_pdf_dir(&cam, w)), (float4)(w, 0.0f), (float4)(1.0f),
-                 (float4)(eye_pos, 0.0f), (float4)(forward, 0.0f), slot, 1, VERTEX_CAMERA, 0};
-    subpath_store(SUBPATH_SOA(eye_stream), eye_base + gid, &e);
+    Subpath e = {.origin = (float4)(eye_pos, camera_pdf_dir(&cam, w)), .dir = (float4)(w, 0.0f),
+                 .beta = (float4)(1.0f), .prev_pos = (float4)(eye_pos, 0.0f), .prev_normal = (float4)(forward, 0.0f),
+                 .slot = slot, .vertices = 1, .prev_flags = VERTEX_CAMERA};
+    subpath_store(subpath_soa(eye_stream, pass.capacity), r.eye_base + gid, &e);
 
     /* Light subpath: y_0 on a light (chosen by power), then a cosine-weighted direction. */
     LightSample ls = sample_light(&s, bdpt_sample(&rng, BDPT_DIM_LIGHT_PICK),
                                   bdpt_sample(&rng, BDPT_DIM_LIGHT_POINT), bdpt_sample(&rng, BDPT_DIM_LIGHT_POINT + 1));
     float inv_pdf = 1.0f / ls.pdf_area;
-    BdptVertex y0 = {(float4)(ls.p, ls.pdf_area), (float4)(ls.n, 0.0f), (float4)(0.0f),
-                     (float4)(inv_pdf, inv_pdf, inv_pdf, 0.0f),
-                     s.tris[s.lights[ls.light].triangle].material, VERTEX_LIGHT, ls.light, 0};
+    BdptVertex y0 = {.pos = (float4)(ls.p, 0.0f), .normal = (float4)(ls.n, 0.0f), .wo = (float4)(0.0f),
+                     .beta = (float4)(inv_pdf, inv_pdf, inv_pdf, 0.0f),
+                     .material = s.tris[s.lights[ls.light].triangle].material, .flags = VERTEX_LIGHT,
+                     .light = ls.light, .pdf_fwd = ls.pdf_area, .pdf_rev = 0.0f};
     light_vertices[vertex_index(slot, 0)] = y0;
     float3 ts, tt;
     make_basis(ls.n, &ts, &tt);
@@ -209,21 +205,21 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const uint seed, c
     float3 dir = to_world(emit_local, ts, tt, ls.n);
     /* Le cos / (pdf_area * cos / pi) = Le pi / pdf_area */
     float3 beta = ls.emission * (PI * inv_pdf);
-    Subpath l = {(float4)(offset_point(&s, ls.p, ls.n, dir), emit_local.z * INV_PI), (float4)(dir, 0.0f),
-                 (float4)(beta, max3(beta)), (float4)(ls.p, 0.0f), (float4)(ls.n, 0.0f), slot, 1, VERTEX_LIGHT, 0};
-    subpath_store(SUBPATH_SOA(light_stream), light_base + gid, &l);
+    Subpath l = {.origin = (float4)(offset_point(&s, ls.p, ls.n, dir), emit_local.z * INV_PI),
+                 .dir = (float4)(dir, 0.0f), .beta = (float4)(beta, max3(beta)), .prev_pos = (float4)(ls.p, 0.0f),
+                 .prev_normal = (float4)(ls.n, 0.0f), .slot = slot, .vertices = 1, .prev_flags = VERTEX_LIGHT};
+    subpath_store(subpath_soa(light_stream, pass.capacity), r.light_base + gid, &l);
 
-    eye_vertex_count[slot] = 1;
-    light_vertex_count[slot] = 1;
-    live[slot] = 2;
+    BdptSlot started = {.live = SLOT_BOTH_WALKING, .sample_id = id, .eye_vertices = 1, .light_vertices = 1};
+    slots[slot] = started;
 }
 
 /* flags[i] = 1 for pool slots whose sample has terminated and waits for its connections. */
-__kernel void bdpt_mark_terminated(const int pool, __global const int* live, __global int* flags)
+__kernel void bdpt_mark_terminated(const int pool, __global const BdptSlot* slots, __global int* flags)
 {
     int gid = get_global_id(0);
     if (gid >= pool) return;
-    flags[gid] = live[gid] == 0;
+    flags[gid] = slots[gid].live == SLOT_TERMINATED;
 }
 
 #endif

@@ -5,7 +5,7 @@
 
 #include "scene.h"
 
-#define BVH_STACK_SIZE 64
+/* BVH_STACK_SIZE comes from toolkit/layout.py (the host refuses deeper BVHs). */
 
 typedef struct {
     float t;      /* distance along the (unit) ray direction */

@@ -11,4 +11,19 @@ inline float3 camera_direction(const Camera* cam, float x, float y) {
     return normalize(cam->forward.xyz + sx * cam->right.xyz + sy * cam->up.xyz);
 }
 
+/* Sample `id` of a pass: consecutive ids are consecutive pixels (so samples started together
+ * trace coherent primary rays), then the next sample of every pixel. */
+inline int sample_pixel(const Camera* cam, int id) { return id % (cam->width * cam->height); }
+inline int sample_number(const Camera* cam, int id, int sample_base) {
+    return sample_base + id / (cam->width * cam->height);
+}
+
+/* The camera sample: the direction through a box-filtered position (u, v in [0, 1)) inside
+ * `pixel` (FORMAT.md). Path tracers and BDPT draw u, v from the same two dimensions. */
+inline float3 camera_sample(const Camera* cam, int pixel, float u, float v) {
+    float x = (float)(pixel % cam->width) + u;
+    float y = (float)(pixel / cam->width) + v;
+    return camera_direction(cam, x, y);
+}
+
 #endif

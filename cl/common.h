@@ -13,7 +13,7 @@
 #define HARD_MAX_BOUNCES 1024
 
 inline float max3(float3 v) { return fmax(v.x, fmax(v.y, v.z)); }
-inline float luminance(float3 c) { return 0.2126f * c.x + 0.7152f * c.y + 0.0722f * c.z; }
+inline float luminance(float3 c) { return LUMINANCE_R * c.x + LUMINANCE_G * c.y + LUMINANCE_B * c.z; }
 inline bool is_black(float3 c) { return c.x <= 0.0f && c.y <= 0.0f && c.z <= 0.0f; }
 inline bool all_finite(float3 c) { return isfinite(c.x) && isfinite(c.y) && isfinite(c.z); }
 
@@ -32,6 +32,17 @@ inline float3 to_world(float3 v, float3 s, float3 t, float3 n) { return v.x * s 
 inline float3 sample_cosine_hemisphere(float u1, float u2) {
     float r = sqrt(u1), phi = 2.0f * PI * u2;
     return (float3)(r * cos(phi), r * sin(phi), sqrt(fmax(0.0f, 1.0f - u1)));
+}
+
+/* Russian roulette (as Mitsuba 3's path integrator): continue with probability
+ * q = min(max(throughput) / normaliser, 0.95), using the uniform number u, and divide the
+ * throughput by q (no change in expectation). Path tracers pass normaliser 1; BDPT light
+ * paths pass their throughput at y_1 (cl/bdpt_walk.h). Returns false when the path stops. */
+inline bool roulette(float3* throughput, float normaliser, float u) {
+    float q = fmin(max3(*throughput) / normaliser, 0.95f);
+    if (u >= q) return false;
+    *throughput /= q;
+    return true;
 }
 
 /* Power heuristic (Veach 1997, eq. 9.13, beta = 2) for two strategies with pdfs a and b. */

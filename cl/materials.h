@@ -28,6 +28,16 @@ inline bool is_specular(int type) {
         ;
 }
 
+/* The shading normal at a surface with geometric normal ng, seen from direction wo:
+ * two-sided materials shade with the normal facing wo; a dielectric keeps its outward
+ * normal (its BSDF tells inside from outside by the sign of wo.z). */
+inline float3 shading_normal(int type, float3 ng, float3 wo) {
+#if HAS_DIELECTRIC
+    if (type == MAT_DIELECTRIC) return ng;
+#endif
+    return dot(ng, wo) < 0.0f ? -ng : ng;
+}
+
 
 #if HAS_GLOSSY
 /* GGX (Trowbridge-Reitz) as FORMAT.md defines it; Walter et al. 2007, eqs. 33-34. */

@@ -18,14 +18,19 @@ typedef struct {
     int shadow_rays;
 } LaneCounters;
 
-/* A new camera path for (pixel, sample): box-filtered position inside the pixel (FORMAT.md).
+/* What a lane did in one launch, as the host reads it (LaneCounts, toolkit/layout.py). */
+inline LaneCounts lane_counts_of(int work, const LaneCounters* c) {
+    LaneCounts out = {.work = work, .closest_steps = c->traversal_steps, .shadow_rays = c->shadow_rays,
+                      .shadow_steps = c->shadow_steps};
+    return out;
+}
+
+/* A new camera path for (pixel, sample): the camera sample (camera.h) of its first two dimensions.
  * `slot` is where its result goes in the pass's output buffer. */
 inline void path_start(PathState* p, const Camera* cam, int pixel, int sample, int slot, uint seed) {
     Sampler rng = sampler_init(seed, (uint)pixel, (uint)sample);
-    float x = (float)(pixel % cam->width) + sampler_get(&rng, DIM_PIXEL);
-    float y = (float)(pixel / cam->width) + sampler_get(&rng, DIM_PIXEL + 1);
     p->origin = (float4)(cam->origin.xyz, 0.0f);   /* camera rays start exactly at the pinhole */
-    p->dir = (float4)(camera_direction(cam, x, y), 0.0f);
+    p->dir = (float4)(camera_sample(cam, pixel, sampler_get(&rng, DIM_PIXEL), sampler_get(&rng, DIM_PIXEL + 1)), 0.0f);
     p->throughput = (float4)(1.0f, 1.0f, 1.0f, 0.0f);
     p->radiance = (float4)(0.0f);
     p->prev_pdf = 0.0f;
@@ -36,11 +41,9 @@ inline void path_start(PathState* p, const Camera* cam, int pixel, int sample, i
     p->slot = slot;
 }
 
-/* The sample with index `id` in a pass: consecutive ids are consecutive pixels, so samples
- * started together trace coherent primary rays. */
+/* The sample with index `id` in a pass (sample_pixel, camera.h); its result goes to output slot id. */
 inline void path_start_sample(PathState* p, const Camera* cam, int id, int sample_base, uint seed) {
-    int pixels = cam->width * cam->height;
-    path_start(p, cam, id % pixels, sample_base + id / pixels, id, seed);
+    path_start(p, cam, sample_pixel(cam, id), sample_number(cam, id, sample_base), id, seed);
 }
 
 inline float path_rand(const PathState* p, Sampler* rng, uint offset) {
@@ -86,13 +89,7 @@ inline bool path_extend_deferred(const SceneView* s, PathState* p, uint seed, La
     if (p->bounce >= HARD_MAX_BOUNCES) return false;
 
     Material m = s->materials[tri.material];
-    /* Two-sided materials shade with the normal facing wo; a dielectric keeps its outward normal. */
-    float3 n = ng;
-#if HAS_DIELECTRIC
-    if (m.type != MAT_DIELECTRIC && dot(ng, wo) < 0.0f) n = -ng;
-#else
-    if (dot(ng, wo) < 0.0f) n = -ng;
-#endif
+    float3 n = shading_normal(m.type, ng, wo);
     float3 ts, tt;
     make_basis(n, &ts, &tt);
     float3 wo_local = to_local(wo, ts, tt, n);
@@ -146,12 +143,11 @@ inline bool path_extend_deferred(const SceneView* s, PathState* p, uint seed, La
     p->bounce += 1;
 
 #if USE_RUSSIAN_ROULETTE
-    /* Roulette as Mitsuba 3's path integrator: from RR_DEPTH bounces on, continue with
-     * probability q = min(max throughput, 0.95) and divide by q (no change in expectation). */
+    /* Russian roulette (common.h) from RR_DEPTH bounces on. */
     if (p->bounce >= RR_DEPTH) {
-        float q = fmin(max3(p->throughput.xyz), 0.95f);
-        if (sampler_get(&rng, bounce_dim(p->bounce - 1, DIM_ROULETTE)) >= q) return false;
-        p->throughput.xyz /= q;
+        float3 throughput = p->throughput.xyz;
+        if (!roulette(&throughput, 1.0f, sampler_get(&rng, bounce_dim(p->bounce - 1, DIM_ROULETTE)))) return false;
+        p->throughput.xyz = throughput;
     }
 #endif
     return !is_black(p->throughput.xyz);

@@ -2,35 +2,21 @@
  * "In-Place Sample Regeneration"). Each work-item owns one slot of the path stream.
  * After every extension step, the slots whose path ended start a new sample in place:
  * extension stays busy, but the regeneration step runs with only the terminated lanes
- * active (the talk: ~30% active threads per warp). */
-#include "path.h"
-
-/* Extend every live path by one vertex; a path that ends writes its radiance and frees its slot. */
-__kernel void pt_inplace_regen_extend(SCENE_PARAMS, const uint seed, const int slots,
-                                      PATH_STATE_SOA_PARAMS(path), __global int* alive,
-                                      __global float4* radiance, __global int4* lane_counts)
-{
-    int gid = get_global_id(0);
-    if (gid >= slots) return;
-    LaneCounters count = {0, 0, 0};
-    int was_alive = alive[gid];
-    if (was_alive) {
-        SceneView s = SCENE_INIT;
-        alive[gid] = path_extend_in_place(&s, PATH_STATE_SOA(path), gid, seed, &count, radiance);
-    }
-#if COUNT_SIMD
-    lane_counts[gid] = (int4)(was_alive, count.traversal_steps, count.shadow_rays, count.shadow_steps);
-#endif
-}
+ * active (the talk: ~30% active threads per warp).
+ * Kernels this technique launches (toolkit/techniques/pt_inplace_regen.py):
+ *   pt_inplace_regen_regenerate   here
+ *   extend_in_place               cl/extend_in_place.h (shared with pt_compact_regen) */
+#include "extend_in_place.h"
 
 /* Regenerate in place: a free slot takes the next sample of the pass's budget, if any is left.
  * Sample ids come from one atomic counter; the image does not depend on which slot gets
- * which sample because every random number is keyed by the sample, not by the slot. */
+ * which sample because every random number is keyed by the sample, not by the slot.
+ * Any slot that holds a live path afterwards sets *any_alive (the host clears it first). */
 __kernel void pt_inplace_regen_regenerate(const Camera cam, const uint seed, const int slots,
                                           const int sample_base, const int budget,
-                                          volatile __global int* next_sample,
-                                          PATH_STATE_SOA_PARAMS(path), __global int* alive,
-                                          __global int* regenerated)
+                                          volatile __global int* next_sample, const int capacity,
+                                          __global void* paths, __global int* alive,
+                                          __global int* any_alive, __global int* regenerated)
 {
     int gid = get_global_id(0);
     if (gid >= slots) return;
@@ -40,11 +26,12 @@ __kernel void pt_inplace_regen_regenerate(const Camera cam, const uint seed, con
         if (id < budget) {
             PathState p;
             path_start_sample(&p, &cam, id, sample_base, seed);
-            path_state_store(PATH_STATE_SOA(path), gid, &p);
+            path_state_store(path_state_soa(paths, capacity), gid, &p);
             alive[gid] = 1;
             started = 1;
         }
     }
+    if (alive[gid]) *any_alive = 1;   /* every writer writes the same value */
 #if COUNT_SIMD
     regenerated[gid] = started;
 #endif

@@ -1,12 +1,14 @@
 /* Plain path tracing: one path per work-item, traced from the camera to termination.
  * A work-item whose path has ended idles until the longest path in its warp is done:
- * this is the baseline of the talk ("Random Walk": ~33% active threads per warp). */
+ * this is the baseline of the talk ("Random Walk": ~33% active threads per warp).
+ * Kernels this technique launches (toolkit/techniques/pt_naive.py):
+ *   pt_naive_render   here */
 #include "path.h"
 
 __kernel void pt_naive_render(SCENE_PARAMS, const Camera cam, const uint seed,
                               const int sample_base, const int n,
                               __global float4* radiance,          /* one per work-item; .w = 1: non-finite */
-                              __global int4* lane_counts)         /* per lane: iterations, traversal, shadow steps, shadow rays */
+                              __global LaneCounts* lane_counts)   /* per lane: .work = loop iterations */
 {
     int gid = get_global_id(0);
     if (gid >= n) return;
@@ -24,6 +26,6 @@ __kernel void pt_naive_render(SCENE_PARAMS, const Camera cam, const uint seed,
 #endif
     path_finish(radiance, &path);
 #if COUNT_SIMD
-    lane_counts[gid] = (int4)(iterations, count.traversal_steps, count.shadow_steps, count.shadow_rays);
+    lane_counts[gid] = lane_counts_of(iterations, &count);
 #endif
 }

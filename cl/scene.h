@@ -6,10 +6,8 @@
 
 #include "common.h"
 
-#define SCENE_PARAMS __global const BvhNode* nodes, __global const Triangle* tris, \
-    __global const Material* materials, __global const LightTri* lights, \
-    const int light_count, const float scene_epsilon
-#define SCENE_INIT {nodes, tris, materials, lights, light_count, scene_epsilon}
+/* A kernel takes the scene as SCENE_PARAMS and makes its view with `SceneView s = SCENE_INIT;`
+ * (both generated, with the host's argument order, from SCENE_ARGS in toolkit/layout.py). */
 
 typedef struct {
     __global const BvhNode* nodes;

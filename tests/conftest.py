@@ -35,7 +35,8 @@ def spp_for(technique, spp):
     with a shadow ray, so on the CPU it costs ~10x a path-tracing sample; its variance is also
     lower. BDPT tests use an eighth of the path tracers' budget (their statistical tolerances
     come from their own measured error, so this only widens the error bars, honestly)."""
-    return max(1, spp // 8) if technique.startswith("bdpt") else spp
+    from toolkit.techniques import get_technique
+    return max(1, spp // 8) if get_technique(technique)[0].family == "bdpt" else spp
 
 
 def scene_dirs():

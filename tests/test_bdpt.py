@@ -6,11 +6,12 @@ import pytest
 import toolkit
 from toolkit import program
 from toolkit.device_scene import DeviceScene
-from toolkit.layout import BDPT_VERTEX
+from toolkit.embree_ref import EmbreeIntersector
+from toolkit.layout import BDPT_VERTEX, VertexFlag
 from toolkit.techniques import BdptNaiveConnect, BdptParallelConnect
 
-VERTEX_DELTA = 1   # flags as in cl/bdpt.h
-VERTEX_LIGHT = 4
+VERTEX_DELTA = VertexFlag.DELTA   # flags of BdptVertex (toolkit/layout.py, emitted into layout.h)
+VERTEX_LIGHT = VertexFlag.LIGHT
 
 
 def run(queue, scene, cls, spp=4, res=(16, 16), seed=1, **options):
@@ -70,13 +71,38 @@ def split_weights(queue, tech, scene, paths, resolution=(64, 64)):
         yield w
 
 
+def seen_by_camera(tech, scene, points, resolution=(64, 64)):
+    """Whether the camera sees each point (device coordinates): it projects inside the image
+    and Embree finds nothing between the pinhole and the point."""
+    camera = tech.scene.camera(*resolution)
+    forward, right, up = (camera[k][:3].astype(np.float64) for k in ("forward", "right", "up"))
+    origin = camera["origin"][:3].astype(np.float64)
+    d = np.asarray(points, np.float64) - origin
+    dist = np.linalg.norm(d, axis=1)
+    w = d / dist[:, None]
+    ahead = w @ forward
+    on_plane = w / np.where(ahead > 0, ahead, 1.0)[:, None]
+    inside = ((ahead > 0) & (np.abs(on_plane @ right / (right @ right)) < 1)
+              & (np.abs(on_plane @ up / (up @ up)) < 1))
+    embree = EmbreeIntersector(scene, center=tech.scene.center)
+    origins = np.repeat(origin[None].astype(np.float32), len(w), 0)
+    occluded = embree.occluded(origins, w.astype(np.float32), (dist * (1 - 1e-4)).astype(np.float32))
+    return inside & ~occluded
+
+
 def test_caustic_paths_go_to_light_tracing(queue, cornell_spheres):
     """Caustic paths light -> glass -> glass -> floor -> camera (L S S D E): light tracing
     (s = 4, t = 1) samples them far better than an eye path that must hit the light through
     the sphere (s = 0), and MIS must say so. With pbrt-v3's convention (density 0, then 1, at
     specular bounces) the eye path got about 90% of these paths and the caustic stayed as
     noisy as in a path tracer; with Veach's density for the delta (cl/bdpt.h) it is the
-    other way round."""
+    other way round.
+
+    A light subpath's floor point that the camera cannot see (about a quarter of them lie
+    behind a sphere) is no path of the image: every strategy's contribution is zero, and
+    light tracing, the only one that tests visibility in this kernel, must give it nothing.
+    Which paths the camera sees is decided by Embree, not by the weights, so every path
+    that is seen must have weights that sum to one."""
     tech, _ = run(queue, cornell_spheres, BdptParallelConnect, spp=1, res=(64, 64))
     eye, _, light, light_count = tech.read_vertices()
     camera = eye[0, 0]
@@ -88,11 +114,14 @@ def test_caustic_paths_go_to_light_tracing(queue, cornell_spheres):
             if delta[1] and delta[2] and not delta[3]:
                 paths.append(np.concatenate([y, [camera]]))
     weights = np.array(list(split_weights(queue, tech, cornell_spheres, paths)))
-    seen = np.abs(weights.sum(1) - 1) < 1e-4     # the floor point is visible and inside the image
+    seen = seen_by_camera(tech, cornell_spheres, [p[3]["pos"][:3] for p in paths])
+    assert np.all(weights[~seen, 4] == 0), "light tracing connected to a floor point the camera cannot see"
     weights = weights[seen]
-    assert len(weights) >= 20, f"only {len(weights)} caustic paths found"
-    print(f"{len(weights)} caustic paths: mean weight of light tracing {weights[:, 4].mean():.3f}, "
-          f"of the eye path {weights[:, 0].mean():.3f}")
+    assert len(weights) >= 20, f"only {len(weights)} caustic paths seen by the camera"
+    sums = weights.sum(1)
+    assert np.all(np.abs(sums - 1) < 1e-4), sums[np.abs(sums - 1) >= 1e-4]
+    print(f"{len(weights)} caustic paths seen ({int((~seen).sum())} hidden): mean weight of light tracing "
+          f"{weights[:, 4].mean():.3f}, of the eye path {weights[:, 0].mean():.3f}")
     # The strategies in between connect at a specular vertex and must get nothing.
     assert np.all(weights[:, 1:4] == 0)
     assert weights[:, 4].mean() > 0.9

@@ -33,7 +33,7 @@ def summary(result):
     return stats
 
 
-def test_render_json_small(tmp_path):
+def test_render_json_summary_matches_the_written_images(tmp_path):
     out = tmp_path / "x.exr"
     stats = summary(run_cli("render", "--json", "--spp", "2", "--resolution", "16x16",
                             "--out", str(out), "--no-progress"))
@@ -64,7 +64,7 @@ def test_render_json_small(tmp_path):
             file.close()
 
 
-def test_render_json_with_no_other_argument(tmp_path):
+def test_render_json_with_no_other_argument_uses_the_readme_defaults(tmp_path):
     """The README's `python -m toolkit render --json`: bundled Cornell box, 256x256, 64 spp,
     written under out/ of the working directory."""
     stats = summary(run_cli("render", "--json", cwd=tmp_path))
@@ -80,7 +80,7 @@ def test_render_json_with_no_other_argument(tmp_path):
     assert "rmse" in stats and stats["rmse"] < 0.1
 
 
-def test_devices():
+def test_devices_lists_devices_and_the_pick():
     result = run_cli("devices")
     assert result.returncode == 0, result.stderr
     assert "Traceback" not in result.stderr
@@ -96,7 +96,7 @@ def test_devices():
     (["--spp", "0"], "argument --spp: must be at least 1"),
     (["--spp", "many"], "argument --spp: expected a whole number"),
 ], ids=["zero-width", "no-height", "unknown-technique", "zero-spp", "spp-not-a-number"])
-def test_bad_arguments(args, complaint, tmp_path):
+def test_bad_arguments_get_usage_and_the_reason(args, complaint, tmp_path):
     result = run_cli("render", *args, cwd=tmp_path)
     assert result.returncode != 0
     assert "Traceback" not in result.stderr
@@ -105,13 +105,13 @@ def test_bad_arguments(args, complaint, tmp_path):
     assert not (tmp_path / "out").exists()
 
 
-def test_no_command():
+def test_no_command_prints_usage_without_traceback():
     result = run_cli()
     assert result.returncode != 0
     assert "usage:" in result.stderr and "Traceback" not in result.stderr
 
 
-def test_render_from_python():
+def test_render_from_python_returns_image_stderr_and_stats():
     import toolkit
     result = toolkit.render(None, technique="pt_naive", spp=2, seed=1, resolution=(24, 16))
     assert result.image.shape == (16, 24, 3)
@@ -138,6 +138,13 @@ def test_device_option_before_or_after_the_command(tmp_path):
         assert result.returncode == 0, result.stderr
         assert summary(result)["device"]
     bad = run_cli("render", "--device", "9:9", "--spp", "1", "--resolution", "8x8", "--out", out)
+    assert bad.returncode == 2 and "no OpenCL device 9:9" in bad.stderr and "Traceback" not in bad.stderr
+
+
+def test_crosscheck_runs_on_the_device_it_is_given():
+    ok = run_cli("crosscheck", "--device", "0:0", "--rays", "1000", "--json")
+    assert ok.returncode == 0, ok.stderr
+    bad = run_cli("crosscheck", "--device", "9:9", "--rays", "1000")
     assert bad.returncode == 2 and "no OpenCL device 9:9" in bad.stderr and "Traceback" not in bad.stderr
 
 

@@ -48,7 +48,7 @@ def check(method, out, mask):
 # -- sizes, densities, edge cases -----------------------------------------------------------
 
 @pytest.mark.parametrize("method", METHODS)
-def test_empty_stream(compactor, method):
+def test_empty_stream_compacts_to_nothing(compactor, method):
     out = compactor.compact_numpy(np.zeros(0, bool), method)
     assert out.shape == (0,) and out.dtype == np.int32
     buffer, count = compactor.compact_indices(np.zeros(0, np.int32), 0, method)
@@ -59,7 +59,7 @@ def test_empty_stream(compactor, method):
 @pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("n", [1, 63, 64, 65, 1000, 4097])
 @pytest.mark.parametrize("density", [0.0, 0.1, 0.5, 0.9, 1.0])
-def test_against_numpy(compactor, method, n, density):
+def test_compaction_matches_numpy_at_every_size_and_density(compactor, method, n, density):
     rng = np.random.default_rng(1000 * n + int(100 * density))
     mask = rng.random(n) < density
     out = compactor.compact_numpy(mask, method)
@@ -71,14 +71,14 @@ def test_against_numpy(compactor, method, n, density):
 
 @pytest.mark.parametrize("method", METHODS)
 @pytest.mark.parametrize("density", [0.001, 0.3, 0.999])
-def test_medium_stream_densities(compactor, method, density):
+def test_medium_stream_compacts_like_numpy_at_any_density(compactor, method, density):
     rng = np.random.default_rng(7)
     mask = rng.random(100_003) < density
     check(method, compactor.compact_numpy(mask, method), mask)
 
 
 @pytest.mark.parametrize("method", METHODS)
-def test_structured_masks(compactor, method):
+def test_structured_masks_compact_like_numpy(compactor, method):
     """Patterns random masks rarely make: alternating lanes, whole dead groups, one survivor."""
     n = 64 * 37 + 5
     masks = [np.arange(n) % 2 == 0,
@@ -90,7 +90,7 @@ def test_structured_masks(compactor, method):
 
 
 @pytest.mark.parametrize("method", METHODS)
-def test_large_stream(queue, compactor, method):
+def test_large_stream_compacts_like_numpy(queue, compactor, method):
     n = 4_000_000  # three levels of block sums for the multi-pass scan (62500, 977, 16)
     mask = np.random.default_rng(4).random(n) < 0.35
     flags = cl_array.to_device(queue, mask.astype(np.int32))
@@ -116,7 +116,7 @@ def test_flags_past_n_are_ignored(queue, compactor, method):
 
 
 @pytest.mark.parametrize("method", METHODS)
-def test_input_kinds(queue, compactor, method):
+def test_any_nonzero_flag_of_any_input_kind_is_alive(queue, compactor, method):
     rng = np.random.default_rng(11)
     values = rng.integers(-3, 4, 5000).astype(np.int32)   # any nonzero int is alive
     mask = values != 0
@@ -128,7 +128,7 @@ def test_input_kinds(queue, compactor, method):
         check(method, out, mask)
 
 
-def test_reused_output_and_counter(queue, compactor):
+def test_reused_output_buffer_restarts_its_counter(queue, compactor):
     """Repeated calls into one output buffer: the atomic counter starts at zero every time."""
     n = 3000
     out = cl.Buffer(queue.context, cl.mem_flags.READ_WRITE, 4 * n)
@@ -142,7 +142,7 @@ def test_reused_output_and_counter(queue, compactor):
             check(method, result, mask)
 
 
-def test_bad_method(compactor):
+def test_unknown_method_is_refused(compactor):
     with pytest.raises(ValueError):
         compactor.compact_numpy(np.ones(4, bool), "bogus")
 

@@ -19,7 +19,7 @@ CELL_TIMEOUT = 300  # seconds per cell
 ANSI_ESCAPE = re.compile(r"\x1b\[[0-9;]*m")
 
 
-def test_there_are_tutorials():
+def test_tutorials_folder_holds_notebooks():
     assert NOTEBOOKS, f"no notebooks in {TUTORIALS}"
 
 
@@ -49,7 +49,7 @@ def python3_kernel(tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
-def test_notebook_runs(path, python3_kernel, monkeypatch):
+def test_notebook_runs_and_its_checks_pass(path, python3_kernel, monkeypatch):
     nbformat = pytest.importorskip("nbformat")
     nbclient = pytest.importorskip("nbclient")
     # The kernel inherits this environment: fast mode, no display, and the toolkit under test

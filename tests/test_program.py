@@ -101,7 +101,7 @@ def test_expand_includes_inlines_each_header_once_with_line_markers():
     assert f'#line {include_line + 1} "materials.h"' in source
 
 
-def test_define_options():
+def test_define_options_drop_false_and_none_and_mark_floats():
     options = program.define_options({"B": True, "A": False, "C": None, "D": 3, "E": 0.5})
     assert options == ["-DB=1", "-DD=3", "-DE=0.5f"]
 
@@ -147,7 +147,7 @@ def test_changed_source_is_rebuilt(queue, tmp_path):
 
 # -- (c) scene-specialised builds -------------------------------------------------------------
 
-def test_cornell_box_features(cornell_box):
+def test_cornell_box_compiles_in_only_diffuse(cornell_box):
     f = cornell_box.features()
     assert f["HAS_DIFFUSE"] is True
     for absent in ("HAS_DIELECTRIC", "HAS_MIRROR", "HAS_GLOSSY", "HAS_SPECULAR"):
@@ -157,7 +157,7 @@ def test_cornell_box_features(cornell_box):
     assert not any(o.startswith(("-DHAS_DIELECTRIC", "-DHAS_MIRROR", "-DHAS_GLOSSY")) for o in options)
 
 
-def test_cornell_spheres_features(cornell_spheres):
+def test_cornell_spheres_compiles_in_mirror_and_dielectric(cornell_spheres):
     f = cornell_spheres.features()
     assert f["HAS_MIRROR"] and f["HAS_DIELECTRIC"] and f["HAS_DIFFUSE"] and f["HAS_SPECULAR"]
     assert not f["HAS_GLOSSY"]
@@ -216,7 +216,7 @@ def test_specular_branches_follow_the_scene(queue, tmp_path, cornell_box, cornel
     assert results == {"cornell_box": [0, 0, 0], "cornell_spheres": [0, 1, 1]}
 
 
-def test_pt_naive_builds_for_each_scene(queue, cornell_box, cornell_spheres):
+def test_each_scene_gets_its_own_pt_naive_build(queue, cornell_box, cornell_spheres):
     box = program.build(queue.context, "pt_naive.cl", cornell_box.features())
     spheres = program.build(queue.context, "pt_naive.cl", cornell_spheres.features())
     assert box is not spheres
@@ -237,7 +237,7 @@ FILL = """__kernel void fill(const int n, __global int* out, __global int* sizes
 """
 
 
-def test_padded():
+def test_padded_rounds_up_to_a_multiple_of_the_local_size():
     L = program.LOCAL_SIZE
     assert L == 64
     assert [program.padded(n) for n in (0, 1, L - 1, L, L + 1, 10 * L, 10 * L + 3)] == \

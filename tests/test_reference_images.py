@@ -28,7 +28,7 @@ CASES = {"cornell_box": (16, 16384), "cornell_spheres": (8, 131072)}
 
 @pytest.mark.parametrize("technique", sorted(TECHNIQUES))
 @pytest.mark.parametrize("scene_name", sorted(CASES))
-def test_matches_mitsuba_reference(technique, scene_name, request):
+def test_every_technique_matches_the_mitsuba_reference(technique, scene_name, request):
     scene = request.getfixturevalue(scene_name)
     res, spp = CASES[scene_name]
     result = toolkit.render(scene, technique=technique, spp=spp_for(technique, spp), seed=7, resolution=(res, res))

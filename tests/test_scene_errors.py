@@ -75,15 +75,15 @@ def test_the_unmodified_copy_loads(box):
 
 # -- files and JSON ---------------------------------------------------------------------------
 
-def test_missing_scene_folder(tmp_path):
+def test_missing_scene_folder_is_reported_by_path(tmp_path):
     load_fails(tmp_path / "nowhere", str(tmp_path / "nowhere"), "not found")
 
 
-def test_folder_without_scene_json(tmp_path):
+def test_folder_without_scene_json_names_the_missing_file(tmp_path):
     load_fails(tmp_path, str(tmp_path / "scene.json"), "not found")
 
 
-def test_missing_scene_file(tmp_path):
+def test_missing_scene_file_is_reported_by_path(tmp_path):
     load_fails(tmp_path / "other.json", str(tmp_path / "other.json"), "not found")
 
 
@@ -96,18 +96,18 @@ def test_malformed_json_names_line_and_column(box):
     assert message.startswith(f"{json_file(box)}:{line + 1}:"), message
 
 
-def test_json_top_level_not_an_object(box):
+def test_json_top_level_must_be_an_object(box):
     (box / "scene.json").write_text("[1, 2, 3]")
     load_fails(box, json_file(box), "top level must be a JSON object")
 
 
-def test_scene_file_not_utf8(box):
+def test_scene_file_not_utf8_is_reported_unreadable(box):
     (box / "scene.json").write_bytes(b'{"format": "\xff\xfe"}')
     load_fails(box, json_file(box), "cannot read")
 
 
 @pytest.mark.parametrize("value", ["toolkit-scene/2", None])
-def test_wrong_format(box, value):
+def test_wrong_or_missing_format_is_refused(box, value):
     def change(d):
         if value is None:
             del d["format"]
@@ -118,62 +118,62 @@ def test_wrong_format(box, value):
 
 
 @pytest.mark.parametrize("key", ["origin", "target", "up", "fov_deg", "width", "height"])
-def test_missing_camera_key(box, key):
+def test_missing_camera_key_is_named(box, key):
     edit_json(box, lambda d: d["camera"].pop(key))
     load_fails(box, json_file(box), f"camera has no '{key}'")
 
 
-def test_missing_camera(box):
+def test_missing_camera_is_refused(box):
     edit_json(box, lambda d: d.pop("camera"))
     load_fails(box, json_file(box), "'camera' must be an object")
 
 
 @pytest.mark.parametrize("field,where", [("origin", "camera.origin"), ("up", "camera.up")])
-def test_nan_literal_in_json_vector(box, field, where):
+def test_nan_literal_in_json_vector_is_refused_with_its_field(box, field, where):
     edit_json(box, lambda d: d["camera"].__setitem__(field, [float("nan"), 0.0, 3.9]))
     assert "NaN" in (box / "scene.json").read_text()   # Python's json writes and reads this literal
     load_fails(box, json_file(box), where, "NaN or infinite")
 
 
-def test_infinity_literal_in_emission(box):
+def test_infinity_literal_in_emission_is_refused_with_its_shape(box):
     edit_json(box, lambda d: d["shapes"][7].__setitem__("emission", [math.inf, 1.0, 1.0]))
     assert "Infinity" in (box / "scene.json").read_text()
     load_fails(box, json_file(box), "shapes[7].emission", "NaN or infinite")
 
 
-def test_nan_literal_in_json_number(box):
+def test_nan_literal_in_json_number_is_refused_with_its_field(box):
     edit_json(box, lambda d: d["camera"].__setitem__("fov_deg", float("nan")))
     load_fails(box, json_file(box), "camera.fov_deg", "finite number")
 
 
-def test_nan_in_reflectance(box):
+def test_nan_in_reflectance_is_refused_with_its_material(box):
     edit_json(box, lambda d: d["materials"]["red"].__setitem__("reflectance", [0.5, float("nan"), 0.5]))
     load_fails(box, json_file(box), "material 'red'.reflectance", "NaN or infinite")
 
 
 # -- materials and shapes ---------------------------------------------------------------------
 
-def test_unknown_material_type(box):
+def test_unknown_material_type_is_refused_listing_the_known_ones(box):
     edit_json(box, lambda d: d["materials"]["red"].__setitem__("type", "velvet"))
     load_fails(box, json_file(box), "material 'red'", "unknown type 'velvet'", "diffuse")
 
 
-def test_shape_with_unknown_material(box):
+def test_shape_with_unknown_material_is_refused(box):
     edit_json(box, lambda d: d["shapes"][3].__setitem__("material", "blue"))
     load_fails(box, json_file(box), "shapes[3]", "unknown material 'blue'")
 
 
-def test_shape_mesh_not_a_string(box):
+def test_shape_mesh_must_be_a_string(box):
     edit_json(box, lambda d: d["shapes"][0].__setitem__("mesh", 5))
     load_fails(box, json_file(box), "shapes[0]", "must be strings")
 
 
-def test_negative_reflectance(box):
+def test_negative_reflectance_is_refused(box):
     edit_json(box, lambda d: d["materials"]["green"].__setitem__("reflectance", [0.1, -0.2, 0.1]))
     load_fails(box, json_file(box), "material 'green'.reflectance", "negative value")
 
 
-def test_reflectance_above_one(box):
+def test_reflectance_above_one_is_refused(box):
     edit_json(box, lambda d: d["materials"]["green"].__setitem__("reflectance", [0.1, 1.2, 0.1]))
     load_fails(box, json_file(box), "material 'green'", "reflectance above 1")
 
@@ -187,41 +187,41 @@ def add_material(folder, name, material):
 
 
 @pytest.mark.parametrize("ior", [1.0, 0.5, -1.5])
-def test_dielectric_ior_not_above_one(box, ior):
+def test_dielectric_ior_must_be_above_one(box, ior):
     add_material(box, "glass", {"type": "dielectric", "ior": ior})
     load_fails(box, json_file(box), "material 'glass'.ior", repr(ior), "outside")
 
 
-def test_dielectric_without_ior(box):
+def test_dielectric_without_ior_is_refused(box):
     add_material(box, "glass", {"type": "dielectric"})
     load_fails(box, json_file(box), "material 'glass' (dielectric) is missing ior")
 
 
-def test_dielectric_accepted(box):
+def test_dielectric_with_ior_loads_and_is_compiled_in(box):
     add_material(box, "glass", {"type": "dielectric", "ior": 1.5})
     assert load_scene(box).features()["HAS_DIELECTRIC"]
 
 
-def test_glossy_without_alpha(box):
+def test_glossy_without_alpha_is_refused(box):
     add_material(box, "metal", {"type": "glossy", "reflectance": [0.9, 0.9, 0.9]})
     load_fails(box, json_file(box), "material 'metal' (glossy) is missing alpha")
 
 
 # -- lights -----------------------------------------------------------------------------------
 
-def test_no_emission_anywhere(box):
+def test_scene_without_emission_is_refused_as_black(box):
     edit_json(box, lambda d: d["shapes"][7].pop("emission"))
     load_fails(box, json_file(box), "no lights", "render black")
 
 
-def test_all_emission_zero(box):
+def test_all_zero_emission_is_refused_as_black(box):
     edit_json(box, lambda d: d["shapes"][7].__setitem__("emission", [0, 0, 0]))
     load_fails(box, json_file(box), "no lights", "render black")
 
 
 # -- meshes -----------------------------------------------------------------------------------
 
-def test_missing_mesh_file(box):
+def test_missing_mesh_file_is_named_with_its_shape(box):
     (box / FLOOR).unlink()
     load_fails(box, json_file(box), "shapes[0]", str(box / FLOOR), "mesh file not found")
 
@@ -243,12 +243,12 @@ QUAD = "# a quad\nv -1 -1 1\nv 1 -1 1\nv 1 -1 -1\nv -1 -1 -1\n"
     ("v -1 -1 1\nv 1 -1 1\nv 1e999 -1 -1\nf 1 2 3\n", 3, "NaN or infinite"),
 ], ids=["non-number", "two-coordinates", "two-vertex-face", "float-index", "word-index",
         "index-too-large", "index-zero", "negative-index-too-far", "nan", "inf", "overflow"])
-def test_malformed_obj(box, text, line, problem):
+def test_malformed_obj_is_refused_naming_file_line_and_problem(box, text, line, problem):
     write_obj(box, FLOOR, text)
     load_fails(box, json_file(box), "shapes[0]", obj_at(box, FLOOR, line), problem)
 
 
-def test_obj_without_faces(box):
+def test_obj_without_faces_is_refused(box):
     write_obj(box, FLOOR, QUAD)
     load_fails(box, str(box / FLOOR), "no faces")
 
@@ -272,7 +272,7 @@ def test_degenerate_triangles_dropped_with_warning(box):
     assert len(scene.material_of) == len(scene.emission_of) == len(scene.triangles)
 
 
-def test_all_triangles_degenerate(box):
+def test_all_degenerate_triangles_are_refused(box):
     data = read_json(box)
     data["shapes"] = [{"mesh": LIGHT, "material": "white", "emission": [1, 1, 1]}]
     write_json(box, data)
@@ -295,7 +295,7 @@ def run_cli(*args, cwd=ROOT):
 
 
 @pytest.mark.parametrize("breakage", ["missing-scene", "bad-obj", "nan-json"])
-def test_cli_render_of_a_bad_scene(box, breakage):
+def test_cli_render_of_a_bad_scene_exits_2_with_one_error_line(box, breakage):
     if breakage == "missing-scene":
         target, named = box / "nope", str(box / "nope")
     elif breakage == "bad-obj":

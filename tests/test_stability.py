@@ -59,7 +59,7 @@ def test_furnace_normals_point_inwards():
 
 @pytest.mark.parametrize("technique", sorted(TECHNIQUES))
 @pytest.mark.parametrize("albedo", [0.5, 0.9])
-def test_white_furnace(technique, albedo):
+def test_white_furnace_gives_emission_over_one_minus_albedo(technique, albedo):
     """Radiance everywhere in a closed box of albedo a emitting Le is Le / (1 - a) (a geometric
     series over path length; a = 0.9 means paths of ~10 bounces and more, so this also checks long
     paths and the roulette). Tolerance: 0.5% as the issue asks, and the image mean must also lie

@@ -44,7 +44,7 @@ def test_counting_does_not_change_the_image(cornell_box):
         assert off.stats["simd_efficiency"] == {}
 
 
-def test_phase_counter_by_hand():
+def test_phase_counter_counts_hand_made_warps_exactly():
     c = PhaseCounter(warp_width=4)
     # Two warps: lanes (1,1,0,0) and (0,0,0,0): only the first warp issues -> 2 of 4.
     c.add_stream_step("extend", np.array([1, 1, 0, 0, 0, 0, 0, 0], bool))
@@ -91,6 +91,21 @@ def test_wider_warps_waste_more_lanes(cornell_box):
     eff = [toolkit.render(cornell_box, technique="pt_naive", spp=4, seed=0, resolution=(64, 64),
                           warp_width=w).stats["simd_efficiency"]["overall"] for w in (8, 16, 32, 64)]
     assert eff == sorted(eff, reverse=True) and eff[0] > eff[-1]
+
+
+@pytest.mark.parametrize("technique", ["pt_inplace_regen", "pt_compact_regen"])
+def test_final_drain_is_marked_from_the_step_after_the_last_sample_starts(cornell_box, technique):
+    """64x64 at 16 spp is twice the stream: the stream stays full while samples are left to
+    start, then drains. The steps marked `draining` (shaded on compare's plot) are one run to
+    the end of the pass, and every step before them ran on a full stream."""
+    from toolkit.compare import drain_spans
+    result = toolkit.render(cornell_box, technique=technique, spp=16, seed=0, resolution=(64, 64))
+    steps = [it for it in result.iterations if it["phase"] == "extend"]
+    spans = drain_spans(steps)
+    assert len(spans) == 1 and spans[0][1] == steps[-1]["iteration"], spans
+    before = [it for it in steps if it["iteration"] < spans[0][0]]
+    assert len(before) >= 5 and all(it["active"] == it["capacity"] for it in before)
+    assert steps[-1]["active"] < steps[-1]["capacity"]
 
 
 def test_compare_json_and_bench_from_the_command_line(tmp_path):

@@ -3,9 +3,15 @@ in one run with interleaved repetitions (technique A, B, C, A, B, C, ...) and th
 so a slow moment of the machine does not favour one technique. SIMD counters are off here.
 """
 import statistics
+import time
+
+import numpy as np
 
 from .api import as_scene, render
 from .device import has_gpu
+from .reference import reference_at, rmse
+from .techniques import get_technique
+from .validate import LIMITS
 
 
 DEFAULT = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "pt_compact_regen/multipass",
@@ -21,7 +27,7 @@ def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats
     for r in range(repeats):
         for name in techniques:
             # Bidirectional samples cost ~10x more: an eighth of the budget keeps the runs comparable in length.
-            n = max(1, spp // 8) if name.startswith("bdpt") else spp
+            n = max(1, spp // 8) if family(name) == "bdpt" else spp
             result = render(scene, technique=name, spp=n, seed=seed + r, resolution=resolution,
                             device=device, count_simd=False)
             rates[name].append(result.stats["samples_per_second"])
@@ -34,6 +40,53 @@ def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats
                                   f"ratio_to_{base}": median[name] / median[base]} for name in techniques}}
 
 
+def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=None):
+    """Each technique renders for `seconds` of wall time: chunks of samples (independent seeds)
+    until the time is spent, so every technique gets the same time whatever its speed.
+    Returns {technique: {"spp", "seconds", "rmse"}} against the scene's reference."""
+    scene = as_scene(scene)
+    width, height = resolution
+    ref, ref_err = reference_at(scene, width, height)
+    if ref is None:
+        from .reference import reference_problem
+        raise ValueError(f"{scene.name}: no reference to compare with at {width}x{height}: "
+                         f"{reference_problem(scene, width, height) or 'the scene has none'}")
+    hard = hard_pixels(ref, ref_err)
+    out = {}
+    for name in techniques:
+        # Warm-up (kernel builds, PoCL's first-launch compile) and a probe to size the chunks.
+        render(scene, technique=name, spp=1, seed=seed + 999, resolution=resolution, device=device, count_simd=False)
+        probe = render(scene, technique=name, spp=8, seed=seed + 998, resolution=resolution, device=device,
+                       count_simd=False)
+        chunk = max(1, min(int(seconds / 10 / (probe.stats["seconds"] / 8)), LIMITS["spp"][1]))
+        total, spp, k = np.zeros((height, width, 3)), 0, 0
+        start = time.perf_counter()
+        while time.perf_counter() - start < seconds:
+            result = render(scene, technique=name, spp=chunk, seed=seed + k, resolution=resolution,
+                            device=device, count_simd=False)
+            total += result.image * chunk
+            spp += chunk
+            k += 1
+        image = total / spp
+        out[name] = {"spp": spp, "seconds": time.perf_counter() - start, "rmse": rmse(image, ref),
+                     "rmse_hard_pixels": rmse(image[hard], ref[hard])}
+    return out
+
+
+def hard_pixels(ref, ref_err, fraction=0.1):
+    """The pixels that are hardest for a path tracer: the `fraction` with the largest relative
+    standard error in the reference (itself a path-traced render: Mitsuba's path integrator).
+    In cornell_spheres these are the caustics and the light seen through the spheres."""
+    rel = (ref_err / np.maximum(ref, 1e-6)).mean(-1)
+    rel[ref.mean(-1) <= 0] = 0.0
+    return rel >= np.quantile(rel, 1.0 - fraction)
+
+
+def family(name):
+    """"pt" or "bdpt": the family of a technique or variant name (Technique.family)."""
+    return get_technique(name)[0].family
+
+
 def format_equal_time(report, seconds):
     lines = [f"equal time (~{seconds:g} s each): RMSE against the reference, over the whole image and over "
              f"the 10% pixels hardest for a path tracer (largest relative error in the reference: caustics)"]
@@ -41,12 +94,12 @@ def format_equal_time(report, seconds):
         lines.append(f"  {name:<30}{row['spp']:>7} spp {row['seconds']:>7.2f} s   RMSE {row['rmse']:.5f}"
                      f"   hard pixels {row['rmse_hard_pixels']:.5f}")
     for key, label in (("rmse", "whole image"), ("rmse_hard_pixels", "hard pixels")):
-        pt = [r[key] for n, r in report.items() if n.startswith("pt")]
-        bd = [r[key] for n, r in report.items() if n.startswith("bdpt")]
+        pt = [r[key] for n, r in report.items() if family(n) == "pt"]
+        bd = [r[key] for n, r in report.items() if family(n) == "bdpt"]
         if pt and bd:
             lines.append(f"  best BDPT / best PT RMSE, {label}: {min(bd) / min(pt):.2f}")
-    pt = {n: r for n, r in report.items() if n.startswith("pt")}
-    bd = {n: r for n, r in report.items() if n.startswith("bdpt")}
+    pt = {n: r for n, r in report.items() if family(n) == "pt"}
+    bd = {n: r for n, r in report.items() if family(n) == "bdpt"}
     if pt and bd:
         # Squared error x samples does not depend on the time spent: what one sample is worth.
         p_name = min(pt, key=lambda n: pt[n]["rmse"])

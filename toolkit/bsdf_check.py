@@ -15,10 +15,8 @@ directions against the pdf that `bsdf_eval` reports, after Mitsuba's `chi2.py` (
 - cells with expected count below 5 are pooled (Mitsuba's rule: sorted by expected count,
   the smallest are merged until the pooled cell reaches 5);
 - the statistic sum (O - E)^2 / E has (cells - 1) degrees of freedom; its p-value is the
-  regularized upper incomplete gamma function Q(dof / 2, chi2 / 2), computed here with
-  numpy/stdlib only by the Numerical Recipes method (`gammq`: power series for x < a + 1,
-  Lentz's continued fraction otherwise), accurate to near double precision (the tests
-  compare it with closed forms to 1e-10).
+  regularized upper incomplete gamma function Q(dof / 2, chi2 / 2). The statistic, the
+  p-value and the Sidak correction are in `toolkit/stats.py`, shared with the render z-test.
 
 Only numpy and the standard library are used on the host (no scipy).
 """
@@ -30,17 +28,15 @@ import pyopencl as cl
 import pyopencl.cltypes as cltypes
 
 from . import program
-from .layout import MATERIAL
-from .scene import MATERIAL_TYPES
+from .layout import MATERIAL, MATERIAL_TYPES
+from .stats import chi2_sf, pearson
 
 SOURCE = "bsdf_test.cl"
 
 
 def defines():
-    """Every material compiled in, with the type codes the scene loader uses."""
-    out = {f"MAT_{name.upper()}": code for name, code in MATERIAL_TYPES.items()}
-    out.update({f"HAS_{name.upper()}": 1 for name in MATERIAL_TYPES})
-    return out
+    """Every material compiled in (the MAT_* type codes come with layout.h)."""
+    return {f"HAS_{name.upper()}": 1 for name in MATERIAL_TYPES}
 
 
 def material_record(material):
@@ -222,64 +218,6 @@ def integrate(checker, material, wo, res=(32, 64), z_range=(-1.0, 1.0), **option
     return float(result.pdf.sum()), result.f_cos.sum(axis=(0, 1))
 
 
-# ---------------------------------------------------------------------------------------------
-# The chi-square distribution without scipy.
-
-def gammq(a, x, eps=1e-15, max_iter=100000):
-    """Regularized upper incomplete gamma Q(a, x) = Gamma(a, x) / Gamma(a) (Numerical Recipes
-    `gammq`: series for P when x < a + 1, Lentz's continued fraction for Q otherwise)."""
-    if a <= 0.0 or x < 0.0:
-        raise ValueError(f"gammq needs a > 0 and x >= 0, got a={a}, x={x}")
-    if x == 0.0:
-        return 1.0
-    log_prefactor = -x + a * math.log(x) - math.lgamma(a)
-    if x < a + 1.0:
-        ap, term = a, 1.0 / a
-        total = term
-        for _ in range(max_iter):
-            ap += 1.0
-            term *= x / ap
-            total += term
-            if abs(term) < abs(total) * eps:
-                break
-        else:
-            raise ArithmeticError("gammq: series did not converge")
-        return max(0.0, 1.0 - total * math.exp(log_prefactor))
-    tiny = 1e-300
-    b = x + 1.0 - a
-    c = 1.0 / tiny
-    d = 1.0 / b
-    h = d
-    for i in range(1, max_iter):
-        an = -i * (i - a)
-        b += 2.0
-        d = an * d + b
-        d = tiny if abs(d) < tiny else d
-        c = b + an / c
-        c = tiny if abs(c) < tiny else c
-        d = 1.0 / d
-        delta = d * c
-        h *= delta
-        if abs(delta - 1.0) < eps:
-            break
-    else:
-        raise ArithmeticError("gammq: continued fraction did not converge")
-    return math.exp(log_prefactor) * h
-
-
-def chi2_sf(statistic, dof):
-    """P(X >= statistic) for X chi-square distributed with dof degrees of freedom."""
-    return gammq(0.5 * dof, 0.5 * max(0.0, statistic))
-
-
-def sidak(alpha, tests):
-    """Per-test significance such that `tests` independent tests of true hypotheses all pass
-    with probability 1 - alpha."""
-    return 1.0 - (1.0 - alpha) ** (1.0 / tests)
-
-
-# ---------------------------------------------------------------------------------------------
-
 @dataclass
 class Chi2Result:
     statistic: float
@@ -296,42 +234,6 @@ class Chi2Result:
 
     def passed(self, significance):
         return not self.message and self.p_value >= significance
-
-
-def pearson(observed, expected, pool_threshold=5.0):
-    """Pearson's statistic over cells after pooling: (statistic, dof, cells, pooled, message).
-
-    As in Mitsuba: cells are sorted by expected count; those below the threshold are merged
-    into one pooled cell (if it stays below the threshold it joins the next cell). A cell
-    with zero expected count but observed samples makes the test fail outright."""
-    observed = np.asarray(observed, np.float64).ravel()
-    expected = np.asarray(expected, np.float64).ravel()
-    impossible = (expected <= 0.0) & (observed > 0)
-    if impossible.any():
-        return math.inf, 0, 0, 0, (f"{int(observed[impossible].sum())} samples in "
-                                   f"{int(impossible.sum())} cells of zero expected count")
-    order = np.argsort(expected, kind="stable")
-    obs, exp = observed[order], expected[order]
-    statistic, cells, pooled = 0.0, 0, 0
-    pooled_obs = pooled_exp = 0.0
-    for o, e in zip(obs, exp):
-        if e <= 0.0:
-            continue
-        if e < pool_threshold:
-            pooled_obs += o
-            pooled_exp += e
-            pooled += 1
-        elif 0.0 < pooled_exp < pool_threshold:
-            pooled_obs += o
-            pooled_exp += e
-            pooled += 1
-        else:
-            statistic += (o - e) ** 2 / e
-            cells += 1
-    if pooled_exp > 0.0:
-        statistic += (pooled_obs - pooled_exp) ** 2 / pooled_exp
-        cells += 1
-    return statistic, cells - 1, cells, pooled, ""
 
 
 def chi2_test(checker, material, wo, n_samples=1_000_000, seed=1, res=(48, 96),

@@ -82,8 +82,11 @@ def build_parser():
     p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
     p.add_argument("--techniques", default="pt_naive,pt_inplace_regen,pt_compact_regen",
                    help=f"comma-separated, from: {names}")
-    p.add_argument("--spp", type=_positive, default=16)
-    p.add_argument("--resolution", type=_resolution, default=(64, 64))
+    # 64x64 at 64 spp: a pass of 262,144 samples, eight per slot of the stream techniques'
+    # 32,768, so their pools regenerate (at 8 spp each slot would hold one sample and
+    # pt_inplace_regen would look like pt_naive); tutorial 2 uses the same budget.
+    p.add_argument("--spp", type=_positive, default=64, help="samples per pixel (default 64)")
+    p.add_argument("--resolution", type=_resolution, default=(64, 64), help="WxH (default 64x64)")
     p.add_argument("--seed", type=_whole, default=0, help="0 .. 2^32 - 1")
     p.add_argument("--warp-width", type=int, default=32, choices=[8, 16, 32, 64])
     p.add_argument("--json", action="store_true", help="print a JSON object as the last line of stdout")
@@ -226,10 +229,12 @@ def cmd_bench(args):
 def cmd_crosscheck(args):
     from .api import as_scene
     from .crosscheck import compare_with_embree, format_figures
+    from .device import get_queue
     from .validate import whole_number
     whole_number("seed", args.seed, "--seed")
     whole_number("crosscheck.rays", args.rays, "--rays")
-    figures = compare_with_embree(as_scene(args.scene), n_random=args.rays, seed=args.seed)
+    figures = compare_with_embree(as_scene(args.scene), n_random=args.rays, seed=args.seed,
+                                  queue=get_queue(args.device))
     print(format_figures(figures))
     if args.json:
         print(json.dumps(figures, default=lambda x: x.item() if hasattr(x, "item") else str(x)))

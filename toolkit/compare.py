@@ -10,8 +10,8 @@ import numpy as np
 
 from .api import as_scene, render
 from .images import to_srgb8, write_image
+from .bench import equal_time, hard_pixels  # noqa: F401 (equal time lives with its report in bench.py)
 from .reference import reference_at, rmse
-from .validate import LIMITS
 
 PHASES = ["generate", "extend", "walk", "shadow", "compact", "connect"]
 
@@ -70,21 +70,47 @@ def format_table(table, warp_width=32):
     return "\n".join(lines)
 
 
+DRAIN_NOTE = ("Shaded, from the dashed line on: the final drain of a pass. Every sample of the budget has started, "
+              "nothing regenerates, and the stream empties.\nIts last steps trace a few long paths: one path in a "
+              "warp of 32 is 3% efficiency, but such a step issues a single warp, so the drain weighs little in the "
+              "totals of the table.")
+
+
+def drain_spans(steps):
+    """(first, last) iteration of each run of steps marked `draining` (one per pass)."""
+    spans = []
+    for it in steps:
+        if not it.get("draining"):
+            continue
+        if spans and it["iteration"] <= spans[-1][1] + 1:
+            spans[-1][1] = it["iteration"]
+        else:
+            spans.append([it["iteration"], it["iteration"]])
+    return [tuple(span) for span in spans]
+
+
 def save_plots(scene_name, results, ref, out_dir, warp_width):
     # Figures drawn straight onto an Agg canvas: no pyplot state, and the caller's backend
     # (e.g. inline plots in a notebook) is left alone.
     from matplotlib.figure import Figure
     paths = {}
 
-    fig = Figure(figsize=(12, 4))
+    fig = Figure(figsize=(12, 4.8))
     ax1, ax2 = fig.subplots(1, 2)
+    drained = False
     for name, result in results.items():
         steps = [it for it in result.iterations if it["phase"] in ("extend", "walk")]
         if not steps:
             continue
         x = [it["iteration"] for it in steps]
-        ax1.plot(x, [100 * it["efficiency"] for it in steps], label=name, lw=1)
+        line, = ax1.plot(x, [100 * it["efficiency"] for it in steps], label=name, lw=1)
         ax2.plot(x, [100 * it["active"] / it["capacity"] for it in steps], label=name, lw=1)
+        for first, last in drain_spans(steps):
+            for ax in (ax1, ax2):
+                ax.axvspan(first - 0.5, last + 0.5, color=line.get_color(), alpha=0.12, lw=0,
+                           label=None if drained else "final drain (budget spent)")
+                ax.axvline(first - 0.5, color=line.get_color(), ls="--", lw=0.8)
+            drained = True
     ax1.set(xlabel="extension iteration", ylabel=f"SIMD efficiency of extend/walk (%), W={warp_width}",
             title=f"{scene_name}: active lanes per issued lane", ylim=(0, 105))
     ax2.set(xlabel="extension iteration", ylabel="stream occupancy (% of lanes with a live path)",
@@ -92,7 +118,11 @@ def save_plots(scene_name, results, ref, out_dir, warp_width):
     for ax in (ax1, ax2):
         ax.legend(fontsize=8)
         ax.grid(alpha=0.3)
-    fig.tight_layout()
+    if drained:
+        fig.text(0.01, 0.01, DRAIN_NOTE, fontsize=8, va="bottom")
+        fig.tight_layout(rect=(0, 0.1, 1, 1))
+    else:
+        fig.tight_layout()
     paths["efficiency"] = str(out_dir / f"{scene_name}_efficiency_per_iteration.png")
     fig.savefig(paths["efficiency"], dpi=100)
 
@@ -114,46 +144,3 @@ def save_plots(scene_name, results, ref, out_dir, warp_width):
     paths["images"] = str(out_dir / f"{scene_name}_image_strip.png")
     fig.savefig(paths["images"], dpi=100)
     return paths
-
-
-def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=None):
-    """Each technique renders for `seconds` of wall time: chunks of samples (independent seeds)
-    until the time is spent, so every technique gets the same time whatever its speed.
-    Returns {technique: {"spp", "seconds", "rmse"}} against the scene's reference."""
-    import time
-    scene = as_scene(scene)
-    width, height = resolution
-    ref, ref_err = reference_at(scene, width, height)
-    if ref is None:
-        from .reference import reference_problem
-        raise ValueError(f"{scene.name}: no reference to compare with at {width}x{height}: "
-                         f"{reference_problem(scene, width, height) or 'the scene has none'}")
-    hard = hard_pixels(ref, ref_err)
-    out = {}
-    for name in techniques:
-        # Warm-up (kernel builds, PoCL's first-launch compile) and a probe to size the chunks.
-        render(scene, technique=name, spp=1, seed=seed + 999, resolution=resolution, device=device, count_simd=False)
-        probe = render(scene, technique=name, spp=8, seed=seed + 998, resolution=resolution, device=device,
-                       count_simd=False)
-        chunk = max(1, min(int(seconds / 10 / (probe.stats["seconds"] / 8)), LIMITS["spp"][1]))
-        total, spp, k = np.zeros((height, width, 3)), 0, 0
-        start = time.perf_counter()
-        while time.perf_counter() - start < seconds:
-            result = render(scene, technique=name, spp=chunk, seed=seed + k, resolution=resolution,
-                            device=device, count_simd=False)
-            total += result.image * chunk
-            spp += chunk
-            k += 1
-        image = total / spp
-        out[name] = {"spp": spp, "seconds": time.perf_counter() - start, "rmse": rmse(image, ref),
-                     "rmse_hard_pixels": rmse(image[hard], ref[hard])}
-    return out
-
-
-def hard_pixels(ref, ref_err, fraction=0.1):
-    """The pixels that are hardest for a path tracer: the `fraction` with the largest relative
-    standard error in the reference (itself a path-traced render: Mitsuba's path integrator).
-    In cornell_spheres these are the caustics and the light seen through the spheres."""
-    rel = (ref_err / np.maximum(ref, 1e-6)).mean(-1)
-    rel[ref.mean(-1) <= 0] = 0.0
-    return rel >= np.quantile(rel, 1.0 - fraction)

@@ -8,8 +8,7 @@ import numpy as np
 import pyopencl as cl
 
 from .bvh import build_bvh
-from .layout import CAMERA, LIGHT, MATERIAL, TRIANGLE
-from .scene import MATERIAL_TYPES
+from .layout import BVH_STACK_SIZE, CAMERA, LIGHT, LUMINANCE_WEIGHTS, MATERIAL, MATERIAL_TYPES, SCENE_ARGS, TRIANGLE
 
 _bvh_cache = {}
 
@@ -36,8 +35,8 @@ class DeviceScene:
         local = scene.vertices - self.center                    # float64 rebasing
         tri_vertices = local[scene.triangles]
         self.bvh = _bvh_for(scene, tri_vertices)
-        if self.bvh.max_depth >= 63:
-            raise ValueError(f"{scene.name}: BVH depth {self.bvh.max_depth} exceeds the device stack (64)")
+        if self.bvh.max_depth >= BVH_STACK_SIZE - 1:
+            raise ValueError(f"{scene.name}: BVH depth {self.bvh.max_depth} exceeds the device stack ({BVH_STACK_SIZE})")
         order = self.bvh.order
         tv = tri_vertices[order].astype(np.float32)
         self.triangles = TRIANGLE.zeros(len(order))
@@ -56,8 +55,9 @@ class DeviceScene:
             self.materials[i]["alpha"] = m["alpha"]
         mf = cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR
         ctx = queue.context
-        self.buffers = [cl.Buffer(ctx, mf, hostbuf=a) for a in
-                        (self.bvh.nodes, self.triangles, self.materials, self.lights)]
+        self.buffers = {name: cl.Buffer(ctx, mf, hostbuf=a) for name, a in
+                        (("nodes", self.bvh.nodes), ("tris", self.triangles), ("materials", self.materials),
+                         ("lights", self.lights))}
 
     def _build_lights(self, tri_vertices, order):
         """Pick lights in proportion to power: area x luminance(emission)."""
@@ -68,7 +68,7 @@ class DeviceScene:
         v = tri_vertices[light_tris]
         area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
         emission = scene.emission_of[light_tris]
-        power = area * (emission @ np.array([0.2126, 0.7152, 0.0722]))
+        power = area * (emission @ np.array(LUMINANCE_WEIGHTS))
         power = np.where(power > 0, power, area * emission.max(1))
         prob = power / power.sum()
         self.lights = LIGHT.zeros(len(light_tris))
@@ -93,5 +93,6 @@ class DeviceScene:
         return rec
 
     def args(self):
-        """The SCENE_PARAMS kernel arguments (cl/scene.h)."""
-        return [*self.buffers, np.int32(len(self.lights)), self.epsilon]
+        """The SCENE_PARAMS kernel arguments, in the order of layout.SCENE_ARGS."""
+        values = dict(self.buffers, light_count=np.int32(len(self.lights)), epsilon=self.epsilon)
+        return [values[name] for name, _ in SCENE_ARGS]

@@ -1,19 +1,39 @@
-"""Record layouts described once: each description gives the numpy dtype and the C struct.
+"""Every layout and constant that host and device share, described once.
 
-The device structs are generated from these descriptions into the source every program is
-built from (see `c_header()`), so host and device can never disagree on a layout.
+Each `Record` gives the numpy dtype (with C's offsets: a float4 is 16-byte aligned) and the C
+struct; each group of named values (an IntEnum) gives the Python constants and C `#define`s.
+All of it is generated into `layout.h` (see `c_header()`), which every program includes
+through cl/common.h, so host and device can never disagree. `LAYOUT_CHECKS` lets a test kernel
+(cl/layout_check.cl) compare sizeof/offsetof of every struct with numpy (tests/test_layout.py).
 """
+from enum import IntEnum, IntFlag
+
 import numpy as np
 
-_C_TYPES = {"float": ("float32", 1), "int": ("int32", 1), "uint": ("uint32", 1),
-            "float4": ("float32", 4), "int4": ("int32", 4), "uint4": ("uint32", 4)}
+# C type -> (numpy base type, element count, alignment in bytes). OpenCL C aligns a vector
+# type to its size; numpy's align=True would align a float32 x 4 sub-array to 4 bytes only.
+_C_TYPES = {"float": ("float32", 1, 4), "int": ("int32", 1, 4), "uint": ("uint32", 1, 4),
+            "float4": ("float32", 4, 16), "int4": ("int32", 4, 16), "uint4": ("uint32", 4, 16)}
+
+
+def _align(offset, alignment):
+    return (offset + alignment - 1) // alignment * alignment
 
 
 class Record:
     def __init__(self, name, fields, doc=""):
         self.name, self.fields, self.doc = name, list(fields), doc
-        self.dtype = np.dtype([(f, _C_TYPES[t][0], (_C_TYPES[t][1],)) if _C_TYPES[t][1] > 1
-                               else (f, _C_TYPES[t][0]) for f, t in self.fields], align=True)
+        offsets, offset, largest = [], 0, 1
+        for _, t in self.fields:
+            base, count, alignment = _C_TYPES[t]
+            offset = _align(offset, alignment)
+            offsets.append(offset)
+            offset += np.dtype(base).itemsize * count
+            largest = max(largest, alignment)
+        self.dtype = np.dtype({"names": [f for f, _ in self.fields],
+                               "formats": [(_C_TYPES[t][0], (_C_TYPES[t][1],)) if _C_TYPES[t][1] > 1
+                                           else _C_TYPES[t][0] for _, t in self.fields],
+                               "offsets": offsets, "itemsize": _align(offset, largest)})
 
     def c_struct(self):
         lines = [f"/* {self.doc} */"] if self.doc else []
@@ -23,19 +43,24 @@ class Record:
         return "\n".join(lines)
 
     def c_soa(self):
-        """Structure-of-arrays access to records of this type, one global buffer per field:
-        <Name>SoA, <NAME>_SOA_PARAMS(p) for kernel parameters p_<field>, <NAME>_SOA(p) to
-        bundle them, and <name>_load / <name>_store to move one record in and out."""
-        upper, lower = _snake(self.name).upper(), _snake(self.name)
+        """Structure-of-arrays access to records of this type, all in one global buffer of
+        `capacity` records (field after field: consecutive work-items touch consecutive words):
+        <Name>SoA, <name>_soa(memory, capacity) to find the fields, and <name>_load /
+        <name>_store to move one record in and out."""
+        lower = _snake(self.name)
         fields = self.soa_fields
         lines = [f"/* {self.name} as a structure of arrays: consecutive work-items touch consecutive words. */",
                  "typedef struct {"]
         lines += [f"    __global {t}* {f};" for f, t in fields]
         lines.append(f"}} {self.name}SoA;")
-        params = ", ".join(f"__global {t}* p##_{f}" for f, t in fields)
-        lines.append(f"#define {upper}_SOA_PARAMS(p) {params}")
-        bundle = ", ".join(f"p##_{f}" for f, _ in fields)
-        lines.append(f"#define {upper}_SOA(p) (({self.name}SoA){{{bundle}}})")
+        lines.append(f"/* The fields of `capacity` records (a multiple of 4) stored one after another in `memory`. */")
+        lines.append(f"inline {self.name}SoA {lower}_soa(__global void* memory, int capacity) {{")
+        lines.append(f"    __global uchar* m = (__global uchar*)memory;")
+        lines.append(f"    {self.name}SoA s;")
+        for f, t in fields:
+            lines.append(f"    s.{f} = (__global {t}*)m;")
+            lines.append(f"    m += (size_t)capacity * sizeof({t});")
+        lines.append("    return s;\n}")
         lines.append(f"inline {self.name} {lower}_load({self.name}SoA s, int i) {{")
         lines.append(f"    {self.name} r;")
         lines += [f"    r.{f} = s.{f}[i];" for f, _ in fields]
@@ -45,11 +70,22 @@ class Record:
         lines.append("}")
         return "\n".join(lines)
 
-    def soa_buffers(self, context, n):
-        """One device buffer per field, in field order (matching <NAME>_SOA_PARAMS)."""
+    def soa_offset(self, field, capacity):
+        """Byte offset of `field`'s array in a structure-of-arrays buffer of `capacity` records."""
+        offset = 0
+        for f, _ in self.soa_fields:
+            if f == field:
+                return offset
+            offset += capacity * self.dtype[f].itemsize
+        raise KeyError(field)
+
+    def soa_buffer(self, context, capacity):
+        """One device buffer that holds `capacity` records as a structure of arrays (see c_soa)."""
         import pyopencl as cl
-        return [cl.Buffer(context, cl.mem_flags.READ_WRITE, max(1, n) * self.dtype[f].itemsize)
-                for f, _ in self.soa_fields]
+        if capacity % 4:
+            raise ValueError("a structure-of-arrays capacity must be a multiple of 4 (float4 alignment)")
+        return cl.Buffer(context, cl.mem_flags.READ_WRITE, max(1, capacity) * sum(
+            self.dtype[f].itemsize for f, _ in self.soa_fields))
 
     @property
     def soa_fields(self):
@@ -58,6 +94,13 @@ class Record:
 
     def zeros(self, n):
         return np.zeros(n, self.dtype)
+
+    def layout_checks(self):
+        """(what, C expression, value numpy expects) for sizeof and every offsetof."""
+        out = [(f"sizeof({self.name})", f"sizeof({self.name})", self.dtype.itemsize)]
+        out += [(f"offsetof({self.name}, {f})", f"__builtin_offsetof({self.name}, {f})",
+                 self.dtype.fields[f][1]) for f, _ in self.fields]
+        return out
 
 
 # float4-first layouts keep every record 16-byte aligned on host and device alike.
@@ -133,16 +176,20 @@ SHADOW_RAY = Record("ShadowRay", [
 ], "A next-event-estimation shadow ray waiting to be traced, 64 bytes.")
 
 BDPT_VERTEX = Record("BdptVertex", [
-    ("pos", "float4"),       # position; .w = pdf_fwd: area density with which its own subpath generated it
-    ("normal", "float4"),    # geometric normal; .w = prev_pdf_rev: area density of generating the
-                             #   previous vertex of the subpath from this one (reverse direction)
+    ("pos", "float4"),       # position; .w unused
+    ("normal", "float4"),    # geometric normal; .w unused
     ("wo", "float4"),        # unit direction to the previous vertex of the subpath
     ("beta", "float4"),      # subpath throughput up to this vertex (light paths: includes Le / pdf)
     ("material", "int"),
-    ("flags", "int"),        # VERTEX_DELTA | VERTEX_CAMERA | VERTEX_LIGHT (cl/bdpt.h)
+    ("flags", "int"),        # VERTEX_DELTA | VERTEX_CAMERA | VERTEX_LIGHT (VertexFlag below)
     ("light", "int"),        # index into the light array if the vertex lies on a light, else -1
-    ("pad", "int"),
-], "A stored BDPT path vertex, 80 bytes (the talk's vertex is 128: ours packs pdfs into .w).")
+    ("pdf_fwd", "float"),    # area density with which its own subpath generated this vertex
+    ("pdf_rev", "float"),    # area density of generating the *previous* vertex of the subpath
+                             #   from this one, in the reverse direction (0: not known yet)
+    ("pad0", "int"),
+    ("pad1", "int"),
+    ("pad2", "int"),
+], "A stored BDPT path vertex, 96 bytes (the talk's vertex is 128).")
 
 SUBPATH = Record("Subpath", [
     ("origin", "float4"),     # next ray origin; .w = solid-angle pdf of dir (0 after a delta bounce)
@@ -156,17 +203,135 @@ SUBPATH = Record("Subpath", [
     ("pad", "int"),
 ], "One eye or light subpath in a random-walk stream, 96 bytes.")
 
-RECORDS = [BVH_NODE, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY, BDPT_VERTEX, SUBPATH]
+LANE_COUNTS = Record("LaneCounts", [
+    ("work", "int"),           # the lane's work in this launch: 1 / 0 (active or not), or the
+                               #   iterations of its loop (pt_naive) or its connections (bdpt_naive_connect)
+    ("closest_steps", "int"),  # BVH nodes visited by closest-hit rays
+    ("shadow_rays", "int"),    # shadow rays traced (or queued)
+    ("shadow_steps", "int"),   # BVH nodes visited by shadow rays
+], "What one lane (work-item) did in one launch, for the SIMD-efficiency model (COUNT_SIMD).")
+
+BDPT_SLOT = Record("BdptSlot", [
+    ("live", "int"),            # SLOT_IDLE, or how many of its subpaths still walk (SlotState below)
+    ("sample_id", "int"),       # the sample in this slot: its id in the pass
+    ("eye_vertices", "int"),    # vertices stored for its eye subpath
+    ("light_vertices", "int"),  # vertices stored for its light subpath
+], "One slot of the BDPT sample pool (one per sample in flight).")
+
+BDPT_PASS = Record("BdptPass", [
+    ("seed", "uint"),
+    ("sample_base", "int"),     # samples per pixel of the passes before this one
+    ("pool", "int"),            # samples in flight: slots of the pool
+    ("capacity", "int"),        # records each subpath stream holds (pool rounded up, a multiple of 4)
+], "What every BDPT kernel of one pass shares.")
+
+BDPT_REGENERATION = Record("BdptRegeneration", [
+    ("count", "int"),           # terminated slots listed for regeneration
+    ("fresh", "int"),           # the first `fresh` of them start new samples; the rest go idle
+    ("first_id", "int"),        # id of the first new sample (the others follow, consecutive pixels)
+    ("eye_base", "int"),        # where the new eye subpaths go in the eye stream
+    ("light_base", "int"),      # where the new light subpaths go in the light stream
+], "One regeneration step of the BDPT pool.")
+
+RECORDS = [BVH_NODE, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY, BDPT_VERTEX, SUBPATH,
+           LANE_COUNTS, BDPT_SLOT, BDPT_PASS, BDPT_REGENERATION]
 
 
 SOA_RECORDS = [PATH_STATE, SHADOW_RAY, SUBPATH]
+
+
+# ---- named values, each group emitted as PREFIX_NAME defines --------------------------------
+
+class MaterialType(IntEnum):
+    """Material.type (scenes/FORMAT.md): MAT_DIFFUSE, ..."""
+    DIFFUSE = 0
+    MIRROR = 1
+    DIELECTRIC = 2
+    GLOSSY = 3
+
+
+MATERIAL_TYPES = {m.name.lower(): int(m) for m in MaterialType}   # the scene format's names
+
+
+class VertexFlag(IntFlag):
+    """BdptVertex.flags: VERTEX_DELTA, ..."""
+    DELTA = 1     # a specular bounce: cannot be connected
+    CAMERA = 2    # z_0, the pinhole
+    LIGHT = 4     # y_0, the point sampled on a light
+
+
+class SlotState(IntEnum):
+    """BdptSlot.live: how many of the sample's subpaths still walk, or idle (cl/bdpt_walk.h)."""
+    IDLE = -1           # no sample (the pass's budget is spent)
+    TERMINATED = 0      # both subpaths ended: the sample waits for its connections
+    ONE_WALKING = 1
+    BOTH_WALKING = 2    # just regenerated
+
+
+class WalkCounter(IntEnum):
+    """Indices into the random walk's counter buffer, read by the host once per step."""
+    EYE_SURVIVORS = 0       # eye subpaths written to the next eye stream
+    LIGHT_SURVIVORS = 1     # light subpaths written to the next light stream
+    TERMINATED_SAMPLES = 2  # samples whose second subpath ended since the last regeneration
+
+
+class StreamCounter(IntEnum):
+    """Indices into pt_compact_regen's counter buffer (lengths of the streams it writes)."""
+    PATHS = 0           # surviving paths, packed into the next stream
+    SHADOW_RAYS = 1     # queued shadow rays
+
+
+NAMED_VALUES = [(MaterialType, "MAT_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"), (WalkCounter, ""),
+                (StreamCounter, "STREAM_")]
+
+# ---- single constants --------------------------------------------------------------------
+
+BVH_STACK_SIZE = 64                         # entries of a traversal stack (cl/bvh.h); deeper BVHs are refused
+LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)   # Rec. 709 luminance of linear RGB
+
+# The scene as kernel arguments, in order: SCENE_PARAMS (kernel parameters), SCENE_INIT (the
+# SceneView made of them) and DeviceScene.args() (the host's values) all come from this list.
+SCENE_ARGS = [("nodes", "__global const BvhNode*"), ("tris", "__global const Triangle*"),
+              ("materials", "__global const Material*"), ("lights", "__global const LightTri*"),
+              ("light_count", "const int"), ("epsilon", "const float")]
 
 
 def _snake(name):
     return "".join("_" + c.lower() if c.isupper() and i else c.lower() for i, c in enumerate(name))
 
 
+def _c_literal(value):
+    return f"{value!r}f" if isinstance(value, float) else (f"({value})" if value < 0 else str(value))
+
+
+def c_constants():
+    lines = []
+    for group, prefix in NAMED_VALUES:
+        lines.append(f"/* {group.__doc__} */")
+        lines += [f"#define {prefix}{m.name} {_c_literal(int(m))}" for m in group]
+    lines.append(f"#define BVH_STACK_SIZE {BVH_STACK_SIZE}")
+    lines += [f"#define LUMINANCE_{c} {_c_literal(w)}" for c, w in zip("RGB", LUMINANCE_WEIGHTS)]
+    lines.append("/* The scene as kernel parameters, and the SceneView (cl/scene.h) made of them. */")
+    lines.append("#define SCENE_PARAMS " + ", ".join(f"{t} scene_{n}" for n, t in SCENE_ARGS))
+    lines.append("#define SCENE_INIT {" + ", ".join(f".{n} = scene_{n}" for n, _ in SCENE_ARGS) + "}")
+    return "\n".join(lines)
+
+
+def layout_checks(records=RECORDS):
+    """(what, C expression, value numpy expects) for every generated struct."""
+    return [check for r in records for check in r.layout_checks()]
+
+
+def c_layout_checks(records=RECORDS):
+    checks = layout_checks(records)
+    body = " ".join(f"(out)[{i}] = (int)({expr});" for i, (_, expr, _) in enumerate(checks))
+    return (f"/* For cl/layout_check.cl: sizeof and offsetof of every struct above, in layout_checks() order. */\n"
+            f"#define LAYOUT_CHECK_COUNT {len(checks)}\n#define LAYOUT_CHECKS(out) {{ {body} }}")
+
+
 def c_header(records=RECORDS):
     return ("/* Generated from toolkit/layout.py: do not edit by hand. */\n"
+            + c_constants() + "\n\n"
             + "\n\n".join(r.c_struct() for r in records) + "\n\n"
-            + "\n\n".join(r.c_soa() for r in SOA_RECORDS) + "\n")
+            + "\n\n".join(r.c_soa() for r in SOA_RECORDS) + "\n\n"
+            + c_layout_checks(records) + "\n")

@@ -3,12 +3,14 @@
 The reference (256x256 Mitsuba render with its per-pixel standard error) is averaged over
 k x k blocks to match a reduced-resolution render of the same camera: a 64x64 pixel covers
 exactly a 4x4 block of reference pixels, and the box filter makes its expected value the block
-mean. The z-test combines both standard errors and corrects for the number of pixels tested.
+mean. The z-test combines both standard errors and corrects for the number of pixels tested
+(the distributions' tails and the correction are in `toolkit/stats.py`).
 """
-import math
 from dataclasses import dataclass
 
 import numpy as np
+
+from .stats import bonferroni, normal_two_sided_p, student_t_two_sided_p
 
 
 def downsample(image, width, height):
@@ -50,57 +52,6 @@ def reference_at(scene, width, height):
                 downsample_stderr(scene.reference_stderr.astype(np.float64), width, height))
     except ValueError:
         return None, None
-
-
-def normal_two_sided_p(z):
-    """Two-sided p-value of a standard normal z (vectorised, via erfc)."""
-    z = np.abs(np.asarray(z, np.float64))
-    return np.vectorize(math.erfc)(z / math.sqrt(2.0))
-
-
-def _betacf(a, b, x, iterations=300, eps=3e-16):
-    """Continued fraction of the incomplete beta function (Lentz's method, as in
-    Numerical Recipes sec. 6.4)."""
-    tiny = 1e-300
-    qab, qap, qam = a + b, a + 1.0, a - 1.0
-    c, d = 1.0, 1.0 - qab * x / qap
-    d = 1.0 / (d if abs(d) > tiny else tiny)
-    h = d
-    for m in range(1, iterations + 1):
-        m2 = 2 * m
-        aa = m * (b - m) * x / ((qam + m2) * (a + m2))
-        d = 1.0 + aa * d
-        d = 1.0 / (d if abs(d) > tiny else tiny)
-        c = 1.0 + aa / c if abs(1.0 + aa / c) > tiny else tiny
-        h *= d * c
-        aa = -(a + m) * (qab + m) * x / ((a + m2) * (qap + m2))
-        d = 1.0 + aa * d
-        d = 1.0 / (d if abs(d) > tiny else tiny)
-        c = 1.0 + aa / c if abs(1.0 + aa / c) > tiny else tiny
-        delta = d * c
-        h *= delta
-        if abs(delta - 1.0) < eps:
-            break
-    return h
-
-
-def regularized_beta(a, b, x):
-    """I_x(a, b), the regularized incomplete beta function."""
-    if x <= 0.0:
-        return 0.0
-    if x >= 1.0:
-        return 1.0
-    log_front = (math.lgamma(a + b) - math.lgamma(a) - math.lgamma(b)
-                 + a * math.log(x) + b * math.log1p(-x))
-    if x < (a + 1.0) / (a + b + 2.0):
-        return math.exp(log_front) * _betacf(a, b, x) / a
-    return 1.0 - math.exp(log_front) * _betacf(b, a, 1.0 - x) / b
-
-
-def student_t_two_sided_p(t, dof):
-    """P(|T| >= |t|) for Student's t with `dof` degrees of freedom: I_{dof/(dof+t^2)}(dof/2, 1/2)."""
-    t = np.abs(np.asarray(t, np.float64))
-    return np.vectorize(lambda v: regularized_beta(0.5 * dof, 0.5, dof / (dof + v * v)))(t)
 
 
 @dataclass
@@ -154,7 +105,7 @@ def z_test(image, stderr, expected, expected_stderr, alpha=0.01, min_stderr=1e-1
         p = normal_two_sided_p(z[tested])
     n = int(tested.sum())
     worst = np.unravel_index(np.argmax(np.abs(z)), z.shape)
-    threshold = alpha / max(n, 1)
+    threshold = bonferroni(alpha, n)
     return ZTest(bool(p.min() > threshold and not exact_mismatch.any()), alpha, n, float(p.min()),
                  threshold, tuple(int(i) for i in worst), float(np.abs(z).max()),
                  float(np.abs(z[tested]).mean()) if n else 0.0)

@@ -15,8 +15,8 @@ from .validate import LIMITS, InputError, check_keys, finite_number, in_range, j
     regular_file_inside, whole_number
 
 FORMAT = "toolkit-scene/1"
-# Material type codes shared with cl/materials.h through the MAT_* defines (see features()).
-MATERIAL_TYPES = {"diffuse": 0, "mirror": 1, "dielectric": 2, "glossy": 3}
+# Material type codes, shared with the kernels as MAT_*: MaterialType in toolkit/layout.py.
+from .layout import MATERIAL_TYPES  # noqa: E402
 MATERIAL_PARAMS = {"diffuse": {"reflectance"}, "mirror": {"reflectance"},
                    "dielectric": {"ior"}, "glossy": {"reflectance", "alpha"}}
 # The keys of each object in scene.json (a free-form "notes" is allowed in every one).
@@ -79,7 +79,7 @@ class Scene:
     def features(self):
         """Compile-time defines: only what this scene uses is built into the kernels."""
         used = {self.materials[i]["type"] for i in np.unique(self.material_of)}
-        defines = {f"MAT_{name.upper()}": code for name, code in MATERIAL_TYPES.items()}
+        defines = {}
         for name in MATERIAL_TYPES:
             defines[f"HAS_{name.upper()}"] = name in used
         defines["HAS_SPECULAR"] = bool(used & {"mirror", "dielectric"})

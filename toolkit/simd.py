@@ -11,16 +11,20 @@ class PhaseCounter:
         self.warp_width = warp_width
         self.active = {}
         self.issued = {}
-        self.per_iteration = []  # (phase, iteration, efficiency, stream length) for plots
+        # per step, for plots: phase, iteration, efficiency, active lanes, stream capacity, and
+        # whether the step belongs to the final drain (the budget is spent, nothing regenerates)
+        self.per_iteration = []
 
     def add(self, phase, active, issued):
         self.active[phase] = self.active.get(phase, 0) + int(active)
         self.issued[phase] = self.issued.get(phase, 0) + int(issued)
 
-    def add_stream_step(self, phase, mask_or_count, length=None, iteration=None, capacity=None):
+    def add_stream_step(self, phase, mask_or_count, length=None, iteration=None, capacity=None,
+                        draining=False):
         """One kernel step over a stream: a warp issues the step if any of its lanes is active.
         `mask_or_count` is a boolean mask of active lanes, or a count of active lanes packed at
-        the start of a stream of `length` (compacted streams)."""
+        the start of a stream of `length` (compacted streams). `draining`: the step runs after
+        the pass's last sample has started, while the stream empties (marked on the plots)."""
         w = self.warp_width
         if np.ndim(mask_or_count) == 0:
             active = int(mask_or_count)
@@ -35,7 +39,8 @@ class PhaseCounter:
         if iteration is not None:
             self.per_iteration.append({"phase": phase, "iteration": iteration,
                                        "efficiency": active / issued if issued else 1.0,
-                                       "active": active, "capacity": capacity or length or active})
+                                       "active": active, "capacity": capacity or length or active,
+                                       "draining": bool(draining)})
 
     def add_warp_loops(self, phase, lane_iterations, active=None):
         """A loop run inside each lane: its warp issues as many iterations as its longest lane.
@@ -59,7 +64,7 @@ class PhaseCounter:
             issued = int((warp_max > k).sum()) * w
             self.per_iteration.append({"phase": phase, "iteration": first_iteration + k,
                                        "efficiency": active / issued if issued else 1.0,
-                                       "active": active, "capacity": len(x)})
+                                       "active": active, "capacity": len(x), "draining": False})
 
     def efficiency(self):
         out = {p: (self.active[p] / self.issued[p] if self.issued[p] else 1.0) for p in self.active}

@@ -7,6 +7,7 @@ import pyopencl as cl
 
 from .. import program
 from ..film import Film
+from ..layout import LANE_COUNTS
 from ..simd import PhaseCounter
 
 
@@ -14,6 +15,7 @@ class Technique:
     """Base class. A technique sets `name`, `source` (its cl/ file) and implements `run_pass`."""
     name = None
     source = None
+    family = None    # "pt" (path tracing) or "bdpt" (bidirectional): what a technique's samples are
     # Work-items per launch we aim for: enough to fill a GPU, small enough to read back often.
     target_batch = 1 << 18
     # Whether shadow rays go to a queue traced by a kernel of their own (counted there).
@@ -93,7 +95,28 @@ class Technique:
         return buf
 
     def lane_counts_buffer(self, n):
-        return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * program.padded(max(n, 1)))
+        """One LaneCounts record per work-item (toolkit/layout.py), written when COUNT_SIMD."""
+        return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
+                         LANE_COUNTS.dtype.itemsize * program.padded(max(n, 1)))
+
+    def read_lane_counts(self, buffer, n):
+        return self.read_structs(LANE_COUNTS, buffer, n)
+
+    def read_structs(self, record, buffer, n, offset=0):
+        """n records of layout `record` from `buffer` (starting `offset` bytes in)."""
+        out = record.zeros(n)
+        if n:
+            cl.enqueue_copy(self.queue, out, buffer, src_offset=offset)
+        return out
+
+    def soa_buffer(self, record, n):
+        """A stream of n records as a structure of arrays in one buffer; its capacity (what the
+        kernels take with it) is n padded to the local size: see stream_capacity()."""
+        return record.soa_buffer(self.queue.context, self.stream_capacity(n))
+
+    @staticmethod
+    def stream_capacity(n):
+        return program.padded(n)
 
     def read_ints(self, buffer, n, columns=1):
         out = np.empty((n, columns) if columns > 1 else n, np.int32)
@@ -101,17 +124,17 @@ class Technique:
             cl.enqueue_copy(self.queue, out, buffer)
         return out
 
-    def count_stream_step(self, lanes, capacity):
-        """SIMD counters of one extension step over a stream, from per-lane counts
-        (active, traversal steps, shadow rays, shadow steps) of the lanes that ran it;
-        `capacity` is the stream's size (for the occupancy plot)."""
-        active = lanes[:, 0] > 0
-        self.simd.add_stream_step("extend", active, iteration=self.iterations, capacity=capacity)
+    def count_stream_step(self, lanes, capacity, draining=False):
+        """SIMD counters of one extension step over a stream, from the LaneCounts of the lanes
+        that ran it; `capacity` is the stream's size (for the occupancy plot), `draining` whether
+        the pass's budget is spent (no sample left to start: the final drain)."""
+        self.simd.add_stream_step("extend", lanes["work"] > 0, iteration=self.iterations, capacity=capacity,
+                                  draining=draining)
         self.iterations += 1
-        self.traversal.add_warp_loops("closest", lanes[:, 1])
+        self.traversal.add_warp_loops("closest", lanes["closest_steps"])
         if not self.shadow_queue:   # shadow rays traced inside the extension step
-            self.simd.add_stream_step("shadow", lanes[:, 2] > 0)
-            self.traversal.add_warp_loops("shadow", lanes[:, 3])
+            self.simd.add_stream_step("shadow", lanes["shadow_rays"] > 0)
+            self.traversal.add_warp_loops("shadow", lanes["shadow_steps"])
 
     def extra_stats(self):
         """Technique-specific figures added to the render stats."""

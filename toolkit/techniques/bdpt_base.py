@@ -11,17 +11,62 @@ Light-tracing (t = 1) contributions land on other pixels: every connection write
 (pixel, value) and the host adds the records up per pixel in float64 (no float atomics on
 the device). So a pass is an image, and the standard error comes from independent passes.
 """
+from dataclasses import dataclass
+
 import numpy as np
 import pyopencl as cl
 
 from .. import program
 from ..compaction import Compactor
-from ..layout import BDPT_VERTEX, SUBPATH
+from ..layout import BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_VERTEX, SUBPATH, SlotState, WalkCounter
 from ..simd import PhaseCounter
 from .base import Technique
 
 
+@dataclass
+class SubpathStream:
+    """One of the random walk's two streams: the subpaths still walking, packed at the start
+    of `current` (a Subpath structure of arrays); each step compacts the survivors into `spare`."""
+    is_light: int
+    current: cl.Buffer
+    spare: cl.Buffer
+    vertices: cl.Buffer       # BdptVertex[pool][MAX_VERTICES]: every vertex stored so far
+    length: int = 0
+
+    def advance(self, survivors):
+        """After a step: the survivors, compacted into `spare`, are the stream."""
+        if self.length:
+            self.current, self.spare, self.length = self.spare, self.current, int(survivors)
+
+
+@dataclass
+class SamplePool:
+    """The device memory of a pool of samples in flight (made once per pool size)."""
+    size: int
+    capacity: int             # records per stream (size padded to the local size)
+    eye: SubpathStream
+    light: SubpathStream
+    slots: cl.Buffer          # BdptSlot[size]: live state, sample id and vertex counts of each slot
+    terminated: cl.Buffer     # int[size]: 1 where a sample waits for its connections (compaction flags)
+    counters: cl.Buffer       # int[len(WalkCounter)]: survivors of each stream, terminated samples
+    lane_counts: cl.Buffer    # LaneCounts[size]: one walk step or connect phase (COUNT_SIMD)
+    all_slots: cl.Buffer      # 0 .. size - 1: the slot list of the first regeneration
+
+
+@dataclass
+class PassState:
+    """One pass: the pool, the kernel arguments every launch shares, and the sample budget."""
+    pool: SamplePool
+    camera: np.void           # Camera record
+    args: np.void             # BdptPass record (seed, sample_base, pool, capacity)
+    budget: int               # samples in this pass
+    next_id: int = 0          # next sample to start
+    in_flight: int = 0        # slots whose sample is not connected yet
+    image: np.ndarray = None  # (pixels, 3) float64 sum of the connections
+
+
 class BdptTechnique(Technique):
+    family = "bdpt"
     pool_size = 1 << 12         # samples in flight (each has MAX_VERTICES eye + light vertices stored)
     target_batch = 1 << 14      # samples per pass: many passes give the standard error
     max_vertices = 64           # per subpath when the depth is unbounded; paths this long carry ~1e-10 of the energy at albedo 0.7
@@ -44,104 +89,115 @@ class BdptTechnique(Technique):
         self.uncompacted = PhaseCounter(self.warp_width)   # the walk as it would be without compaction
 
     def run_pass(self, film, camera, seed, sample_base, spp):
-        ctx, q = self.queue.context, self.queue
-        width, height = int(camera["width"]), int(camera["height"])
-        budget = width * height * spp
-        pool = min(self.pool_size, budget)
-        mv = self.max_vertices
-        # The streams, the vertex memory (tens of MB) and the per-slot arrays are made once per
-        # pool size, not per pass.
-        vertex_bytes = BDPT_VERTEX.dtype.itemsize * pool * mv
-        buffers = self.reused(("pool", pool), lambda: dict(
-            streams=[SUBPATH.soa_buffers(ctx, pool) for _ in range(4)],
-            eye_vertices=cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes),
-            light_vertices=cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes),
-            slot_arrays=[self.int_buffer(pool) for _ in range(5)],   # eye/light counts, live, sample ids, flags
-            counters=self.int_buffer(3),       # eye survivors, light survivors, terminated samples
-            lane_counts=[self.lane_counts_buffer(pool) for _ in range(2)],   # eye, light
-            all_slots=cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                                hostbuf=np.arange(pool, dtype=np.int32))))
-        eye_stream, eye_spare, light_stream, light_spare = buffers["streams"]
-        self.eye_vertices, self.light_vertices = buffers["eye_vertices"], buffers["light_vertices"]
-        eye_count, light_count, live, sample_ids, flags = buffers["slot_arrays"]
-        counters, lane_counts = buffers["counters"], buffers["lane_counts"]
-        cl.enqueue_fill_buffer(q, live, np.int32(-1), 0, 4 * pool)
-        cl.enqueue_fill_buffer(q, counters, np.int32(0), 0, 12)
-        image = np.zeros((width * height, 3))
+        p = self.start_pass(camera, seed, sample_base, spp)
+        self.regenerate(p, p.pool.all_slots, p.pool.size)        # every slot starts a sample
+        while p.in_flight > 0:
+            terminated = self.walk(p)                             # one vertex more on every subpath
+            if terminated >= self.regenerate_fraction * p.in_flight or p.pool.eye.length == p.pool.light.length == 0:
+                slots, count = self.terminated_slots(p)           # postponed regeneration:
+                p.image += self.connect(p, count)                 #   connect the terminated samples,
+                self.regenerate(p, slots, count)                  #   then start new ones in their slots
+        film.add_pass(p.image.reshape(int(camera["height"]), int(camera["width"]), 3) / spp, spp,
+                      nonfinite=self.pass_nonfinite)
+
+    # --- the stages of a pass, one kernel each ---------------------------------------------
+
+    def start_pass(self, camera, seed, sample_base, spp):
+        """The pass's state; every slot of the pool starts terminated (nothing in flight)."""
+        budget = int(camera["width"] * camera["height"]) * spp
+        pool = self.sample_pool(min(self.pool_size, budget))
+        args = BDPT_PASS.zeros(1)[0]
+        args["seed"], args["sample_base"], args["pool"], args["capacity"] = seed, sample_base, pool.size, pool.capacity
+        cl.enqueue_fill_buffer(self.queue, pool.counters, np.int32(0), 0, 4 * len(WalkCounter))
+        pool.eye.length = pool.light.length = 0
         self.pass_nonfinite = 0
-        state = dict(eye_count=eye_count, light_count=light_count, live=live, sample_ids=sample_ids,
-                     pool=pool, camera=camera, seed=seed, lane_counts=lane_counts[0])
-        self.last_pass = state   # kept for inspection (tests, notebooks): the vertex memory of the last samples
+        p = PassState(pool, camera, args, budget, in_flight=pool.size,   # every slot "terminated", nothing to connect
+                      image=np.zeros((int(camera["width"] * camera["height"]), 3)))
+        self.last_pass = p   # kept for inspection (tests, notebooks): the vertex memory of the last samples
+        return p
 
-        # All slots start "terminated": regenerate the whole pool.
-        fresh = min(pool, budget)
-        self.regenerate(state, buffers["all_slots"], pool, fresh, 0, sample_base, eye_stream, 0, light_stream, 0)
-        eye_len = light_len = fresh
-        next_id, in_flight = fresh, fresh
-        extend = self.kernel("bdpt_extend")
-        while in_flight > 0:
-            # Random walk: one vertex more on every eye and light subpath, compacted at once.
-            cl.enqueue_fill_buffer(q, counters, np.int32(0), 0, 8)    # the survivor counts
-            for is_light, length, stream, spare in ((0, eye_len, eye_stream, eye_spare),
-                                                    (1, light_len, light_stream, light_spare)):
-                if length:
-                    program.launch(q, extend, length, *self.scene.args(), camera, seed, np.int32(is_light),
-                                   np.int32(length), *stream, *spare, counters,
-                                   self.light_vertices if is_light else self.eye_vertices,
-                                   light_count if is_light else eye_count, live, sample_ids,
-                                   np.int32(sample_base), lane_counts[is_light])
-            eye_survivors, light_survivors, done = self.read_ints(counters, 3)
-            if self.count_simd:
-                for is_light, length in ((0, eye_len), (1, light_len)):
-                    if length:
-                        self.count_walk_step(lane_counts[is_light], length, pool)
-            if eye_len:
-                eye_stream, eye_spare, eye_len = eye_spare, eye_stream, int(eye_survivors)
-            if light_len:
-                light_stream, light_spare, light_len = light_spare, light_stream, int(light_survivors)
-            # Postponed regeneration: connect and restart once enough samples have terminated.
-            if done >= self.regenerate_fraction * in_flight or (eye_len == 0 and light_len == 0):
-                program.launch(q, self.kernel("bdpt_mark_terminated"), pool, np.int32(pool), live, flags)
-                slots, count = self.compactor.compact_indices(flags, pool, method="immediate")
-                image += self.connect(state, slots, count)
-                fresh = min(count, budget - next_id)
-                self.regenerate(state, slots, count, fresh, next_id, sample_base,
-                                eye_stream, eye_len, light_stream, light_len)
-                eye_len += fresh
-                light_len += fresh
-                next_id += fresh
-                in_flight += fresh - count
-                cl.enqueue_fill_buffer(q, counters, np.int32(0), 8, 4)   # terminated samples
-        film.add_pass(image.reshape(height, width, 3) / spp, spp, nonfinite=self.pass_nonfinite)
+    def sample_pool(self, size):
+        """The streams, the vertex memory (tens of MB) and the per-slot arrays, made once per pool size."""
+        ctx, capacity = self.queue.context, self.stream_capacity(size)
+        vertex_bytes = BDPT_VERTEX.dtype.itemsize * size * self.max_vertices
 
-    def count_walk_step(self, lane_counts, length, pool):
-        """SIMD counters of one walk step over a stream of `length` subpaths (lanes: active,
-        traversal steps, pool slot)."""
-        lanes = self.read_ints(lane_counts, length, 4)
-        self.simd.add_stream_step("walk", length, iteration=self.iterations, capacity=pool)
-        self.iterations += 1
-        self.simd.add_stream_step("compact", length)
-        self.traversal.add_warp_loops("closest", lanes[:, 1])
-        mask = np.zeros(pool, bool)      # without compaction each path keeps its slot's lane
-        mask[lanes[:, 2]] = True
-        self.uncompacted.add_stream_step("walk", mask)
+        def stream(is_light):
+            return SubpathStream(is_light, self.soa_buffer(SUBPATH, size), self.soa_buffer(SUBPATH, size),
+                                 cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes))
+        return self.reused(("pool", size), lambda: SamplePool(
+            size, capacity, stream(0), stream(1),
+            slots=cl.Buffer(ctx, cl.mem_flags.READ_WRITE, BDPT_SLOT.dtype.itemsize * program.padded(size)),
+            terminated=self.int_buffer(size), counters=self.int_buffer(len(WalkCounter)),
+            lane_counts=self.lane_counts_buffer(size),
+            all_slots=cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                                hostbuf=np.arange(size, dtype=np.int32))))
 
-    def regenerate(self, state, slots, count, fresh, first_id, sample_base, eye_stream, eye_base,
-                   light_stream, light_base):
-        if count == 0:
-            return
-        program.launch(self.queue, self.kernel("bdpt_regenerate"), count, *self.scene.args(), state["camera"],
-                       state["seed"], np.int32(count), np.int32(fresh), slots, np.int32(first_id),
-                       np.int32(sample_base), *eye_stream, np.int32(eye_base), *light_stream, np.int32(light_base),
-                       self.eye_vertices, self.light_vertices, state["eye_count"], state["light_count"],
-                       state["live"], state["sample_ids"])
+    def regenerate(self, p, slots, count):
+        """bdpt_regenerate: the `count` terminated slots listed in `slots` start the next
+        samples of the budget (the rest go idle); the new subpaths join the end of the streams."""
+        fresh = min(count, p.budget - p.next_id)
+        if count:
+            r = BDPT_REGENERATION.zeros(1)[0]
+            r["count"], r["fresh"], r["first_id"] = count, fresh, p.next_id
+            r["eye_base"], r["light_base"] = p.pool.eye.length, p.pool.light.length
+            program.launch(self.queue, self.kernel("bdpt_regenerate"), count, *self.scene.args(), p.camera,
+                           p.args, r, slots, p.pool.eye.current, p.pool.light.current, p.pool.eye.vertices,
+                           p.pool.light.vertices, p.pool.slots)
+        cl.enqueue_fill_buffer(self.queue, p.pool.counters, np.int32(0), 4 * WalkCounter.TERMINATED_SAMPLES, 4)
+        p.pool.eye.length += fresh
+        p.pool.light.length += fresh
+        p.next_id += fresh
+        p.in_flight += fresh - count
         if self.count_simd and fresh:
             self.simd.add_stream_step("generate", fresh)
 
-    def connect(self, state, slots, count):
-        """Evaluate the connections of the `count` terminated samples listed in `slots`;
+    def walk(self, p):
+        """One random-walk step of both streams (bdpt_extend, compacted at once); returns the
+        samples that have terminated since the last regeneration."""
+        cl.enqueue_fill_buffer(self.queue, p.pool.counters, np.int32(0), 0, 4 * WalkCounter.TERMINATED_SAMPLES)
+        for stream in (p.pool.eye, p.pool.light):
+            if stream.length:
+                self.extend(p, stream)
+        counters = self.read_ints(p.pool.counters, len(WalkCounter))
+        p.pool.eye.advance(counters[WalkCounter.EYE_SURVIVORS])
+        p.pool.light.advance(counters[WalkCounter.LIGHT_SURVIVORS])
+        return int(counters[WalkCounter.TERMINATED_SAMPLES])
+
+    def extend(self, p, stream):
+        """bdpt_extend: one vertex more on every subpath of `stream`, survivors into its spare."""
+        program.launch(self.queue, self.kernel("bdpt_extend"), stream.length, *self.scene.args(), p.camera,
+                       p.args, np.int32(stream.is_light), np.int32(stream.length), stream.current, stream.spare,
+                       p.pool.counters, stream.vertices, p.pool.slots, p.pool.lane_counts)
+        self.count_walk_step(p, stream)
+
+    def terminated_slots(self, p):
+        """bdpt_mark_terminated, then compaction: (the list of terminated slots, its length)."""
+        program.launch(self.queue, self.kernel("bdpt_mark_terminated"), p.pool.size, np.int32(p.pool.size),
+                       p.pool.slots, p.pool.terminated)
+        return self.compactor.compact_indices(p.pool.terminated, p.pool.size, method="immediate")
+
+    def connect(self, p, count):
+        """Evaluate the connections of the `count` terminated samples (slots in SLOT_TERMINATED);
         returns their contributions per pixel (float64)."""
         raise NotImplementedError
+
+    # --- measuring --------------------------------------------------------------------------
+
+    def count_walk_step(self, p, stream):
+        """SIMD counters of one walk step over `stream` (a no-op unless count_simd)."""
+        if not self.count_simd:
+            return
+        lanes = self.read_lane_counts(p.pool.lane_counts, stream.length)
+        self.simd.add_stream_step("walk", stream.length, iteration=self.iterations, capacity=p.pool.size,
+                                  draining=p.next_id == p.budget)
+        self.iterations += 1
+        self.simd.add_stream_step("compact", stream.length)
+        self.traversal.add_warp_loops("closest", lanes["closest_steps"])
+        slots = np.empty(stream.length, np.int32)
+        cl.enqueue_copy(self.queue, slots, stream.current, src_offset=SUBPATH.soa_offset("slot", p.pool.capacity))
+        mask = np.zeros(p.pool.size, bool)      # without compaction each path keeps its slot's lane
+        mask[slots] = True
+        self.uncompacted.add_stream_step("walk", mask)
 
     def reduce_records(self, values, pixels, npix):
         """Add connection records (value, pixel) per pixel in float64; non-finite ones are counted and dropped."""
@@ -171,13 +227,13 @@ class BdptTechnique(Technique):
     def read_vertices(self):
         """The vertex memory of the last samples of the last pass, as numpy:
         (eye vertices, eye counts, light vertices, light counts), vertices shaped (pool, MAX_VERTICES)."""
-        state = self.last_pass
-        pool = state["pool"]
+        pool = self.last_pass.pool
+        slots = self.read_structs(BDPT_SLOT, pool.slots, pool.size)
         out = []
-        for buffer, counts in ((self.eye_vertices, state["eye_count"]), (self.light_vertices, state["light_count"])):
-            v = np.empty(pool * self.max_vertices, BDPT_VERTEX.dtype)
-            cl.enqueue_copy(self.queue, v, buffer)
-            out += [v.reshape(pool, self.max_vertices), self.read_ints(counts, pool)]
+        for stream, counts in ((pool.eye, slots["eye_vertices"]), (pool.light, slots["light_vertices"])):
+            v = np.empty(pool.size * self.max_vertices, BDPT_VERTEX.dtype)
+            cl.enqueue_copy(self.queue, v, stream.vertices)
+            out += [v.reshape(pool.size, self.max_vertices), counts.copy()]
         return tuple(out)
 
 

@@ -25,22 +25,25 @@ class BdptNaiveConnect(BdptTechnique):
             stats["connect_efficiency_terminated_packed"] = self.packed_connect.efficiency().get("connect")
         return stats
 
-    def connect(self, state, slots, count):
-        camera = state["camera"]
-        npix = int(camera["width"] * camera["height"])
+    def connect(self, p, count):
+        npix = int(p.camera["width"] * p.camera["height"])
         if count == 0:
             return np.zeros((npix, 3))
-        pool = state["pool"]
+        pool = p.pool.size
         n = pool * (self.max_vertices + 1)
         values, pixels = self.reused(("records", n), lambda: (
             cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * n), self.int_buffer(n)))
         cl.enqueue_fill_buffer(self.queue, pixels, np.int32(-1), 0, 4 * n)   # records a slot may leave unwritten
-        program.launch(self.queue, self.kernel("bdpt_naive_connect"), pool, *self.scene.args(), camera,
-                       np.int32(pool), state["live"], self.eye_vertices, self.light_vertices, state["eye_count"],
-                       state["light_count"], state["sample_ids"], values, pixels, state["lane_counts"])
-        if self.count_simd:
-            connections = self.read_ints(state["lane_counts"], pool, 4)[:, 0]
-            self.simd.add_warp_loops("connect", connections)
-            # For comparison: the same loops with only the terminated samples, packed side by side.
-            self.packed_connect.add_warp_loops("connect", connections[connections > 0])
+        program.launch(self.queue, self.kernel("bdpt_naive_connect"), pool, *self.scene.args(), p.camera,
+                       np.int32(pool), p.pool.slots, p.pool.eye.vertices, p.pool.light.vertices, values, pixels,
+                       p.pool.lane_counts)
+        self.count_connect(p)
         return self.reduce_records(*self.read_records(values, pixels, n), npix)
+
+    def count_connect(self, p):
+        if not self.count_simd:
+            return
+        connections = self.read_lane_counts(p.pool.lane_counts, p.pool.size)["work"]
+        self.simd.add_warp_loops("connect", connections)
+        # For comparison: the same loops with only the terminated samples, packed side by side.
+        self.packed_connect.add_warp_loops("connect", connections[connections > 0])

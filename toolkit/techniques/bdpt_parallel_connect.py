@@ -13,15 +13,14 @@ class BdptParallelConnect(BdptTechnique):
     name = "bdpt_parallel_connect"
     source = "bdpt_parallel_connect.cl"
 
-    def connect(self, state, slots, count):
-        camera = state["camera"]
-        npix = int(camera["width"] * camera["height"])
-        pool = state["pool"]
+    def connect(self, p, count):
+        npix = int(p.camera["width"] * p.camera["height"])
+        pool = p.pool.size
         if count == 0:
             return np.zeros((npix, 3))
         counts = self.reused(("counts", pool), lambda: self.int_buffer(pool))
         program.launch(self.queue, self.kernel("bdpt_parallel_connect_count"), pool, np.int32(pool),
-                       state["live"], state["eye_count"], state["light_count"], counts)
+                       p.pool.slots, counts)
         firsts, total = self.compactor.exclusive_scan(counts, pool)
         if total == 0:
             return np.zeros((npix, 3))
@@ -30,9 +29,9 @@ class BdptParallelConnect(BdptTechnique):
         values, pixels, lanes = self.reused(("records", capacity), lambda: (
             cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * capacity),
             self.int_buffer(capacity), self.lane_counts_buffer(capacity)))
-        program.launch(self.queue, self.kernel("bdpt_parallel_connect"), total, *self.scene.args(), camera,
-                       np.int32(total), np.int32(pool), firsts, self.eye_vertices, self.light_vertices,
-                       state["eye_count"], state["light_count"], state["sample_ids"], values, pixels, lanes)
+        program.launch(self.queue, self.kernel("bdpt_parallel_connect"), total, *self.scene.args(), p.camera,
+                       np.int32(total), np.int32(pool), firsts, p.pool.slots, p.pool.eye.vertices,
+                       p.pool.light.vertices, values, pixels, lanes)
         if self.count_simd:
             self.simd.add_stream_step("connect", total)
         return self.reduce_records(*self.read_records(values, pixels, total), npix)

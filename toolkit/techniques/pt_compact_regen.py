@@ -13,12 +13,13 @@ import pyopencl as cl
 
 from .. import program
 from ..compaction import Compactor
-from ..layout import PATH_STATE, SHADOW_RAY
+from ..layout import PATH_STATE, SHADOW_RAY, StreamCounter
 from .base import Technique
 
 
 class PtCompactRegen(Technique):
     name = "pt_compact_regen"
+    family = "pt"
     source = "pt_compact_regen.cl"
     stream_size = 1 << 15
 
@@ -33,13 +34,13 @@ class PtCompactRegen(Technique):
     def run_pass(self, film, camera, seed, sample_base, spp):
         budget = camera["width"] * camera["height"] * spp
         size = min(self.stream_size, budget)
-        ctx = self.queue.context
+        capacity = np.int32(self.stream_capacity(size))
         stream, spare, shadow_rays = self.reused(("streams", size), lambda: (
-            PATH_STATE.soa_buffers(ctx, size), PATH_STATE.soa_buffers(ctx, size),  # compaction writes to spare
-            SHADOW_RAY.soa_buffers(ctx, size)))
-        lane_counts, alive, shadow_steps, out_length, shadow_length = self.reused(("lanes", size), lambda: (
+            self.soa_buffer(PATH_STATE, size), self.soa_buffer(PATH_STATE, size),  # compaction writes to spare
+            self.soa_buffer(SHADOW_RAY, size)))
+        lane_counts, alive, shadow_steps, counters = self.reused(("lanes", size), lambda: (
             self.lane_counts_buffer(size), self.int_buffer(size), self.int_buffer(size),
-            self.int_buffer(1), self.int_buffer(1)))
+            self.int_buffer(len(StreamCounter))))
         radiance = self.output_buffer(budget)
         generate = self.kernel("pt_compact_regen_generate")
 
@@ -49,44 +50,60 @@ class PtCompactRegen(Technique):
             count = min(size - length, budget - next_id)
             if count > 0:
                 program.launch(self.queue, generate, count, camera, seed, np.int32(length), np.int32(count),
-                               np.int32(next_id), np.int32(sample_base), *stream)
-                if self.count_simd:
-                    self.simd.add_stream_step("generate", count)
+                               np.int32(next_id), np.int32(sample_base), capacity, stream)
+                self.count_generate(count)
                 length += count
                 next_id += count
             if length == 0:
                 break   # budget spent and the stream has drained
             # Extend every path by one vertex, then compact the survivors into `spare`.
-            survivors, queued = self.extend_and_compact(seed, length, stream, spare, alive, out_length,
-                                                        shadow_rays, shadow_length, radiance, lane_counts)
-            if self.count_simd:
-                self.count_stream_step(self.read_ints(lane_counts, length, 4), capacity=size)
-                self.simd.add_stream_step("compact", length)
+            survivors, queued = self.extend_and_compact(seed, length, capacity, stream, spare, alive, counters,
+                                                        shadow_rays, radiance, lane_counts)
+            self.count_extend_and_compact(lane_counts, length, size, draining=next_id == budget)
             # Trace the queued shadow rays: a packed stream of its own.
             if queued:
                 program.launch(self.queue, self.kernel("pt_compact_regen_shadow"), queued, *self.scene.args(),
-                               np.int32(queued), *shadow_rays, radiance, shadow_steps)
-                if self.count_simd:
-                    self.simd.add_stream_step("shadow", queued)
-                    self.traversal.add_warp_loops("shadow", self.read_ints(shadow_steps, queued))
+                               np.int32(queued), capacity, shadow_rays, radiance, shadow_steps)
+                self.count_shadow(shadow_steps, queued)
             stream, spare = spare, stream
             length = survivors
         self.collect(film, radiance, budget)
 
-    def extend_and_compact(self, seed, length, stream, spare, alive, out_length, shadow_rays, shadow_length,
+    def extend_and_compact(self, seed, length, capacity, stream, spare, alive, counters, shadow_rays,
                            radiance, lane_counts):
         """Returns (surviving paths, now packed at the start of `spare`; queued shadow rays)."""
         if self.compaction == "immediate":
-            cl.enqueue_fill_buffer(self.queue, out_length, np.int32(0), 0, 4)
-            cl.enqueue_fill_buffer(self.queue, shadow_length, np.int32(0), 0, 4)
+            cl.enqueue_fill_buffer(self.queue, counters, np.int32(0), 0, 4 * len(StreamCounter))
             program.launch(self.queue, self.kernel("pt_compact_regen_extend"), length, *self.scene.args(),
-                           seed, np.int32(length), *stream, *spare, out_length, *shadow_rays, shadow_length,
+                           seed, np.int32(length), capacity, stream, spare, shadow_rays, counters,
                            radiance, lane_counts)
-            return int(self.read_ints(out_length, 1)[0]), int(self.read_ints(shadow_length, 1)[0])
-        program.launch(self.queue, self.kernel("pt_compact_regen_extend_flags"), length, *self.scene.args(),
-                       seed, np.int32(length), *stream, alive, radiance, lane_counts)
+            lengths = self.read_ints(counters, len(StreamCounter))
+            return int(lengths[StreamCounter.PATHS]), int(lengths[StreamCounter.SHADOW_RAYS])
+        cl.enqueue_fill_buffer(self.queue, alive, np.int32(1), 0, 4 * length)   # every path in the stream is live
+        program.launch(self.queue, self.kernel("extend_in_place"), length, *self.scene.args(),
+                       seed, np.int32(length), capacity, stream, alive, radiance, lane_counts)
         indices, survivors = self.compactor.compact_indices(alive, length, method="multipass")
         if survivors:
             program.launch(self.queue, self.kernel("pt_compact_regen_gather"), survivors,
-                           np.int32(survivors), indices, *stream, *spare)
+                           np.int32(survivors), indices, capacity, stream, spare)
         return survivors, 0
+
+    # --- SIMD counting: one hook per stage, no-ops unless count_simd ----------------------
+
+    def count_generate(self, count):
+        """Regeneration fills `count` consecutive stream entries: every lane busy."""
+        if self.count_simd:
+            self.simd.add_stream_step("generate", count)
+
+    def count_extend_and_compact(self, lane_counts, length, size, draining):
+        """The extension step over the `length` paths of the stream, and their compaction;
+        `draining`: every sample of the budget has started (the final drain)."""
+        if self.count_simd:
+            self.count_stream_step(self.read_lane_counts(lane_counts, length), capacity=size, draining=draining)
+            self.simd.add_stream_step("compact", length)
+
+    def count_shadow(self, shadow_steps, queued):
+        """The packed queue of `queued` shadow rays: every lane busy, traversal loops per warp."""
+        if self.count_simd:
+            self.simd.add_stream_step("shadow", queued)
+            self.traversal.add_warp_loops("shadow", self.read_ints(shadow_steps, queued))

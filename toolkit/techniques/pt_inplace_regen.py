@@ -16,30 +16,42 @@ from .base import Technique
 
 class PtInplaceRegen(Technique):
     name = "pt_inplace_regen"
+    family = "pt"
     source = "pt_inplace_regen.cl"
     stream_size = 1 << 15   # slots (work-items) that stay resident
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         budget = camera["width"] * camera["height"] * spp
         slots = min(self.stream_size, budget)
+        capacity = np.int32(self.stream_capacity(slots))
         paths, lane_counts, regenerated = self.reused(("slots", slots), lambda: (
-            PATH_STATE.soa_buffers(self.queue.context, slots), self.lane_counts_buffer(slots),
-            self.int_buffer(slots)))
+            self.soa_buffer(PATH_STATE, slots), self.lane_counts_buffer(slots), self.int_buffer(slots)))
         alive = self.int_buffer(slots, fill=0)
         next_sample = self.int_buffer(1, fill=0)
+        any_alive = self.int_buffer(1)
         radiance = self.output_buffer(budget)
-        extend = self.kernel("pt_inplace_regen_extend")
-        regenerate = self.kernel("pt_inplace_regen_regenerate")
         while True:
-            program.launch(self.queue, regenerate, slots, camera, seed, np.int32(slots),
-                           np.int32(sample_base), np.int32(budget), next_sample, *paths, alive, regenerated)
-            if self.count_simd:
-                self.simd.add_stream_step("generate", self.read_ints(regenerated, slots) > 0)
-            live = self.read_ints(alive, slots)
-            if not live.any():
+            # Regenerate: every free slot starts the next sample of the budget, if one is left.
+            cl.enqueue_fill_buffer(self.queue, any_alive, np.int32(0), 0, 4)
+            program.launch(self.queue, self.kernel("pt_inplace_regen_regenerate"), slots, camera, seed,
+                           np.int32(slots), np.int32(sample_base), np.int32(budget), next_sample, capacity,
+                           paths, alive, any_alive, regenerated)
+            self.count_regenerate(regenerated, slots)
+            if not self.read_ints(any_alive, 1)[0]:
                 break   # budget spent and every path has ended
-            program.launch(self.queue, extend, slots, *self.scene.args(), seed, np.int32(slots),
-                           *paths, alive, radiance, lane_counts)
-            if self.count_simd:
-                self.count_stream_step(self.read_ints(lane_counts, slots, 4), capacity=slots)
+            # Extend: every slot with a live path traces one more vertex.
+            program.launch(self.queue, self.kernel("extend_in_place"), slots, *self.scene.args(), seed,
+                           np.int32(slots), capacity, paths, alive, radiance, lane_counts)
+            self.count_extend(lane_counts, slots, next_sample, budget)
         self.collect(film, radiance, budget)
+
+    def count_regenerate(self, regenerated, slots):
+        if self.count_simd:
+            self.simd.add_stream_step("generate", self.read_ints(regenerated, slots) > 0)
+
+    def count_extend(self, lane_counts, slots, next_sample, budget):
+        """The extension step; once the sample counter has passed the budget, nothing regenerates
+        any more and the step belongs to the final drain."""
+        if self.count_simd:
+            draining = self.read_ints(next_sample, 1)[0] >= budget
+            self.count_stream_step(self.read_lane_counts(lane_counts, slots), capacity=slots, draining=draining)

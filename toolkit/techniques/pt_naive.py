@@ -5,7 +5,6 @@ ended, so lanes whose paths ended early sit idle: with Russian roulette the SIMD
 of the loop is low (the talk reports ~33% active threads per warp).
 """
 import numpy as np
-import pyopencl as cl
 
 from .. import program
 from .base import Technique
@@ -13,28 +12,31 @@ from .base import Technique
 
 class PtNaive(Technique):
     name = "pt_naive"
+    family = "pt"
     source = "pt_naive.cl"
     iterations = 0   # loop iterations over all passes so far (for per-iteration plots)
 
     def run_pass(self, film, camera, seed, sample_base, spp):
-        pixels = camera["width"] * camera["height"]
-        n = pixels * spp
-        ctx = self.queue.context
+        n = int(camera["width"] * camera["height"]) * spp
         radiance = self.output_buffer(n)
-        counts = cl.Buffer(ctx, cl.mem_flags.WRITE_ONLY, 16 * (program.padded(n) if self.count_simd else 1))
-        kernel = self.kernel("pt_naive_render")
-        program.launch(self.queue, kernel, n, *self.scene.args(), camera, seed,
-                       np.int32(sample_base), np.int32(n), radiance, counts)
+        lane_counts = self.lane_counts_buffer(n if self.count_simd else 1)
+        program.launch(self.queue, self.kernel("pt_naive_render"), n, *self.scene.args(), camera, seed,
+                       np.int32(sample_base), np.int32(n), radiance, lane_counts)
         self.collect(film, radiance, n)
-        if self.count_simd:
-            lanes = np.empty((n, 4), np.int32)
-            cl.enqueue_copy(self.queue, lanes, counts)
-            # Every lane generates its camera ray once; then the loop runs as long as the warp's longest path.
-            self.simd.add_stream_step("generate", np.ones(n, bool))
-            self.simd.add_warp_loops("extend", lanes[:, 0])
-            self.simd.add_loop_iterations("extend", lanes[:, 0], first_iteration=self.iterations)
-            self.iterations += int(lanes[:, 0].max())
-            # A shadow ray is cast once per vertex at most; the warp issues the shadow step in each of its iterations.
-            self.simd.add_warp_loops("shadow", lanes[:, 0], active=lanes[:, 3].sum())
-            self.traversal.add_warp_loops("closest", lanes[:, 1])
-            self.traversal.add_warp_loops("shadow", lanes[:, 2])
+        self.count_render(lane_counts, n)
+
+    def count_render(self, lane_counts, n):
+        """SIMD counters of one launch (a no-op unless count_simd)."""
+        if not self.count_simd:
+            return
+        lanes = self.read_lane_counts(lane_counts, n)
+        iterations = lanes["work"]
+        # Every lane generates its camera ray once; then the loop runs as long as the warp's longest path.
+        self.simd.add_stream_step("generate", np.ones(n, bool))
+        self.simd.add_warp_loops("extend", iterations)
+        self.simd.add_loop_iterations("extend", iterations, first_iteration=self.iterations)
+        self.iterations += int(iterations.max())
+        # A shadow ray is cast once per vertex at most; the warp issues the shadow step in each of its iterations.
+        self.simd.add_warp_loops("shadow", iterations, active=lanes["shadow_rays"].sum())
+        self.traversal.add_warp_loops("closest", lanes["closest_steps"])
+        self.traversal.add_warp_loops("shadow", lanes["shadow_steps"])

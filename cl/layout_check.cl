@@ -1,0 +1,8 @@
+/* Test kernel: sizeof and offsetof of every struct generated from toolkit/layout.py, as the
+ * device compiler lays them out; tests/test_layout.py compares them with the numpy dtypes. */
+#include "layout.h"
+
+__kernel void layout_check(__global int* out)
+{
+    if (get_global_id(0) == 0) LAYOUT_CHECKS(out);
+}
