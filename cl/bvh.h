@@ -66,6 +66,14 @@ inline bool hit_triangle(__global const Triangle* tri, float3 o, const RayShear*
     return true;
 }
 
+/* Whether a hit at t on triangle `tri` replaces `hit`: the closest hit is the smallest t and, on
+ * equal t (coplanar overlapping triangles, a ray through a shared edge), the lowest triangle
+ * index. So it does not depend on the order in which a BVH visits its leaves, and the binary
+ * and wide BVHs report the same triangle. The search accepts t up to hit.t itself for this. */
+inline bool closer(float t, int tri, const Hit* hit) {
+    return t < hit->t || (t == hit->t && tri < hit->tri);
+}
+
 /* Entry distance of the ray into the box, or INFINITY if it misses within (tmin, tmax). */
 inline float hit_box(__global const BvhNode* node, float3 o, float3 inv_d, float tmin, float tmax) {
     float3 t0 = (node->lo.xyz - o) * inv_d;
@@ -93,7 +101,8 @@ inline Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, flo
         if (n->count > 0) {
             for (int i = n->first; i < n->first + n->count; ++i) {
                 float t, u, v;
-                if (hit_triangle(&s->tris[i], o, &shear, tmin, hit.t, &t, &u, &v)) {
+                if (hit_triangle(&s->tris[i], o, &shear, tmin, nextafter(hit.t, INFINITY), &t, &u, &v)
+                    && closer(t, i, &hit)) {
                     hit.t = t; hit.u = u; hit.v = v; hit.tri = i;
                 }
             }
@@ -243,13 +252,16 @@ inline Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, flo
         } else {
             __global const TriGroup* g = tri_group(s, ref);
             float4 t, u, v;
-            int4 mask = hit_triangles(g, o, &shear, tmin, hit.t, &t, &u, &v);
+            int4 mask = hit_triangles(g, o, &shear, tmin, nextafter(hit.t, INFINITY), &t, &u, &v);
             if (any(mask)) {
-                /* The nearest lane; on equal distances the first, as the binary BVH's loop. */
+                /* The nearest lane; on equal distances the first (lanes hold increasing triangle indices). */
                 t = select((float4)(INFINITY), t, mask);
                 float best = fmin(fmin(t.s0, t.s1), fmin(t.s2, t.s3));
                 int i = t.s0 == best ? 0 : (t.s1 == best ? 1 : (t.s2 == best ? 2 : 3));
-                hit.t = best; hit.u = lane(u, i); hit.v = lane(v, i); hit.tri = lane_int(g->tri, i);
+                int tri = lane_int(g->tri, i);
+                if (closer(best, tri, &hit)) {
+                    hit.t = best; hit.u = lane(u, i); hit.v = lane(v, i); hit.tri = tri;
+                }
             }
         }
     }
