@@ -74,13 +74,21 @@ inline bool closer(float t, int tri, const Hit* hit) {
     return t < hit->t || (t == hit->t && tri < hit->tri);
 }
 
+/* The box test must never cull a box whose triangle the triangle test hits: its distances are
+ * rounded (the slab subtraction and product), and so is the triangle's t. A ray through a
+ * triangle's edge on the box's face can then leave the box a few ulps before it reaches the
+ * triangle. Widening the exit distance by BOX_SLACK (relative) keeps the test conservative
+ * (pbrt-v3 section 3.9.2 widens tMax by 1 + 2 gamma(3); we allow the triangle's rounding too).
+ * A box entered at the current closest hit is still visited: it may hold an equal-t tie. */
+#define BOX_SLACK (1.0f + 16.0f * FLT_EPSILON)
+
 /* Entry distance of the ray into the box, or INFINITY if it misses within (tmin, tmax). */
 inline float hit_box(__global const BvhNode* node, float3 o, float3 inv_d, float tmin, float tmax) {
     float3 t0 = (node->lo.xyz - o) * inv_d;
     float3 t1 = (node->hi.xyz - o) * inv_d;
     float3 near = fmin(t0, t1), far = fmax(t0, t1);
     float enter = fmax(tmin, fmax(near.x, fmax(near.y, near.z)));
-    float leave = fmin(tmax, fmin(far.x, fmin(far.y, far.z)));
+    float leave = fmin(tmax, fmin(far.x, fmin(far.y, far.z))) * BOX_SLACK;
     return enter <= leave ? enter : INFINITY;
 }
 
@@ -185,7 +193,7 @@ inline float4 hit_boxes(__global const WideNode* n, float3 o, float3 inv_d, floa
     float4 y0 = (n->lo_y - o.y) * inv_d.y, y1 = (n->hi_y - o.y) * inv_d.y;
     float4 z0 = (n->lo_z - o.z) * inv_d.z, z1 = (n->hi_z - o.z) * inv_d.z;
     float4 enter = fmax((float4)(tmin), fmax(fmin(x0, x1), fmax(fmin(y0, y1), fmin(z0, z1))));
-    float4 leave = fmin((float4)(tmax), fmin(fmax(x0, x1), fmin(fmax(y0, y1), fmax(z0, z1))));
+    float4 leave = fmin((float4)(tmax), fmin(fmax(x0, x1), fmin(fmax(y0, y1), fmax(z0, z1)))) * BOX_SLACK;
     int4 hit = (enter <= leave) & (n->child != (int4)(WIDE_EMPTY));
     return select((float4)(INFINITY), enter, hit);
 }
@@ -243,7 +251,7 @@ inline Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, flo
     stack_ref[top] = 0; stack_t[top] = tmin; ++top;   /* the root */
     while (top > 0) {
         --top;
-        if (stack_t[top] > hit.t) continue;           /* entered beyond the closest hit so far */
+        if (stack_t[top] > hit.t * BOX_SLACK) continue;   /* entered beyond the closest hit so far */
         int ref = stack_ref[top];
         ++visited;
         if (ref >= 0) {
