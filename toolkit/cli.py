@@ -105,10 +105,16 @@ def build_parser():
     device_option(p)
     p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
     from .bench import DEFAULT
-    p.add_argument("--techniques", default=",".join(DEFAULT), help=f"comma-separated, from: {names}")
+    from .peers import PEER_DEFAULT
+    p.add_argument("--techniques", help=f"comma-separated, from: {names} (default {','.join(DEFAULT)}; "
+                                        f"with --peer mitsuba: {','.join(PEER_DEFAULT)})")
     p.add_argument("--spp", type=_positive, default=16, help="samples per pixel for path tracers (BDPT: an eighth)")
-    p.add_argument("--resolution", type=_resolution, default=(128, 128))
+    p.add_argument("--resolution", type=_resolution, help="WxH (default 128x128; with --peer: the scene's own)")
     p.add_argument("--repeats", type=_positive, default=3)
+    p.add_argument("--peer", choices=["embree", "mitsuba"],
+                   help="instead: embree: closest-hit rays/s of our BVHs against embreex on the same rays; "
+                        "mitsuba: Mitsuba 3's path integrator beside the toolkit (spp/s, variance per sample, "
+                        "time to 5%% RMSE); needs pip install \".[peers]\"")
     p.add_argument("--equal-time", type=_number, metavar="SECONDS",
                    help="instead: render each technique for about SECONDS and compare RMSE against the reference")
     p.add_argument("--json", action="store_true")
@@ -214,22 +220,47 @@ def cmd_compare(args):
 
 
 def cmd_bench(args):
-    from .bench import bench, format_bench, format_equal_time
+    from .bench import DEFAULT, bench, format_bench, format_equal_time
     from .validate import finite_number, whole_number
     whole_number("bench.repeats", args.repeats, "--repeats")
+    if args.peer:
+        return cmd_bench_peer(args)
     if args.equal_time is not None:
         finite_number("bench.equal_time", args.equal_time, "--equal-time")
         from .compare import equal_time
         scene = args.scene or "scenes/cornell_spheres"
-        report = equal_time(scene, _technique_list(args.techniques), args.equal_time,
-                            resolution=args.resolution, device=args.device, bvh=args.bvh)
+        report = equal_time(scene, _technique_list(args.techniques or ",".join(DEFAULT)), args.equal_time,
+                            resolution=args.resolution or (128, 128), device=args.device, bvh=args.bvh)
         print(format_equal_time(report, args.equal_time))
         if args.json:
             print(json.dumps(report))
         return 0
-    report = bench(args.scene, tuple(_technique_list(args.techniques)), spp=args.spp,
-                   resolution=args.resolution, repeats=args.repeats, device=args.device, bvh=args.bvh)
+    report = bench(args.scene, tuple(_technique_list(args.techniques or ",".join(DEFAULT))), spp=args.spp,
+                   resolution=args.resolution or (128, 128), repeats=args.repeats, device=args.device, bvh=args.bvh)
     print(format_bench(report))
+    if args.json:
+        print(json.dumps(report))
+    return 0
+
+
+def cmd_bench_peer(args):
+    from . import peers
+    from .api import as_scene
+    from .device import get_queue
+    scene = as_scene(args.scene)
+    if args.peer == "embree":
+        report = peers.embree_rays(scene, repeats=args.repeats, queue=get_queue(args.device))
+        print(peers.format_embree(report))
+    else:
+        try:
+            peers.load_mitsuba()
+        except peers.PeerMissing as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
+        techniques = _technique_list(args.techniques or ",".join(peers.PEER_DEFAULT))
+        report = peers.mitsuba_bench(scene, tuple(techniques), spp=args.spp, repeats=args.repeats,
+                                     resolution=args.resolution, device=args.device, bvh=args.bvh)
+        print(peers.format_mitsuba(report))
     if args.json:
         print(json.dumps(report))
     return 0

@@ -23,6 +23,7 @@ PEERS = ("embree", "mitsuba")
 INSTALL_HINT = ("Mitsuba 3 is not installed: it is an optional extra of the toolkit. Install it with\n"
                 "  pip install \".[peers]\"      (from the toolkit's folder; or: pip install \"mitsuba>=3.9,<3.10\")")
 TARGET_RMSE = 0.05
+PEER_DEFAULT = ("pt_naive", "pt_compact_regen", "bdpt_parallel_connect")   # techniques beside Mitsuba
 
 
 class PeerMissing(RuntimeError):
@@ -213,7 +214,7 @@ class MitsubaRenderer:
         return images.mean(0), images.std(0, ddof=1) / np.sqrt(passes), seconds
 
 
-def mitsuba_bench(scene, techniques=("pt_naive", "pt_compact_regen", "bdpt_parallel_connect"), spp=16,
+def mitsuba_bench(scene, techniques=PEER_DEFAULT, spp=16,
                   repeats=4, resolution=None, device=None, bvh="wide", seed=0):
     """Mitsuba `path` and the toolkit's techniques on one scene, repetitions interleaved.
     Per renderer: spp/s (median), variance per sample (mean over pixels and channels of the
