@@ -1,5 +1,12 @@
-/* BVH traversal for closest-hit and any-hit (shadow) queries.
- * Nodes are in depth-first order: the left child follows its parent, `first` is the right. */
+/* BVH traversal for closest-hit and any-hit (shadow) queries, for one of two BVHs chosen at
+ * compile time (toolkit/device_scene.py, `--bvh`):
+ * - binary (default without BVH_WIDE): nodes in depth-first order, the left child follows its
+ *   parent, `first` is the right; one box test per step, one triangle at a time.
+ * - wide (BVH_WIDE): four children per node and four triangles per leaf, each tested with
+ *   float4 operations that the OpenCL compiler turns into SSE/AVX instructions. This is SIMD
+ *   inside one ray (Embree's single-ray kernels work this way); the talk's streams are SIMD
+ *   across rays (one ray per work-item). Both give the same hits: the same float operations
+ *   run lane by lane, only the order of visiting differs. */
 #ifndef BVH_H
 #define BVH_H
 
@@ -59,15 +66,33 @@ inline bool hit_triangle(__global const Triangle* tri, float3 o, const RayShear*
     return true;
 }
 
+/* Whether a hit at t on triangle `tri` replaces `hit`: the closest hit is the smallest t and, on
+ * equal t (coplanar overlapping triangles, a ray through a shared edge), the lowest triangle
+ * index. So it does not depend on the order in which a BVH visits its leaves, and the binary
+ * and wide BVHs report the same triangle. The search accepts t up to hit.t itself for this. */
+inline bool closer(float t, int tri, const Hit* hit) {
+    return t < hit->t || (t == hit->t && tri < hit->tri);
+}
+
+/* The box test must never cull a box whose triangle the triangle test hits: its distances are
+ * rounded (the slab subtraction and product), and so is the triangle's t. A ray through a
+ * triangle's edge on the box's face can then leave the box a few ulps before it reaches the
+ * triangle. Widening the exit distance by BOX_SLACK (relative) keeps the test conservative
+ * (pbrt-v3 section 3.9.2 widens tMax by 1 + 2 gamma(3); we allow the triangle's rounding too).
+ * A box entered at the current closest hit is still visited: it may hold an equal-t tie. */
+#define BOX_SLACK (1.0f + 16.0f * FLT_EPSILON)
+
 /* Entry distance of the ray into the box, or INFINITY if it misses within (tmin, tmax). */
 inline float hit_box(__global const BvhNode* node, float3 o, float3 inv_d, float tmin, float tmax) {
     float3 t0 = (node->lo.xyz - o) * inv_d;
     float3 t1 = (node->hi.xyz - o) * inv_d;
     float3 near = fmin(t0, t1), far = fmax(t0, t1);
     float enter = fmax(tmin, fmax(near.x, fmax(near.y, near.z)));
-    float leave = fmin(tmax, fmin(far.x, fmin(far.y, far.z)));
+    float leave = fmin(tmax, fmin(far.x, fmin(far.y, far.z))) * BOX_SLACK;
     return enter <= leave ? enter : INFINITY;
 }
+
+#ifndef BVH_WIDE
 
 /* Closest hit in (tmin, tmax). `steps` counts visited nodes (traversal divergence counter). */
 inline Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
@@ -84,7 +109,8 @@ inline Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, flo
         if (n->count > 0) {
             for (int i = n->first; i < n->first + n->count; ++i) {
                 float t, u, v;
-                if (hit_triangle(&s->tris[i], o, &shear, tmin, hit.t, &t, &u, &v)) {
+                if (hit_triangle(&s->tris[i], o, &shear, tmin, nextafter(hit.t, INFINITY), &t, &u, &v)
+                    && closer(t, i, &hit)) {
                     hit.t = t; hit.u = u; hit.v = v; hit.tri = i;
                 }
             }
@@ -141,5 +167,141 @@ inline bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float 
     if (steps) *steps += visited;
     return blocked;
 }
+
+#else  /* BVH_WIDE */
+
+/* The wide BVH lives in one buffer of 16-byte words (s->nodes): WideNode and TriGroup records
+ * (toolkit/layout.py), found by their position. A child reference >= 0 is an inner node,
+ * < 0 is ~position of a leaf's TriGroup, WIDE_EMPTY an unused lane. */
+inline __global const WideNode* wide_node(const SceneView* s, int ref) {
+    return (__global const WideNode*)(s->nodes + ref);
+}
+inline __global const TriGroup* tri_group(const SceneView* s, int ref) {
+    return (__global const TriGroup*)(s->nodes + ~ref);
+}
+/* Coordinate k (0 x, 1 y, 2 z) of vertex v of the group's four triangles: v0x, v0y, v0z, v1x, ... follow each other. */
+inline float4 tri_group_coord(__global const TriGroup* g, int v, int k) {
+    return ((__global const float4*)g)[3 * v + k];
+}
+inline float lane(float4 v, int i) { return i == 0 ? v.s0 : (i == 1 ? v.s1 : (i == 2 ? v.s2 : v.s3)); }
+inline int lane_int(int4 v, int i) { return i == 0 ? v.s0 : (i == 1 ? v.s1 : (i == 2 ? v.s2 : v.s3)); }
+
+/* hit_box for the four children at once: entry distances, INFINITY where a child is missed
+ * (or the lane is empty). The same operations as hit_box, lane by lane. */
+inline float4 hit_boxes(__global const WideNode* n, float3 o, float3 inv_d, float tmin, float tmax) {
+    float4 x0 = (n->lo_x - o.x) * inv_d.x, x1 = (n->hi_x - o.x) * inv_d.x;
+    float4 y0 = (n->lo_y - o.y) * inv_d.y, y1 = (n->hi_y - o.y) * inv_d.y;
+    float4 z0 = (n->lo_z - o.z) * inv_d.z, z1 = (n->hi_z - o.z) * inv_d.z;
+    float4 enter = fmax((float4)(tmin), fmax(fmin(x0, x1), fmax(fmin(y0, y1), fmin(z0, z1))));
+    float4 leave = fmin((float4)(tmax), fmin(fmax(x0, x1), fmin(fmax(y0, y1), fmax(z0, z1)))) * BOX_SLACK;
+    int4 hit = (enter <= leave) & (n->child != (int4)(WIDE_EMPTY));
+    return select((float4)(INFINITY), enter, hit);
+}
+
+/* hit_triangle for the four triangles of a group at once: the lanes with a hit in (tmin, tmax)
+ * (a mask: -1 where hit) and their t, u, v. The same operations as hit_triangle, in the same
+ * order, lane by lane (FP_CONTRACT is off above), so the two BVHs find bit-identical hits and
+ * the watertight property holds in every lane. Empty lanes are degenerate triangles: det = 0. */
+inline int4 hit_triangles(__global const TriGroup* g, float3 o, const RayShear* r, float tmin, float tmax,
+                          float4* t_out, float4* u_out, float4* v_out) {
+    float ox = axis(o, r->kx), oy = axis(o, r->ky), oz = axis(o, r->kz);
+    float4 az = tri_group_coord(g, 0, r->kz) - oz;
+    float4 bz = tri_group_coord(g, 1, r->kz) - oz;
+    float4 cz = tri_group_coord(g, 2, r->kz) - oz;
+    float4 ax = (tri_group_coord(g, 0, r->kx) - ox) - r->sx * az, ay = (tri_group_coord(g, 0, r->ky) - oy) - r->sy * az;
+    float4 bx = (tri_group_coord(g, 1, r->kx) - ox) - r->sx * bz, by = (tri_group_coord(g, 1, r->ky) - oy) - r->sy * bz;
+    float4 cx = (tri_group_coord(g, 2, r->kx) - ox) - r->sx * cz, cy = (tri_group_coord(g, 2, r->ky) - oy) - r->sy * cz;
+    float4 eu = cx * by - cy * bx;
+    float4 ev = ax * cy - ay * cx;
+    float4 ew = bx * ay - by * ax;
+    float4 zero = (float4)(0.0f);
+    int4 mixed = ((eu < zero) | (ev < zero) | (ew < zero)) & ((eu > zero) | (ev > zero) | (ew > zero));
+    float4 det = eu + ev + ew;
+    float4 inv = 1.0f / det;
+    float4 t = r->sz * (eu * az + ev * bz + ew * cz) * inv;
+    *t_out = t; *u_out = ev * inv; *v_out = ew * inv;
+    return ~mixed & (det != zero) & (t > (float4)(tmin)) & (t < (float4)(tmax));
+}
+
+/* Push the children a node's box test hit onto the stack, nearest on top (insertion sort of
+ * at most four entries above `base`), so they are visited front to back. */
+inline int push_hit_children(int* stack_ref, float* stack_t, int top, int4 child, float4 enter) {
+    int base = top;
+    for (int i = 0; i < BVH_WIDTH; ++i) {
+        float ti = lane(enter, i);
+        if (ti == INFINITY) continue;
+        int j = top++;
+        while (j > base && stack_t[j - 1] < ti) {  /* keep farther entries below */
+            stack_ref[j] = stack_ref[j - 1]; stack_t[j] = stack_t[j - 1]; --j;
+        }
+        stack_ref[j] = lane_int(child, i); stack_t[j] = ti;
+    }
+    return top;
+}
+
+/* Closest hit in (tmin, tmax). `steps` counts visited nodes and leaves (traversal divergence counter). */
+inline Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
+    Hit hit = {tmax, 0.0f, 0.0f, -1};
+    float3 inv_d = 1.0f / d;
+    RayShear shear = ray_shear(d);
+    int stack_ref[BVH_STACK_SIZE];
+    float stack_t[BVH_STACK_SIZE];
+    int top = 0;
+    int visited = 0;
+    stack_ref[top] = 0; stack_t[top] = tmin; ++top;   /* the root */
+    while (top > 0) {
+        --top;
+        if (stack_t[top] > hit.t * BOX_SLACK) continue;   /* entered beyond the closest hit so far */
+        int ref = stack_ref[top];
+        ++visited;
+        if (ref >= 0) {
+            __global const WideNode* n = wide_node(s, ref);
+            top = push_hit_children(stack_ref, stack_t, top, n->child, hit_boxes(n, o, inv_d, tmin, hit.t));
+        } else {
+            __global const TriGroup* g = tri_group(s, ref);
+            float4 t, u, v;
+            int4 mask = hit_triangles(g, o, &shear, tmin, nextafter(hit.t, INFINITY), &t, &u, &v);
+            if (any(mask)) {
+                /* The nearest lane; on equal distances the first (lanes hold increasing triangle indices). */
+                t = select((float4)(INFINITY), t, mask);
+                float best = fmin(fmin(t.s0, t.s1), fmin(t.s2, t.s3));
+                int i = t.s0 == best ? 0 : (t.s1 == best ? 1 : (t.s2 == best ? 2 : 3));
+                int tri = lane_int(g->tri, i);
+                if (closer(best, tri, &hit)) {
+                    hit.t = best; hit.u = lane(u, i); hit.v = lane(v, i); hit.tri = tri;
+                }
+            }
+        }
+    }
+    if (steps) *steps += visited;
+    return hit;
+}
+
+/* Whether anything lies on the segment (tmin, tmax): shadow rays stop at the first hit. */
+inline bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
+    float3 inv_d = 1.0f / d;
+    RayShear shear = ray_shear(d);
+    int stack_ref[BVH_STACK_SIZE];
+    float stack_t[BVH_STACK_SIZE];
+    int top = 0;
+    int visited = 0;
+    bool blocked = false;
+    stack_ref[top] = 0; stack_t[top] = tmin; ++top;
+    while (top > 0 && !blocked) {
+        int ref = stack_ref[--top];
+        ++visited;
+        if (ref >= 0) {
+            __global const WideNode* n = wide_node(s, ref);
+            top = push_hit_children(stack_ref, stack_t, top, n->child, hit_boxes(n, o, inv_d, tmin, tmax));
+        } else {
+            float4 t, u, v;
+            blocked = any(hit_triangles(tri_group(s, ref), o, &shear, tmin, tmax, &t, &u, &v));
+        }
+    }
+    if (steps) *steps += visited;
+    return blocked;
+}
+
+#endif /* BVH_WIDE */
 
 #endif

@@ -10,7 +10,7 @@
  * (both generated, with the host's argument order, from SCENE_ARGS in toolkit/layout.py). */
 
 typedef struct {
-    __global const BvhNode* nodes;
+    __global const BVH_WORD* nodes;   /* BvhNode records, or the wide BVH's words (BVH_WIDE, cl/bvh.h) */
     __global const Triangle* tris;
     __global const Material* materials;
     __global const LightTri* lights;

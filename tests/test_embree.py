@@ -1,4 +1,5 @@
 """Our BVH traversal (cl/bvh.h, through cl/raycast.cl) agrees with Embree on every bundled scene.
+Both BVHs (binary, and the wide one collapsed from it) are checked.
 embreex is a dependency of the toolkit (setup.cfg), so without it this test fails rather than skips.
 
 Both intersectors get the same float32 question (rebased triangles, same rays); see
@@ -21,9 +22,10 @@ SCENES_DIR = Path(__file__).parent.parent / "scenes"
 SCENES = sorted(p for p in SCENES_DIR.iterdir() if (p / "scene.json").is_file())
 
 
+@pytest.mark.parametrize("bvh", ["binary", "wide"])
 @pytest.mark.parametrize("folder", SCENES, ids=[p.name for p in SCENES])
-def test_traversal_agrees_with_embree(folder):
-    f = compare_with_embree(load_scene(folder), n_random=100_000, seed=0)
+def test_traversal_agrees_with_embree(folder, bvh):
+    f = compare_with_embree(load_scene(folder), n_random=100_000, seed=0, bvh=bvh)
     print()
     print(format_figures(f))
     assert f["camera_rays"] == f["resolution"][0] * f["resolution"][1]

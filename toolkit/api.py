@@ -10,6 +10,7 @@ import numpy as np
 
 from .device import describe, get_queue
 from .device_scene import DeviceScene
+from .layout import BVH_KINDS
 from .scene import Scene, bundled_scene_dir, check_scene, load_scene
 from .techniques import get_technique
 from .validate import InputError, render_args
@@ -51,13 +52,15 @@ def _options(cls, options):
 
 
 def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, device=None,
-           warp_width=32, count_simd=True, progress=False, options=None):
+           warp_width=32, count_simd=True, progress=False, options=None, bvh="wide"):
     """Render a scene (a Scene, a folder, a scene.json or None for the bundled Cornell box).
 
     `resolution` (width, height) keeps the scene's camera and field of view. `technique` is a
     name from toolkit.techniques.TECHNIQUES, optionally with a variant ("pt_compact_regen/multipass");
     `options` are passed to the technique. Returns a RenderResult with the image, its
-    standard-error image and stats (timings, SIMD efficiency).
+    standard-error image and stats (timings, SIMD efficiency). `bvh` is "wide" (four children
+    per node, tested together with float4 operations: SIMD inside one ray) or "binary"; both
+    give the same image (tests/test_wide_bvh.py).
     """
     # Every argument is checked before any work (kernel builds, BVH) starts.
     if not isinstance(technique, str):
@@ -67,13 +70,15 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     if resolution is not None and (isinstance(resolution, (str, bytes)) or not hasattr(resolution, "__len__")
                                    or len(resolution) != 2):
         raise InputError(f"resolution must be (width, height), got {resolution!r}")
+    if bvh not in BVH_KINDS:
+        raise InputError(f"bvh must be one of {', '.join(BVH_KINDS)}, got {bvh!r}")
     if device is not None and not isinstance(device, str):
         raise InputError(f"device must be a string like '0:0' or a name part, got {device!r}")
     scene = as_scene(scene)
     width, height = resolution or (scene.camera.width, scene.camera.height)
     spp, seed, width, height = render_args(spp, seed, width, height, warp_width)
     queue = get_queue(device)
-    device_scene = DeviceScene(queue, scene)
+    device_scene = DeviceScene(queue, scene, bvh=bvh)
     tech = cls(queue, device_scene, warp_width=warp_width, count_simd=count_simd,
                **{**variant_options, **options})
     bar = None
@@ -101,9 +106,11 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
         "samples_per_pixel": [int(film.count.min()), int(film.count.max())],
         "simd_efficiency": tech.simd_efficiency(),
         "traversal_efficiency": tech.traversal.efficiency() if count_simd else {},
+        # BVH nodes (and wide leaves) visited per sample, closest-hit and shadow rays: --bvh wide cuts them.
+        "traversal_steps_per_sample": ({phase: steps / film.samples for phase, steps in tech.traversal.active.items()}
+                                       if count_simd and film.samples else {}),
         "build_seconds": tech.build_seconds,
-        "bvh": {"nodes": device_scene.bvh.node_count, "leaves": device_scene.bvh.leaf_nodes,
-                "depth": device_scene.bvh.max_depth, "build_seconds": device_scene.bvh.build_seconds},
+        "bvh": device_scene.bvh_stats(),
         "triangles": int(len(scene.triangles)),
         "degrees_of_freedom": film.degrees_of_freedom,
         **tech.extra_stats(),

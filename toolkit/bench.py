@@ -18,10 +18,11 @@ DEFAULT = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "pt_compact_regen
            "bdpt_naive_connect", "bdpt_parallel_connect", "bdpt_parallel_connect/direct_scatter")
 
 
-def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats=3, seed=0, device=None):
+def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats=3, seed=0, device=None,
+          bvh="wide"):
     scene = as_scene(scene)
     for name in techniques:   # warm-up: kernel builds and BVH outside the timings
-        render(scene, technique=name, spp=1, resolution=(16, 16), device=device, count_simd=False)
+        render(scene, technique=name, spp=1, resolution=(16, 16), device=device, count_simd=False, bvh=bvh)
     rates = {name: [] for name in techniques}
     device_name = None
     for r in range(repeats):
@@ -29,18 +30,18 @@ def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats
             # Bidirectional samples cost ~10x more: an eighth of the budget keeps the runs comparable in length.
             n = max(1, spp // 8) if family(name) == "bdpt" else spp
             result = render(scene, technique=name, spp=n, seed=seed + r, resolution=resolution,
-                            device=device, count_simd=False)
+                            device=device, count_simd=False, bvh=bvh)
             rates[name].append(result.stats["samples_per_second"])
             device_name = result.stats["device"]
     median = {name: statistics.median(v) for name, v in rates.items()}
     base = techniques[0]
-    return {"scene": scene.name, "device": device_name, "gpu": has_gpu(), "spp": spp,
+    return {"scene": scene.name, "device": device_name, "gpu": has_gpu(), "spp": spp, "bvh": bvh,
             "resolution": list(resolution), "repeats": repeats,
             "techniques": {name: {"samples_per_second": median[name], "runs": rates[name],
                                   f"ratio_to_{base}": median[name] / median[base]} for name in techniques}}
 
 
-def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=None):
+def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=None, bvh="wide"):
     """Each technique renders for `seconds` of wall time: chunks of samples (independent seeds)
     until the time is spent, so every technique gets the same time whatever its speed.
     Returns {technique: {"spp", "seconds", "rmse"}} against the scene's reference."""
@@ -55,15 +56,16 @@ def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=N
     out = {}
     for name in techniques:
         # Warm-up (kernel builds, PoCL's first-launch compile) and a probe to size the chunks.
-        render(scene, technique=name, spp=1, seed=seed + 999, resolution=resolution, device=device, count_simd=False)
+        render(scene, technique=name, spp=1, seed=seed + 999, resolution=resolution, device=device, count_simd=False,
+               bvh=bvh)
         probe = render(scene, technique=name, spp=8, seed=seed + 998, resolution=resolution, device=device,
-                       count_simd=False)
+                       count_simd=False, bvh=bvh)
         chunk = max(1, min(int(seconds / 10 / (probe.stats["seconds"] / 8)), LIMITS["spp"][1]))
         total, spp, k = np.zeros((height, width, 3)), 0, 0
         start = time.perf_counter()
         while time.perf_counter() - start < seconds:
             result = render(scene, technique=name, spp=chunk, seed=seed + k, resolution=resolution,
-                            device=device, count_simd=False)
+                            device=device, count_simd=False, bvh=bvh)
             total += result.image * chunk
             spp += chunk
             k += 1
@@ -115,7 +117,7 @@ def format_equal_time(report, seconds):
 def format_bench(report):
     base = next(iter(report["techniques"]))
     lines = [f"bench: {report['scene']} {report['resolution'][0]}x{report['resolution'][1]}, {report['spp']} spp, "
-             f"median of {report['repeats']} interleaved runs on {report['device']}"]
+             f"median of {report['repeats']} interleaved runs on {report['device']}, {report['bvh']} BVH"]
     if not report["gpu"]:
         lines.append("No GPU here: these figures describe a CPU, where idle SIMD lanes cost little; "
                      "the SIMD-efficiency counters (python -m toolkit compare) are what predict GPU behaviour.")

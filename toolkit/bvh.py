@@ -2,14 +2,20 @@
 
 Nodes are stored depth-first: an inner node's left child follows it, `first` holds the right
 child. Leaves hold at most `leaf_size` triangles, reordered so each leaf's are contiguous.
+
+`collapse_wide` turns the binary BVH into a 4-wide one (BVH_WIDTH): each wide node takes the
+binary node's two children and keeps opening its largest inner child (by surface area, the
+SAH's measure of how often a ray visits it) until it has four. Every binary leaf (at most four
+triangles) becomes one TriGroup, so both BVHs keep the same triangle order and leaves.
 """
 import sys
 import time
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
 
-from .layout import BVH_NODE
+from .layout import BVH_NODE, BVH_WIDTH, TRI_GROUP, WIDE_NODE, WideChild
 
 # Builds of this many triangles or more show a progress bar (1M triangles take about a minute).
 PROGRESS_FROM = 100_000
@@ -115,3 +121,85 @@ def build_bvh(tri_vertices, leaf_size=4, bins=16):
     leaves = int((flat["count"] > 0).sum())
     return Bvh(flat, np.asarray(order, np.int64), time.perf_counter() - start,
                len(nodes) - leaves, leaves, depth_max)
+
+
+@dataclass
+class WideBvh:
+    """The wide BVH as one buffer of 16-byte words: WideNode records (the root first), then
+    TriGroup records. A child reference is a record's position in words, ~position for a leaf."""
+    words: np.ndarray        # (n, 4) float32: the buffer the kernels get as `nodes`
+    inner_nodes: int
+    leaf_groups: int
+    max_depth: int           # wide nodes on the longest root-to-leaf path
+    stack_needed: int        # most traversal-stack entries a ray can need (cl/bvh.h)
+
+
+NODE_WORDS = WIDE_NODE.dtype.itemsize // 16
+GROUP_WORDS = TRI_GROUP.dtype.itemsize // 16
+
+
+def collapse_wide(bvh, leaf_vertices, width=BVH_WIDTH):
+    """The wide BVH of `bvh`. `leaf_vertices`: (M, 3, 3) float32 triangle vertices in leaf order
+    (the device's triangles), copied into the TriGroups bit for bit."""
+    nodes = bvh.nodes
+    is_leaf = nodes["count"] > 0
+    if is_leaf.any() and nodes["count"].max() > width:
+        raise ValueError(f"a TriGroup holds {width} triangles; the BVH has leaves of {nodes['count'].max()}")
+    lo, hi = nodes["lo"][:, :3].astype(np.float64), nodes["hi"][:, :3].astype(np.float64)
+    area = _area(lo, hi)
+
+    # One TriGroup per binary leaf, in node order.
+    leaves = np.flatnonzero(is_leaf)
+    group_of = np.full(len(nodes), -1)
+    group_of[leaves] = np.arange(len(leaves))
+    groups = TRI_GROUP.zeros(len(leaves))
+    groups["tri"] = -1
+    first, count = nodes["first"][leaves], nodes["count"][leaves]
+    for lane in range(width):
+        has = lane < count
+        slot = first[has] + lane
+        groups["tri"][has, lane] = slot
+        for v in range(3):
+            for k, name in enumerate("xyz"):
+                # Empty lanes keep v0 = v1 = v2 = 0: a degenerate triangle the test rejects (det = 0).
+                groups[f"v{v}{name}"][has, lane] = leaf_vertices[slot, v, k]
+
+    # Wide nodes: children chosen top-down; binary node -> wide node index for inner children.
+    def children(b):
+        return [b + 1, int(nodes["first"][b])]
+
+    kids_of = []                  # per wide node: its binary children
+    depth_of = []
+    stack_of = []                 # stack entries a ray may hold on reaching this node
+    pending = deque([(0, 1, 0)])  # (binary node, depth, stack entries below it), breadth first
+    index_of = {0: 0}
+    while pending:
+        b, depth, stacked = pending.popleft()
+        kids = [b] if is_leaf[b] else children(b)
+        while len(kids) < width:
+            inner = [k for k in kids if not is_leaf[k]]
+            if not inner:
+                break
+            k = max(inner, key=lambda k: area[k])
+            i = kids.index(k)
+            kids[i:i + 1] = children(k)
+        kids_of.append(kids)
+        depth_of.append(depth)
+        stack_of.append(stacked + len(kids))    # all children pushed, before the nearest is popped
+        for k in kids:
+            if not is_leaf[k]:
+                index_of[k] = len(kids_of) + len(pending)
+                pending.append((k, depth + 1, stacked + len(kids) - 1))
+
+    wide = WIDE_NODE.zeros(len(kids_of))
+    wide["child"] = int(WideChild.EMPTY)
+    group_base = len(kids_of) * NODE_WORDS
+    for w, kids in enumerate(kids_of):
+        for lane, k in enumerate(kids):
+            for axis, name in enumerate("xyz"):
+                wide[f"lo_{name}"][w, lane] = nodes["lo"][k, axis]
+                wide[f"hi_{name}"][w, lane] = nodes["hi"][k, axis]
+            wide["child"][w, lane] = (~(group_base + int(group_of[k]) * GROUP_WORDS) if is_leaf[k]
+                                      else index_of[k] * NODE_WORDS)
+    words = np.concatenate([wide.view(np.float32).reshape(-1, 4), groups.view(np.float32).reshape(-1, 4)])
+    return WideBvh(np.ascontiguousarray(words), len(kids_of), len(leaves), max(depth_of), max(stack_of))

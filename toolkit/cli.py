@@ -50,6 +50,11 @@ def build_parser():
     parser.add_argument("--verbose", action="store_true", help="print every kernel build log in full")
     sub = parser.add_subparsers(dest="command", required=True)
 
+    def bvh_option(p):
+        p.add_argument("--bvh", choices=["binary", "wide"], default="wide",
+                       help="wide: 4 children per node tested with float4 operations (SIMD inside one ray); "
+                            "binary: the SAH BVH it is collapsed from (default wide)")
+
     def device_option(p):
         # Also accepted after the command; SUPPRESS keeps a value given before it.
         p.add_argument("--device", default=argparse.SUPPRESS,
@@ -65,6 +70,7 @@ def build_parser():
     p.add_argument("--out", help="output .exr (an sRGB .png is written beside it) or .png alone; default out/<scene>_<technique>.exr")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line of stdout")
     p.add_argument("--no-progress", action="store_true")
+    bvh_option(p)
 
     sub.add_parser("devices", help="list OpenCL platforms and devices, and which one the toolkit picks")
 
@@ -74,6 +80,7 @@ def build_parser():
     p.add_argument("--rays", type=_positive, default=100_000, help="random rays besides the camera rays")
     p.add_argument("--seed", type=_whole, default=0, help="0 .. 2^32 - 1")
     p.add_argument("--json", action="store_true")
+    bvh_option(p)
 
     from .techniques import VARIANTS
     names = ", ".join([*sorted(TECHNIQUES), *VARIANTS])
@@ -92,18 +99,26 @@ def build_parser():
     p.add_argument("--json", action="store_true", help="print a JSON object as the last line of stdout")
     p.add_argument("--out", default="out/compare", help="folder for images and plots (default out/compare)")
     p.add_argument("--no-progress", action="store_true")
+    bvh_option(p)
 
     p = sub.add_parser("bench", help="samples/s of each technique and their ratios, measured in one run")
     device_option(p)
     p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
     from .bench import DEFAULT
-    p.add_argument("--techniques", default=",".join(DEFAULT), help=f"comma-separated, from: {names}")
+    from .peers import PEER_DEFAULT
+    p.add_argument("--techniques", help=f"comma-separated, from: {names} (default {','.join(DEFAULT)}; "
+                                        f"with --peer mitsuba: {','.join(PEER_DEFAULT)})")
     p.add_argument("--spp", type=_positive, default=16, help="samples per pixel for path tracers (BDPT: an eighth)")
-    p.add_argument("--resolution", type=_resolution, default=(128, 128))
+    p.add_argument("--resolution", type=_resolution, help="WxH (default 128x128; with --peer: the scene's own)")
     p.add_argument("--repeats", type=_positive, default=3)
+    p.add_argument("--peer", choices=["embree", "mitsuba"],
+                   help="instead: embree: closest-hit rays/s of our BVHs against embreex on the same rays; "
+                        "mitsuba: Mitsuba 3's path integrator beside the toolkit (spp/s, variance per sample, "
+                        "time to 5%% RMSE); needs pip install \".[peers]\"")
     p.add_argument("--equal-time", type=_number, metavar="SECONDS",
                    help="instead: render each technique for about SECONDS and compare RMSE against the reference")
     p.add_argument("--json", action="store_true")
+    bvh_option(p)
     return parser
 
 
@@ -157,7 +172,7 @@ def cmd_render(args):
     width, height = args.resolution or (scene.camera.width, scene.camera.height)
     out = check_output(args.out or f"out/{scene.name}_{args.technique}.exr")
     result = render(scene, technique=args.technique, spp=args.spp, seed=args.seed,
-                    resolution=(width, height), device=args.device, progress=not args.no_progress)
+                    resolution=(width, height), device=args.device, progress=not args.no_progress, bvh=args.bvh)
     written = write_image(out, result.image.astype(np.float32))
     stats = dict(result.stats, out=str(out))
     ref, _ = reference_at(scene, width, height)
@@ -195,7 +210,7 @@ def cmd_compare(args):
     from .compare import compare, format_table
     table = compare(args.scene, _technique_list(args.techniques), args.spp, resolution=args.resolution,
                     seed=args.seed, warp_width=args.warp_width, out_dir=args.out, device=args.device,
-                    progress=not args.no_progress)
+                    progress=not args.no_progress, bvh=args.bvh)
     print(format_table(table, args.warp_width))
     first = next(iter(table.values()))
     print("plots: " + ", ".join(first.get("plots", {}).values()))
@@ -205,22 +220,47 @@ def cmd_compare(args):
 
 
 def cmd_bench(args):
-    from .bench import bench, format_bench, format_equal_time
+    from .bench import DEFAULT, bench, format_bench, format_equal_time
     from .validate import finite_number, whole_number
     whole_number("bench.repeats", args.repeats, "--repeats")
+    if args.peer:
+        return cmd_bench_peer(args)
     if args.equal_time is not None:
         finite_number("bench.equal_time", args.equal_time, "--equal-time")
         from .compare import equal_time
         scene = args.scene or "scenes/cornell_spheres"
-        report = equal_time(scene, _technique_list(args.techniques), args.equal_time,
-                            resolution=args.resolution, device=args.device)
+        report = equal_time(scene, _technique_list(args.techniques or ",".join(DEFAULT)), args.equal_time,
+                            resolution=args.resolution or (128, 128), device=args.device, bvh=args.bvh)
         print(format_equal_time(report, args.equal_time))
         if args.json:
             print(json.dumps(report))
         return 0
-    report = bench(args.scene, tuple(_technique_list(args.techniques)), spp=args.spp,
-                   resolution=args.resolution, repeats=args.repeats, device=args.device)
+    report = bench(args.scene, tuple(_technique_list(args.techniques or ",".join(DEFAULT))), spp=args.spp,
+                   resolution=args.resolution or (128, 128), repeats=args.repeats, device=args.device, bvh=args.bvh)
     print(format_bench(report))
+    if args.json:
+        print(json.dumps(report))
+    return 0
+
+
+def cmd_bench_peer(args):
+    from . import peers
+    from .api import as_scene
+    from .device import get_queue
+    scene = as_scene(args.scene)
+    if args.peer == "embree":
+        report = peers.embree_rays(scene, repeats=args.repeats, queue=get_queue(args.device))
+        print(peers.format_embree(report))
+    else:
+        try:
+            peers.load_mitsuba()
+        except peers.PeerMissing as error:
+            print(f"error: {error}", file=sys.stderr)
+            return 2
+        techniques = _technique_list(args.techniques or ",".join(peers.PEER_DEFAULT))
+        report = peers.mitsuba_bench(scene, tuple(techniques), spp=args.spp, repeats=args.repeats,
+                                     resolution=args.resolution, device=args.device, bvh=args.bvh)
+        print(peers.format_mitsuba(report))
     if args.json:
         print(json.dumps(report))
     return 0
@@ -234,7 +274,7 @@ def cmd_crosscheck(args):
     whole_number("seed", args.seed, "--seed")
     whole_number("crosscheck.rays", args.rays, "--rays")
     figures = compare_with_embree(as_scene(args.scene), n_random=args.rays, seed=args.seed,
-                                  queue=get_queue(args.device))
+                                  queue=get_queue(args.device), bvh=args.bvh)
     print(format_figures(figures))
     if args.json:
         print(json.dumps(figures, default=lambda x: x.item() if hasattr(x, "item") else str(x)))

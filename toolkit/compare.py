@@ -17,7 +17,7 @@ PHASES = ["generate", "extend", "walk", "shadow", "compact", "connect"]
 
 
 def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=32, out_dir="out/compare",
-            device=None, progress=False, plots=True):
+            device=None, progress=False, plots=True, bvh="wide"):
     """Render `scene` with each technique; returns {technique: figures} and writes images/plots."""
     scene = as_scene(scene)
     width, height = resolution or (scene.camera.width, scene.camera.height)
@@ -27,7 +27,7 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=32, out_
     results, table = {}, {}
     for name in techniques:
         result = render(scene, technique=name, spp=spp, seed=seed, resolution=(width, height),
-                        device=device, warp_width=warp_width, progress=progress)
+                        device=device, warp_width=warp_width, progress=progress, bvh=bvh)
         path = out_dir / f"{scene.name}_{name.replace('/', '_')}.exr"
         write_image(path, result.image.astype(np.float32))
         results[name] = result
@@ -36,6 +36,8 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=32, out_
             "samples_per_second": result.stats["samples_per_second"],
             "simd_efficiency": result.stats["simd_efficiency"],
             "traversal_efficiency": result.stats["traversal_efficiency"],
+            "traversal_steps": result.stats["traversal_steps_per_sample"].get("closest", float("nan")),
+            "bvh": bvh,
             "rmse": rmse(result.image, ref) if ref is not None else None,
             "nonfinite": result.stats["nonfinite"],
             "out": str(path),
@@ -52,9 +54,10 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=32, out_
 def format_table(table, warp_width=32):
     phases = [p for p in PHASES if any(p in row["simd_efficiency"] for row in table.values())]
     head = f"{'technique':<28}{'seconds':>9}{'samples/s':>12}" + "".join(f"{p:>10}" for p in phases) + \
-        f"{'overall':>10}{'BVH trav':>10}{'RMSE ref':>11}"
+        f"{'overall':>10}{'BVH trav':>10}{'steps':>8}{'RMSE ref':>11}"
     lines = [f"SIMD efficiency = active lanes / lanes issued, warps of {warp_width} (an upper bound, as in the talk);",
-             "BVH trav = traversal steps per lane / the warp's longest traversal (divergence inside intersection)",
+             "BVH trav = traversal steps per lane / the warp's longest traversal (divergence inside intersection);",
+             f"steps = BVH nodes visited by closest-hit rays per sample ({next(iter(table.values()))['bvh']} BVH, --bvh)",
              head, "-" * len(head)]
     for name, row in table.items():
         eff = row["simd_efficiency"]
@@ -62,7 +65,7 @@ def format_table(table, warp_width=32):
         r = f"{row['rmse']:>11.5f}" if row["rmse"] is not None else f"{'-':>11}"
         trav = row["traversal_efficiency"].get("closest", float("nan"))
         lines.append(f"{name:<28}{row['seconds']:>9.2f}{row['samples_per_second']:>12,.0f}{cells}"
-                     f"{eff.get('overall', float('nan')):>10.1%}{trav:>10.1%}{r}")
+                     f"{eff.get('overall', float('nan')):>10.1%}{trav:>10.1%}{row['traversal_steps']:>8.1f}{r}")
     names = list(table)
     if len(names) > 1:
         lines.append("RMSE between techniques: " + ", ".join(

@@ -108,11 +108,11 @@ def _excused_closest(dev, emb):
 
 
 def compare_with_embree(scene, n_random=100_000, seed=0, resolution=None, queue=None,
-                        max_examples=5):
+                        max_examples=5, bvh="wide"):
     """Agreement figures of device traversal and Embree on camera and random rays.
 
     `scene`: a Scene or a scene folder. `resolution`: None (the scene's camera), an int
-    (square) or (width, height). Returns a dict; `unexplained` (closest hit) and
+    (square) or (width, height). `bvh`: "wide" or "binary", the traversal checked. Returns a dict; `unexplained` (closest hit) and
     `any_unexplained` (segments) must be 0."""
     if not isinstance(scene, Scene):
         scene = load_scene(Path(scene))
@@ -124,7 +124,7 @@ def compare_with_embree(scene, n_random=100_000, seed=0, resolution=None, queue=
         width, height = (int(r) for r in resolution)
     queue = queue or get_queue()
     start = time.perf_counter()
-    device_scene = DeviceScene(queue, scene)
+    device_scene = DeviceScene(queue, scene, bvh=bvh)
     device = DeviceRaycaster(queue, device_scene)
     embree = EmbreeIntersector(scene, center=device_scene.center)
     assert np.array_equal(embree.center, device_scene.center)
@@ -165,6 +165,7 @@ def compare_with_embree(scene, n_random=100_000, seed=0, resolution=None, queue=
     conditioned = dt * cos / scale
     figures = {
         "scene": scene.name,
+        "bvh": bvh,
         "triangles": int(len(scene.triangles)),
         "rays": int(n),
         "camera_rays": int(len(co)),
@@ -242,7 +243,7 @@ def compare_with_embree(scene, n_random=100_000, seed=0, resolution=None, queue=
 
 def format_figures(f):
     """A short human-readable summary of compare_with_embree's figures."""
-    return (f"{f['scene']}: {f['rays']} rays ({f['camera_rays']} camera + "
+    return (f"{f['scene']} ({f['bvh']} BVH): {f['rays']} rays ({f['camera_rays']} camera + "
             f"{f['random_rays']} random), {f['triangles']} triangles\n"
             f"  closest: hits device/embree {f['hits_device']}/{f['hits_embree']}, "
             f"hit/miss agree {f['hit_miss_agree']}, prim agree {f['prim_agree']}, "

@@ -7,8 +7,8 @@ a scene translated far from the origin keeps the precision of one at the origin
 import numpy as np
 import pyopencl as cl
 
-from .bvh import build_bvh
-from .layout import BVH_STACK_SIZE, CAMERA, LIGHT, LUMINANCE_WEIGHTS, MATERIAL, MATERIAL_TYPES, SCENE_ARGS, TRIANGLE
+from .bvh import build_bvh, collapse_wide
+from .layout import BVH_KINDS, BVH_STACK_SIZE, CAMERA, LIGHT, LUMINANCE_WEIGHTS, MATERIAL, MATERIAL_TYPES, SCENE_ARGS, TRIANGLE
 
 _bvh_cache = {}
 
@@ -25,7 +25,12 @@ class DeviceScene:
     # far below any gap between surfaces in the scenes (the Cornell light hangs 0.3% below the ceiling).
     EPSILON_RELATIVE = 1e-5
 
-    def __init__(self, queue, scene):
+    def __init__(self, queue, scene, bvh="wide"):
+        """`bvh`: "wide" (4 children per node, tested together with float4 operations) or
+        "binary" (two per node); the kernels are built for it (features())."""
+        if bvh not in BVH_KINDS:
+            raise ValueError(f"bvh must be one of {', '.join(BVH_KINDS)}, got {bvh!r}")
+        self.bvh_kind = bvh
         self.scene = scene
         self.queue = queue
         lo, hi = scene.vertices.min(0), scene.vertices.max(0)
@@ -46,6 +51,14 @@ class DeviceScene:
         self.triangles["material"] = scene.material_of[order]
         self.triangles["prim"] = order
         self.triangles["light"] = -1
+        nodes = self.bvh.nodes
+        self.wide = None
+        if bvh == "wide":
+            self.wide = collapse_wide(self.bvh, tv)
+            if self.wide.stack_needed > BVH_STACK_SIZE:
+                raise ValueError(f"{scene.name}: the wide BVH needs {self.wide.stack_needed} stack entries, "
+                                 f"more than the device stack ({BVH_STACK_SIZE})")
+            nodes = self.wide.words
         self._build_lights(tri_vertices, order)
         self.materials = MATERIAL.zeros(len(scene.materials))
         for i, m in enumerate(scene.materials):
@@ -56,7 +69,7 @@ class DeviceScene:
         mf = cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR
         ctx = queue.context
         self.buffers = {name: cl.Buffer(ctx, mf, hostbuf=a) for name, a in
-                        (("nodes", self.bvh.nodes), ("tris", self.triangles), ("materials", self.materials),
+                        (("nodes", nodes), ("tris", self.triangles), ("materials", self.materials),
                          ("lights", self.lights))}
 
     def _build_lights(self, tri_vertices, order):
@@ -79,6 +92,19 @@ class DeviceScene:
         self.lights["triangle"] = slot_of[light_tris]
         self.triangles["light"][slot_of[light_tris]] = np.arange(len(light_tris))
         self.triangles["light_pdf"][slot_of[light_tris]] = prob / area
+
+    def features(self):
+        """The scene's compile-time defines (Scene.features) and the BVH traversal to build."""
+        return dict(self.scene.features(), BVH_WIDE=self.bvh_kind == "wide")
+
+    def bvh_stats(self):
+        """Sizes of the BVH the kernels traverse (for render stats and compare)."""
+        stats = {"kind": self.bvh_kind, "binary_nodes": self.bvh.node_count, "leaves": self.bvh.leaf_nodes,
+                 "binary_depth": self.bvh.max_depth, "build_seconds": self.bvh.build_seconds}
+        if self.wide is not None:
+            stats.update(wide_nodes=self.wide.inner_nodes, wide_depth=self.wide.max_depth,
+                         wide_stack=self.wide.stack_needed)
+        return stats
 
     def camera(self, width, height):
         """The Camera record for an image of width x height (same field of view as the scene's)."""

@@ -113,6 +113,26 @@ BVH_NODE = Record("BvhNode", [
     ("pad", "int"),
 ], "A flattened BVH node (depth-first order), 48 bytes.")
 
+# The wide BVH (toolkit/bvh.py collapses the binary one): one work-item tests the four child
+# boxes of a node at once with float4 operations, so each box coordinate is a float4 holding it
+# for all four children (structure of arrays inside the node).
+WIDE_NODE = Record("WideNode", [
+    ("lo_x", "float4"), ("hi_x", "float4"),   # child boxes, one lane per child
+    ("lo_y", "float4"), ("hi_y", "float4"),
+    ("lo_z", "float4"), ("hi_z", "float4"),
+    ("child", "int4"),  # a child's reference (WideChild below): >= 0 an inner node, < 0 a leaf, or WIDE_EMPTY
+], "A node of the 4-wide BVH, 112 bytes. Records live in one buffer; a reference is the record's position in 16-byte words.")
+
+TRI_GROUP = Record("TriGroup", [
+    # The vertices of four triangles, one lane per triangle: v0 x, y, z, then v1, then v2. The
+    # three coordinates of a vertex follow each other, so the watertight test picks an axis
+    # with an index (tri_group_coord in cl/bvh.h).
+    ("v0x", "float4"), ("v0y", "float4"), ("v0z", "float4"),
+    ("v1x", "float4"), ("v1y", "float4"), ("v1z", "float4"),
+    ("v2x", "float4"), ("v2y", "float4"), ("v2z", "float4"),
+    ("tri", "int4"),    # each lane's triangle (index into the leaf-order triangles), -1: an empty lane
+], "A wide-BVH leaf: up to four triangles tested at once, 160 bytes.")
+
 TRIANGLE = Record("Triangle", [
     ("v0", "float4"),   # .w unused
     ("v1", "float4"),   # the vertices themselves, not edges: a shared vertex is bit-identical
@@ -233,7 +253,7 @@ BDPT_REGENERATION = Record("BdptRegeneration", [
     ("light_base", "int"),      # where the new light subpaths go in the light stream
 ], "One regeneration step of the BDPT pool.")
 
-RECORDS = [BVH_NODE, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY, BDPT_VERTEX, SUBPATH,
+RECORDS = [BVH_NODE, WIDE_NODE, TRI_GROUP, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY, BDPT_VERTEX, SUBPATH,
            LANE_COUNTS, BDPT_SLOT, BDPT_PASS, BDPT_REGENERATION]
 
 
@@ -281,17 +301,27 @@ class StreamCounter(IntEnum):
     SHADOW_RAYS = 1     # queued shadow rays
 
 
-NAMED_VALUES = [(MaterialType, "MAT_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"), (WalkCounter, ""),
+class WideChild(IntEnum):
+    """WideNode.child: a lane that holds no child (references are >= 0 for inner nodes, ~position
+    for leaves; no BVH buffer reaches 2^30 words, 16 GiB)."""
+    EMPTY = -(1 << 30)
+
+
+NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"), (WalkCounter, ""),
                 (StreamCounter, "STREAM_")]
 
 # ---- single constants --------------------------------------------------------------------
 
 BVH_STACK_SIZE = 64                         # entries of a traversal stack (cl/bvh.h); deeper BVHs are refused
+BVH_WIDTH = 4                               # children of a wide-BVH node, triangles of a TriGroup (float4 lanes)
+BVH_KINDS = ("binary", "wide")              # --bvh: the traversal compiled in (BVH_WIDE for "wide")
 LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)   # Rec. 709 luminance of linear RGB
 
 # The scene as kernel arguments, in order: SCENE_PARAMS (kernel parameters), SCENE_INIT (the
 # SceneView made of them) and DeviceScene.args() (the host's values) all come from this list.
-SCENE_ARGS = [("nodes", "__global const BvhNode*"), ("tris", "__global const Triangle*"),
+# `nodes` is BvhNode records for the binary BVH, and for the wide one (BVH_WIDE) a buffer of
+# WideNode and TriGroup records addressed in 16-byte words (BVH_WORD).
+SCENE_ARGS = [("nodes", "__global const BVH_WORD*"), ("tris", "__global const Triangle*"),
               ("materials", "__global const Material*"), ("lights", "__global const LightTri*"),
               ("light_count", "const int"), ("epsilon", "const float")]
 
@@ -310,6 +340,8 @@ def c_constants():
         lines.append(f"/* {group.__doc__} */")
         lines += [f"#define {prefix}{m.name} {_c_literal(int(m))}" for m in group]
     lines.append(f"#define BVH_STACK_SIZE {BVH_STACK_SIZE}")
+    lines.append(f"#define BVH_WIDTH {BVH_WIDTH}")
+    lines.append("#ifdef BVH_WIDE\n#define BVH_WORD float4\n#else\n#define BVH_WORD BvhNode\n#endif")
     lines += [f"#define LUMINANCE_{c} {_c_literal(w)}" for c, w in zip("RGB", LUMINANCE_WEIGHTS)]
     lines.append("/* The scene as kernel parameters, and the SceneView (cl/scene.h) made of them. */")
     lines.append("#define SCENE_PARAMS " + ", ".join(f"{t} scene_{n}" for n, t in SCENE_ARGS))

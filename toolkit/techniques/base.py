@@ -27,7 +27,7 @@ class Technique:
         self.scene = device_scene
         self.warp_width = warp_width
         self.count_simd = count_simd
-        defines = dict(device_scene.scene.features())
+        defines = dict(device_scene.features())
         defines["COUNT_SIMD"] = bool(count_simd)
         defines.update(extra_defines or {})
         self.defines = defines
