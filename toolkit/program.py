@@ -208,9 +208,11 @@ def launch(queue, kernel, n, *args, local_size=LOCAL_SIZE):
     """Run `kernel` over n work-items with the fixed local size and a padded global size,
     setting only the arguments that differ from its previous launch."""
     key = (kernel.int_ptr, kernel.function_name)
-    if key not in _bound:
-        _bound[key] = (cl.Kernel(kernel.program, kernel.function_name), [_UNSET] * kernel.num_args)
-    own, last = _bound[key]
+    if key not in _bound or _bound[key][0] is not kernel:
+        # Keyed by the handle, checked by identity: a freed kernel's handle can be reused by
+        # another kernel, which must not inherit this one's arguments (or program).
+        _bound[key] = (kernel, cl.Kernel(kernel.program, kernel.function_name), [_UNSET] * kernel.num_args)
+    _, own, last = _bound[key]
     if len(args) != len(last):
         raise TypeError(f"{kernel.function_name} takes {len(last)} arguments, {len(args)} given")
     for i, value in enumerate(args):
