@@ -17,11 +17,23 @@ b = integral of f over [0, 1)^D, so with M mutations in all, proposals y_i with 
 and current states x_i,
 
     I_j = P * b * E_{f/b}[h_j / f]  ~  P * b / M * sum_i ( a_i h_j(y_i) / f(y_i) + (1 - a_i) h_j(x_i) / f(x_i) )
+                                                  (times the chain's weight w_c / mean(w) for start = resample)
 
 (P = pixels: the image position is uniform over the whole image, so a sample reaches pixel j
 with probability 1 / P; Kelemen eq. 7 with Veach's expected-value splatting, sec. 11.5).
 b is estimated on the fly from the large steps, which are ordinary BDPT samples:
 b ~ (1 / L) sum over the L large steps of f(y) (the start's samples count too).
+
+The start. `naive` (the talk): a chain starts at one large step, distributed like a BDPT
+sample (uniform in primary sample space), not like f / b: the first mutations of every chain
+are biased towards where samples are many rather than bright (startup bias), and with many
+chains and few mutations each, that bias dominates (toolkit/mlt_bias.py measures it).
+`resample` (Veach 1997, sec. 11.3.3): chain c draws N candidates (large steps) and keeps one
+with probability f_k / sum_k f_k; with the weight w_c = (1/N) sum_k f_k, E[w_c g(x_c)] equals
+the integral of f g for every g, at the start and (the mutations keep f / b invariant) at every
+later iteration: no startup bias in expectation. Each chain's splats are weighted by
+w_c / mean_c(w_c) (a ratio estimator: its bias is O(1 / (chains x N)), far below the startup
+bias it removes), so the image still sums to b from all large steps.
 
 Splats (pixel, value) are added on the host in float64, like the t = 1 records of BDPT
 (bdpt_base.per_pixel_sums): no float atomics. Each chain's current state keeps its records
@@ -81,6 +93,8 @@ class Chains:
     cur_pixels: np.ndarray = None       #   their pixels
     cur_chain: np.ndarray = None        #   and their chains
     splats: np.ndarray = None           # (pixels, 3) float64 sum of the weighted splats
+    candidate_sum: np.ndarray = None    # start = resample: sum of f over each chain's candidates
+    weight: np.ndarray = None           # each chain's splat weight: 1, or w_c / mean(w) (resample)
     large_sum: float = 0.0              # sum of f over the large steps (for b)
     large_count: int = 0
     accepted: int = 0
@@ -136,6 +150,7 @@ class Mlt(BdptParallelConnect):
                    cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n), self.int_buffer(count))
         cl.enqueue_fill_buffer(self.queue, c.records, np.int32(0), 0, MLT_CHAIN.dtype.itemsize * n)
         c.f_current = np.zeros(count)
+        c.candidate_sum, c.weight = np.zeros(count), np.ones(count)
         c.cur_values, c.cur_pixels, c.cur_chain = np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64)
         c.splats = np.zeros((int(camera["width"] * camera["height"]), 3))
         self.camera, self.seed, self.last_chains = camera, seed, c
@@ -144,6 +159,8 @@ class Mlt(BdptParallelConnect):
         else:
             for _ in range(self.candidates):
                 self.iterate(c, count, MltMode.CANDIDATE)
+            if c.candidate_sum.any():
+                c.weight = c.candidate_sum / c.candidate_sum.mean()
         return c
 
     def iterate(self, c, active, mode):
@@ -217,11 +234,14 @@ class Mlt(BdptParallelConnect):
         c.large_count += int(large.sum())
         a = records["acceptance"].astype(np.float64)
         accepted = records["accepted"] != 0
+        if mode == MltMode.CANDIDATE:
+            c.candidate_sum[:active] += f
         if mode == MltMode.MUTATE:
-            w_prop = np.divide(a, f, out=np.zeros(active), where=f > 0)
+            weight = c.weight[:active]
+            w_prop = np.divide(a * weight, f, out=np.zeros(active), where=f > 0)
             mine = c.cur_chain < active
             f_cur = c.f_current[:active]
-            w_cur = np.divide(1.0 - a, f_cur, out=np.zeros(active), where=f_cur > 0)
+            w_cur = np.divide((1.0 - a) * weight, f_cur, out=np.zeros(active), where=f_cur > 0)
             v = np.concatenate([values * w_prop[chain][:, None], c.cur_values[mine] * w_cur[c.cur_chain[mine]][:, None]])
             c.splats += per_pixel_sums(v, np.concatenate([pixels, c.cur_pixels[mine]]), len(c.splats))
             c.mutations += active
