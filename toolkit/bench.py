@@ -64,8 +64,13 @@ def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=N
         start = time.perf_counter()
         if family(name) == "mlt":
             # One render for the whole time: independent chunks would restart every chain (and
-            # pay its startup bias) ten times. Sized from the probe's rate.
-            spp = max(1, min(int(seconds / (probe.stats["seconds"] / 8)), LIMITS["spp"][1]))
+            # pay its startup bias) ten times. A first render at a quarter of the time, sized from
+            # the probe (whose start dominates it), gives the rate; the second, the counted one, fills the time.
+            guess = max(1, min(int(seconds / 4 / (probe.stats["seconds"] / 8)), LIMITS["spp"][1]))
+            trial = render(scene, technique=name, spp=guess, seed=seed + 997, resolution=resolution, device=device,
+                           count_simd=False)
+            spp = max(1, min(int(guess * seconds / trial.stats["seconds"]), LIMITS["spp"][1]))
+            start = time.perf_counter()
             total = render(scene, technique=name, spp=spp, seed=seed, resolution=resolution, device=device,
                            count_simd=False).image * spp
         while family(name) != "mlt" and time.perf_counter() - start < seconds:

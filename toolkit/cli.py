@@ -99,7 +99,8 @@ def build_parser():
     from .bench import DEFAULT
     p.add_argument("--techniques", default=",".join(DEFAULT), help=f"comma-separated, from: {names}")
     p.add_argument("--spp", type=_positive, default=16, help="samples per pixel for path tracers (BDPT: an eighth)")
-    p.add_argument("--resolution", type=_resolution, default=(128, 128))
+    p.add_argument("--resolution", type=_resolution, default=None,
+                   help="WxH (default 128x128; with --equal-time 32x32, which every bundled reference averages to)")
     p.add_argument("--repeats", type=_positive, default=3)
     p.add_argument("--equal-time", type=_number, metavar="SECONDS",
                    help="instead: render each technique for about SECONDS and compare RMSE against the reference")
@@ -213,13 +214,13 @@ def cmd_bench(args):
         from .compare import equal_time
         scene = args.scene or "scenes/cornell_spheres"
         report = equal_time(scene, _technique_list(args.techniques), args.equal_time,
-                            resolution=args.resolution, device=args.device)
+                            resolution=args.resolution or (32, 32), device=args.device)
         print(format_equal_time(report, args.equal_time))
         if args.json:
             print(json.dumps(report))
         return 0
     report = bench(args.scene, tuple(_technique_list(args.techniques)), spp=args.spp,
-                   resolution=args.resolution, repeats=args.repeats, device=args.device)
+                   resolution=args.resolution or (128, 128), repeats=args.repeats, device=args.device)
     print(format_bench(report))
     if args.json:
         print(json.dumps(report))
