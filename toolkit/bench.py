@@ -69,7 +69,14 @@ def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=N
             guess = max(1, min(int(seconds / 4 / (probe.stats["seconds"] / 8)), LIMITS["spp"][1]))
             trial = render(scene, technique=name, spp=guess, seed=seed + 997, resolution=resolution, device=device,
                            count_simd=False)
-            spp = max(1, min(int(guess * seconds / trial.stats["seconds"]), LIMITS["spp"][1]))
+            # time = start + per_spp * spp, fitted through the probe and the trial (the start is a fixed cost)
+            per_spp = (trial.stats["seconds"] - probe.stats["seconds"]) / max(guess - 8, 1)
+            if per_spp > 0:
+                fixed = max(0.0, probe.stats["seconds"] - 8 * per_spp)
+                spp = int((seconds - fixed) / per_spp)
+            else:
+                spp = int(guess * seconds / trial.stats["seconds"])
+            spp = max(1, min(spp, LIMITS["spp"][1]))
             start = time.perf_counter()
             total = render(scene, technique=name, spp=spp, seed=seed, resolution=resolution, device=device,
                            count_simd=False).image * spp
