@@ -56,7 +56,7 @@ __kernel void bdpt_parallel_connect(SCENE_PARAMS, const Camera cam, const int to
     int steps = 0;
     Connection c = connect_strategy(&s, &cam, eye_vertices + vertex_index(slot, 0),
                                     light_vertices + vertex_index(slot, 0), s_len, t_len,
-                                    sample_pixel(&cam, sample.sample_id), &steps);
+                                    sample.pixel, &steps);
     record_value[gid] = (float4)(c.value, c.weight);
     record_pixel[gid] = c.pixel;
 #if COUNT_SIMD

@@ -41,14 +41,39 @@ inline void store_vertex(__global BdptVertex* memory, int index, const BdptVerte
 #endif
 }
 
-/* The sampler of sample `id` of the pass (see the dimension table in rng.h). */
-inline Sampler bdpt_sampler(const Camera* cam, const BdptPass* pass, int id) {
+/* The sampler of sample `id` of the pass (see the dimension table in rng.h). Under MLT the
+ * sample is chain `id`'s proposal and pass.sample_base the iteration (toolkit/techniques/mlt.py). */
+#if MLT
+inline BdptSampler bdpt_sampler_mlt(const BdptPass* pass, int id, __global const float* primary) {
+    BdptSampler s = {sampler_init(pass->seed ^ MLT_OVERFLOW_KEY, (uint)id, (uint)pass->sample_base), primary,
+                     (uint)pass->chains, (uint)id};
+    return s;
+}
+#define bdpt_sampler(cam, pass, id) bdpt_sampler_mlt(pass, id, mlt_primary)
+#else
+inline BdptSampler bdpt_sampler(const Camera* cam, const BdptPass* pass, int id) {
     return sampler_init(pass->seed, (uint)sample_pixel(cam, id), (uint)sample_number(cam, id, pass->sample_base));
+}
+#endif
+
+/* The pixel of sample `id` and the camera sample (*u, *v) inside it. BDPT: the pass assigns
+ * the pixel (camera.h). MLT: the pixel is part of the primary sample, (*u, *v) in [0, 1)^2
+ * cover the whole image and are turned into a pixel and a position inside it. */
+inline int bdpt_pixel(const Camera* cam, int id, float* u, float* v) {
+#if MLT
+    float x = *u * (float)cam->width, y = *v * (float)cam->height;
+    int px = min((int)x, cam->width - 1), py = min((int)y, cam->height - 1);
+    *u = fmin(x - (float)px, 0.99999994f);
+    *v = fmin(y - (float)py, 0.99999994f);
+    return py * cam->width + px;
+#else
+    return sample_pixel(cam, id);
+#endif
 }
 
 /* Extend a subpath by one vertex: intersect, store the vertex, sample the BSDF, roulette.
  * Sets *store_at to where the new vertex goes. Returns false when the subpath has ended. */
-inline bool subpath_extend(const SceneView* s, Subpath* p, Sampler* rng, bool light_path,
+inline bool subpath_extend(const SceneView* s, Subpath* p, BdptSampler* rng, bool light_path,
                            BdptVertex* v, int* store_at, int* steps) {
     float3 d = p->dir.xyz;
     Hit h = trace_closest(s, p->origin.xyz, d, 0.0f, INFINITY, steps);
@@ -125,11 +150,13 @@ inline bool subpath_extend(const SceneView* s, Subpath* p, Sampler* rng, bool li
  * its vertex count, and the sample whose second subpath this was counts as terminated.
  * `in` and `out` are Subpath structures of arrays of pass.capacity records (layout.h). */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
-void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass, const int light_path, const int length,
+void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass, const BdptStep step,
                  __global void* in, __global void* out, volatile __global int* counters,
-                 __global BdptVertex* vertices, volatile __global BdptSlot* slots, __global LaneCounts* lane_counts)
+                 __global BdptVertex* vertices, volatile __global BdptSlot* slots, __global LaneCounts* lane_counts
+                 BDPT_SAMPLER_PARAM)
 {
     int gid = get_global_id(0);
+    const int light_path = step.light_path, length = step.length;
     __local int scratch[COMPACT_SCRATCH_INTS];
     __local uint stage[LOCAL_SIZE * VERTEX_WORDS];
     __local int dest[LOCAL_SIZE];
@@ -141,7 +168,7 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass, const int 
     if (gid < length) {
         SceneView s = SCENE_INIT;
         p = subpath_load(subpath_soa(in, pass.capacity), gid);
-        Sampler rng = bdpt_sampler(&cam, &pass, slots[p.slot].sample_id);
+        BdptSampler rng = bdpt_sampler(&cam, &pass, slots[p.slot].sample_id);
         alive = subpath_extend(&s, &p, &rng, light_path != 0, &v, &store_at, &steps);
         if (!alive) {
             if (light_path) slots[p.slot].light_vertices = p.vertices;
@@ -167,7 +194,7 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass, const int 
 __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pass, const BdptRegeneration r,
                               __global const int* slot_list, __global void* eye_stream, __global void* light_stream,
                               __global BdptVertex* eye_vertices, __global BdptVertex* light_vertices,
-                              __global BdptSlot* slots)
+                              __global BdptSlot* slots BDPT_SAMPLER_PARAM)
 {
     int gid = get_global_id(0);
     if (gid >= r.count) return;
@@ -175,12 +202,13 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pas
     if (gid >= r.fresh) { slots[slot].live = SLOT_IDLE; return; }
     SceneView s = SCENE_INIT;
     int id = r.first_id + gid;
-    Sampler rng = bdpt_sampler(&cam, &pass, id);
+    BdptSampler rng = bdpt_sampler(&cam, &pass, id);
     float3 eye_pos = cam.origin.xyz, forward = cam.forward.xyz;
 
     /* Eye subpath: z_0 is the pinhole; the first direction is the camera sample (camera.h). */
-    float3 w = camera_sample(&cam, sample_pixel(&cam, id), bdpt_sample(&rng, BDPT_DIM_PIXEL),
-                             bdpt_sample(&rng, BDPT_DIM_PIXEL + 1));
+    float u = bdpt_sample(&rng, BDPT_DIM_PIXEL), v = bdpt_sample(&rng, BDPT_DIM_PIXEL + 1);
+    int pixel = bdpt_pixel(&cam, id, &u, &v);
+    float3 w = camera_sample(&cam, pixel, u, v);
     BdptVertex z0 = {.pos = (float4)(eye_pos, 0.0f), .normal = (float4)(forward, 0.0f), .wo = (float4)(0.0f),
                      .beta = (float4)(1.0f, 1.0f, 1.0f, 0.0f), .material = -1, .flags = VERTEX_CAMERA,
                      .light = -1, .pdf_fwd = 1.0f, .pdf_rev = 0.0f};
@@ -210,7 +238,8 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pas
                  .prev_normal = (float4)(ls.n, 0.0f), .slot = slot, .vertices = 1, .prev_flags = VERTEX_LIGHT};
     subpath_store(subpath_soa(light_stream, pass.capacity), r.light_base + gid, &l);
 
-    BdptSlot started = {.live = SLOT_BOTH_WALKING, .sample_id = id, .eye_vertices = 1, .light_vertices = 1};
+    BdptSlot started = {.live = SLOT_BOTH_WALKING, .sample_id = id, .eye_vertices = 1, .light_vertices = 1,
+                        .pixel = pixel};
     slots[slot] = started;
 }
 

@@ -65,6 +65,33 @@ inline uint bounce_dim(int bounce, uint offset) { return 4u + (uint)bounce * DIM
 inline uint bdpt_scatter_dim(int vertex, bool light_path, uint offset) {
     return 8u + 8u * (uint)(vertex - 1) + (light_path ? 4u : 0u) + offset;
 }
-inline float bdpt_sample(Sampler* s, uint dim) { return sampler_get(s, dim); }
+
+/* The one hook through which the BDPT code (cl/bdpt_walk.h) reads its uniforms: a BdptSampler.
+ * Built for bidirectional path tracing it is the Philox sampler above. Built with -DMLT=1
+ * (toolkit/techniques/mlt.py) it answers dimension `dim` < MLT_MAX_DIMS from the chain's stored,
+ * mutated primary-sample vector (cl/mlt.h; dimension-major: primary[dim * chains + chain]).
+ * A path that reads more dimensions gets fresh Philox numbers for the extra ones, keyed by
+ * (chain, iteration) under a key of their own: those dimensions are drawn afresh at every
+ * iteration, an independent proposal, which is symmetric too, so the chain stays correct; it
+ * only explores such long paths like a large step would (see cl/mlt.h). */
+#if MLT
+#define MLT_OVERFLOW_KEY 0x4d4c5431u
+typedef struct {
+    Sampler overflow;                /* dimensions >= MLT_MAX_DIMS */
+    __global const float* primary;   /* the chain's vector: primary[dim * chains + chain] */
+    uint chains, chain;
+} BdptSampler;
+inline float bdpt_sample(BdptSampler* s, uint dim) {
+    return dim < MLT_MAX_DIMS ? s->primary[dim * s->chains + s->chain] : sampler_get(&s->overflow, dim);
+}
+/* The extra kernel parameter (and argument) that carries the vectors to the BDPT kernels. */
+#define BDPT_SAMPLER_PARAM , __global const float* mlt_primary
+#define BDPT_SAMPLER_ARG , mlt_primary
+#else
+typedef Sampler BdptSampler;
+inline float bdpt_sample(BdptSampler* s, uint dim) { return sampler_get(s, dim); }
+#define BDPT_SAMPLER_PARAM
+#define BDPT_SAMPLER_ARG
+#endif
 
 #endif

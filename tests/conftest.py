@@ -39,6 +39,17 @@ def spp_for(technique, spp):
     return max(1, spp // 8) if get_technique(technique)[0].family == "bdpt" else spp
 
 
+def film_error_techniques():
+    """The techniques whose film carries its own standard error (independent samples or passes),
+    for the generic technique x scene tests. mlt is left out of those: its samples are correlated
+    along each chain, its film has no error of its own, a chain's accept/reject decisions flip
+    with float rounding (so two OpenCL implementations give different, equally right images),
+    and few mutations per chain carry startup bias. tests/test_mlt.py checks it over
+    independent runs (seeds) instead."""
+    from toolkit.techniques import TECHNIQUES
+    return sorted(name for name, cls in TECHNIQUES.items() if cls.family != "mlt")
+
+
 def scene_dirs():
     return sorted(p for p in SCENES.iterdir() if (p / "scene.json").is_file())
 

@@ -21,7 +21,8 @@ import numpy as np
 import pytest
 
 import toolkit
-from toolkit.techniques import TECHNIQUES
+
+from conftest import film_error_techniques
 from toolkit.validate import LIMITS, limit_text
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -205,7 +206,7 @@ def test_every_setting_means_the_same(cornell_box, max_depth, rr_depth):
     sqrt(sum of pixel variances) / pixels; 5 sigma keeps false alarms below 1e-5 per comparison)."""
     scene = replace(cornell_box, max_depth=max_depth, rr_depth=rr_depth)
     figures = {}
-    for technique in TECHNIQUES:
+    for technique in film_error_techniques():
         spp = 8 if technique.startswith("bdpt") else 64
         r = toolkit.render(scene, technique=technique, spp=spp, seed=5, resolution=(8, 8), count_simd=False)
         assert r.stats["nonfinite_samples"] == 0
@@ -238,7 +239,8 @@ def test_scenes_at_the_scale_limits_render_like_the_box(cornell_box, technique):
 
 # -- the limits: one table (toolkit/validate.py), stated in scenes/FORMAT.md ---------------------
 
-SCENE_LIMITS = [n for n in LIMITS if n.split(".")[0] in ("camera", "material", "shape", "integrator", "scene", "mesh")]
+SCENE_LIMITS = [n for n in LIMITS if n.split(".")[0] in ("camera", "material", "shape", "integrator", "scene", "mesh",
+                                                         "mlt")]   # and the technique options FORMAT.md states
 
 
 def test_format_md_states_every_limit_the_loader_enforces():

@@ -17,15 +17,14 @@ import pytest
 
 import toolkit
 from toolkit.device import candidates
-from toolkit.techniques import TECHNIQUES
 
-from conftest import SCENES
+from conftest import SCENES, film_error_techniques
 
 IMPLEMENTATIONS = [c for c in candidates() if c.usable and "Oclgrind" not in c.platform.name]
 
 
 @pytest.mark.parametrize("scene", ["cornell_box", "cornell_spheres"])
-@pytest.mark.parametrize("technique", sorted(TECHNIQUES))
+@pytest.mark.parametrize("technique", film_error_techniques())
 def test_every_implementation_renders_the_same_image(technique, scene):
     if len(IMPLEMENTATIONS) < 2:
         pytest.skip("only one OpenCL implementation is usable here")

@@ -27,8 +27,9 @@ def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats
     device_name = None
     for r in range(repeats):
         for name in techniques:
-            # Bidirectional samples cost ~10x more: an eighth of the budget keeps the runs comparable in length.
-            n = max(1, spp // 8) if family(name) == "bdpt" else spp
+            # Bidirectional samples (and Metropolis mutations, each one) cost ~10x more: an eighth of
+            # the budget keeps the runs comparable in length.
+            n = max(1, spp // 8) if family(name) in ("bdpt", "mlt") else spp
             result = render(scene, technique=name, spp=n, seed=seed + r, resolution=resolution,
                             device=device, count_simd=False, bvh=bvh)
             rates[name].append(result.stats["samples_per_second"])
@@ -63,7 +64,25 @@ def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=N
         chunk = max(1, min(int(seconds / 10 / (probe.stats["seconds"] / 8)), LIMITS["spp"][1]))
         total, spp, k = np.zeros((height, width, 3)), 0, 0
         start = time.perf_counter()
-        while time.perf_counter() - start < seconds:
+        if family(name) == "mlt":
+            # One render for the whole time: independent chunks would restart every chain (and
+            # pay its startup bias) ten times. A first render at a quarter of the time, sized from
+            # the probe (whose start dominates it), gives the rate; the second, the counted one, fills the time.
+            guess = max(1, min(int(seconds / 4 / (probe.stats["seconds"] / 8)), LIMITS["spp"][1]))
+            trial = render(scene, technique=name, spp=guess, seed=seed + 997, resolution=resolution, device=device,
+                           count_simd=False)
+            # time = start + per_spp * spp, fitted through the probe and the trial (the start is a fixed cost)
+            per_spp = (trial.stats["seconds"] - probe.stats["seconds"]) / max(guess - 8, 1)
+            if per_spp > 0:
+                fixed = max(0.0, probe.stats["seconds"] - 8 * per_spp)
+                spp = int((seconds - fixed) / per_spp)
+            else:
+                spp = int(guess * seconds / trial.stats["seconds"])
+            spp = max(1, min(spp, LIMITS["spp"][1]))
+            start = time.perf_counter()
+            total = render(scene, technique=name, spp=spp, seed=seed, resolution=resolution, device=device,
+                           count_simd=False).image * spp
+        while family(name) != "mlt" and time.perf_counter() - start < seconds:
             result = render(scene, technique=name, spp=chunk, seed=seed + k, resolution=resolution,
                             device=device, count_simd=False, bvh=bvh)
             total += result.image * chunk
@@ -85,7 +104,7 @@ def hard_pixels(ref, ref_err, fraction=0.1):
 
 
 def family(name):
-    """"pt" or "bdpt": the family of a technique or variant name (Technique.family)."""
+    """"pt", "bdpt" or "mlt": the family of a technique or variant name (Technique.family)."""
     return get_technique(name)[0].family
 
 
@@ -100,6 +119,13 @@ def format_equal_time(report, seconds):
         bd = [r[key] for n, r in report.items() if family(n) == "bdpt"]
         if pt and bd:
             lines.append(f"  best BDPT / best PT RMSE, {label}: {min(bd) / min(pt):.2f}")
+    for name, row in report.items():
+        if family(name) == "mlt":
+            for other in ("pt", "bdpt"):
+                rows = [r["rmse"] for n, r in report.items() if family(n) == other]
+                if rows:
+                    lines.append(f"  {name} / best {other.upper()} RMSE, whole image: {row['rmse'] / min(rows):.2f}"
+                                 f" ({'MLT wins' if row['rmse'] < min(rows) else 'MLT loses'})")
     pt = {n: r for n, r in report.items() if family(n) == "pt"}
     bd = {n: r for n, r in report.items() if family(n) == "bdpt"}
     if pt and bd:

@@ -109,7 +109,9 @@ def build_parser():
     p.add_argument("--techniques", help=f"comma-separated, from: {names} (default {','.join(DEFAULT)}; "
                                         f"with --peer mitsuba: {','.join(PEER_DEFAULT)})")
     p.add_argument("--spp", type=_positive, default=16, help="samples per pixel for path tracers (BDPT: an eighth)")
-    p.add_argument("--resolution", type=_resolution, help="WxH (default 128x128; with --peer: the scene's own)")
+    p.add_argument("--resolution", type=_resolution, default=None,
+                   help="WxH (default 128x128; with --equal-time 32x32, which every bundled reference averages to; "
+                        "with --peer: the scene's own)")
     p.add_argument("--repeats", type=_positive, default=3)
     p.add_argument("--peer", choices=["embree", "mitsuba"],
                    help="instead: embree: closest-hit rays/s of our BVHs against embreex on the same rays; "
@@ -230,7 +232,7 @@ def cmd_bench(args):
         from .compare import equal_time
         scene = args.scene or "scenes/cornell_spheres"
         report = equal_time(scene, _technique_list(args.techniques or ",".join(DEFAULT)), args.equal_time,
-                            resolution=args.resolution or (128, 128), device=args.device, bvh=args.bvh)
+                            resolution=args.resolution or (32, 32), device=args.device, bvh=args.bvh)
         print(format_equal_time(report, args.equal_time))
         if args.json:
             print(json.dumps(report))

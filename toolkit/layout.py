@@ -236,6 +236,7 @@ BDPT_SLOT = Record("BdptSlot", [
     ("sample_id", "int"),       # the sample in this slot: its id in the pass
     ("eye_vertices", "int"),    # vertices stored for its eye subpath
     ("light_vertices", "int"),  # vertices stored for its light subpath
+    ("pixel", "int"),           # the sample's own pixel, where its eye strategies (t >= 2) land
 ], "One slot of the BDPT sample pool (one per sample in flight).")
 
 BDPT_PASS = Record("BdptPass", [
@@ -243,7 +244,13 @@ BDPT_PASS = Record("BdptPass", [
     ("sample_base", "int"),     # samples per pixel of the passes before this one
     ("pool", "int"),            # samples in flight: slots of the pool
     ("capacity", "int"),        # records each subpath stream holds (pool rounded up, a multiple of 4)
+    ("chains", "int"),          # mlt only: the stride of the stored primary-sample vectors (cl/mlt.h); else 0
 ], "What every BDPT kernel of one pass shares.")
+
+BDPT_STEP = Record("BdptStep", [
+    ("light_path", "int"),      # 1: this launch extends the light stream, 0: the eye stream
+    ("length", "int"),          # subpaths in the stream
+], "One random-walk step over one stream (bdpt_extend).")
 
 BDPT_REGENERATION = Record("BdptRegeneration", [
     ("count", "int"),           # terminated slots listed for regeneration
@@ -253,8 +260,30 @@ BDPT_REGENERATION = Record("BdptRegeneration", [
     ("light_base", "int"),      # where the new light subpaths go in the light stream
 ], "One regeneration step of the BDPT pool.")
 
-RECORDS = [BVH_NODE, WIDE_NODE, TRI_GROUP, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY, BDPT_VERTEX, SUBPATH,
-           LANE_COUNTS, BDPT_SLOT, BDPT_PASS, BDPT_REGENERATION]
+MLT_CHAIN = Record("MltChain", [
+    ("f_current", "float"),     # scalar contribution (luminance of all strategies) of the current state
+    ("dims_current", "int"),    # primary-sample dimensions the current state used (a prefix: cl/mlt.h)
+    ("large_step", "int"),      # 1: this iteration's proposal was a large step (every dimension fresh)
+    ("accepted", "int"),        # 1: this iteration's proposal became the current state
+    ("acceptance", "float"),    # a = min(1, f(proposal) / f(current)): the proposal's splat weight
+    ("candidates", "float"),    # start = resample: sum of f over the candidates seen so far
+    ("pad0", "int"),
+    ("pad1", "int"),
+], "One Metropolis chain (cl/mlt.h); its primary-sample vector is stored apart, dimension-major.")
+
+MLT_ITERATION = Record("MltIteration", [
+    ("seed", "uint"),
+    ("iteration", "int"),       # keys the mutation's random numbers (start candidates count too)
+    ("chains", "int"),          # chains in all: the stride of the primary-sample vectors
+    ("active", "int"),          # chains that mutate in this iteration (the first `active`)
+    ("large_step", "float"),    # probability of a large step
+    ("mode", "int"),            # MltMode: what the accept kernel does with the proposal
+    ("pad0", "int"),
+    ("pad1", "int"),
+], "What the mutate and accept kernels of one Metropolis iteration share.")
+
+RECORDS = [BVH_NODE, WIDE_NODE, TRI_GROUP, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY, BDPT_VERTEX,
+           SUBPATH, LANE_COUNTS, BDPT_SLOT, BDPT_PASS, BDPT_STEP, BDPT_REGENERATION, MLT_CHAIN, MLT_ITERATION]
 
 
 SOA_RECORDS = [PATH_STATE, SHADOW_RAY, SUBPATH]
@@ -307,8 +336,15 @@ class WideChild(IntEnum):
     EMPTY = -(1 << 30)
 
 
-NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"), (WalkCounter, ""),
-                (StreamCounter, "STREAM_")]
+class MltMode(IntEnum):
+    """MltIteration.mode: how mlt_mutate proposes and mlt_accept decides (cl/mlt.h)."""
+    MUTATE = 0          # the Metropolis step: large step with probability large_step, else a small step
+    START = 1           # start = naive: one large step, always accepted
+    CANDIDATE = 2       # start = resample: a large step, kept with probability f / (sum of f so far)
+
+
+NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"),
+                (WalkCounter, ""), (StreamCounter, "STREAM_"), (MltMode, "MLT_")]
 
 # ---- single constants --------------------------------------------------------------------
 

@@ -45,6 +45,11 @@ LIMITS = {
     "bench.equal_time": (0.01, 86400.0, "seconds per technique"),
     "bench.repeats": (1, 1000, "interleaved repetitions"),
     "crosscheck.rays": (1, 1 << 26, "random rays"),
+    # Technique options (toolkit/techniques/mlt.py), stated in FORMAT.md's second table.
+    "mlt.chains": (1, 1 << 18, "independent Metropolis chains; each stores two vectors of max_dims floats"),
+    "mlt.large_step": (1e-3, 1.0, "probability of a large step; b comes from the large steps"),
+    "mlt.candidates": (1, 1024, "large steps per chain for start = resample"),
+    "mlt.max_dims": (8, 512, "stored primary-sample dimensions per chain (8 + 8 per vertex: 512 holds 64 vertices)"),
 }
 
 

@@ -1,20 +1,22 @@
 """The registry of techniques: name -> class. Each has a host module and a cl/ file of the same name."""
 from .bdpt_naive_connect import BdptNaiveConnect
 from .bdpt_parallel_connect import BdptParallelConnect
+from .mlt import Mlt
 from .pt_compact_regen import PtCompactRegen
 from .pt_inplace_regen import PtInplaceRegen
 from .pt_naive import PtNaive
 
 __all__ = ["TECHNIQUES", "VARIANTS", "get_technique", "PtNaive", "PtInplaceRegen", "PtCompactRegen",
-           "BdptNaiveConnect", "BdptParallelConnect"]
+           "BdptNaiveConnect", "BdptParallelConnect", "Mlt"]
 
 TECHNIQUES = {cls.name: cls for cls in (PtNaive, PtInplaceRegen, PtCompactRegen,
-                                        BdptNaiveConnect, BdptParallelConnect)}
+                                        BdptNaiveConnect, BdptParallelConnect, Mlt)}
 
 
 # Variants: the same technique with an option set, for side-by-side measurements.
 VARIANTS = {"pt_compact_regen/multipass": ("pt_compact_regen", {"compaction": "multipass"}),
-            "bdpt_parallel_connect/direct_scatter": ("bdpt_parallel_connect", {"coalesced_scatter": False})}
+            "bdpt_parallel_connect/direct_scatter": ("bdpt_parallel_connect", {"coalesced_scatter": False}),
+            "mlt/resample": ("mlt", {"start": "resample"})}
 
 
 def get_technique(name):

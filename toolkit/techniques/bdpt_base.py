@@ -18,7 +18,7 @@ import pyopencl as cl
 
 from .. import program
 from ..compaction import Compactor
-from ..layout import BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_VERTEX, SUBPATH, SlotState, WalkCounter
+from ..layout import BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, SUBPATH, SlotState, WalkCounter
 from ..simd import PhaseCounter
 from .base import Technique
 
@@ -89,7 +89,13 @@ class BdptTechnique(Technique):
         self.uncompacted = PhaseCounter(self.warp_width)   # the walk as it would be without compaction
 
     def run_pass(self, film, camera, seed, sample_base, spp):
-        p = self.start_pass(camera, seed, sample_base, spp)
+        p = self.start_pass(camera, seed, sample_base, int(camera["width"] * camera["height"]) * spp)
+        self.evaluate(p)
+        film.add_pass(p.image.reshape(int(camera["height"]), int(camera["width"]), 3) / spp, spp,
+                      nonfinite=self.pass_nonfinite)
+
+    def evaluate(self, p):
+        """Every sample of the pass's budget, through the pool (mlt runs this once per iteration)."""
         self.regenerate(p, p.pool.all_slots, p.pool.size)        # every slot starts a sample
         while p.in_flight > 0:
             terminated = self.walk(p)                             # one vertex more on every subpath
@@ -97,17 +103,16 @@ class BdptTechnique(Technique):
                 slots, count = self.terminated_slots(p)           # postponed regeneration:
                 p.image += self.connect(p, count)                 #   connect the terminated samples,
                 self.regenerate(p, slots, count)                  #   then start new ones in their slots
-        film.add_pass(p.image.reshape(int(camera["height"]), int(camera["width"]), 3) / spp, spp,
-                      nonfinite=self.pass_nonfinite)
 
     # --- the stages of a pass, one kernel each ---------------------------------------------
 
-    def start_pass(self, camera, seed, sample_base, spp):
-        """The pass's state; every slot of the pool starts terminated (nothing in flight)."""
-        budget = int(camera["width"] * camera["height"]) * spp
+    def start_pass(self, camera, seed, sample_base, budget, chains=0):
+        """The pass's state for `budget` samples; every slot of the pool starts terminated
+        (nothing in flight). `chains`: mlt's stride of the primary-sample vectors (BdptPass)."""
         pool = self.sample_pool(min(self.pool_size, budget))
         args = BDPT_PASS.zeros(1)[0]
         args["seed"], args["sample_base"], args["pool"], args["capacity"] = seed, sample_base, pool.size, pool.capacity
+        args["chains"] = chains
         cl.enqueue_fill_buffer(self.queue, pool.counters, np.int32(0), 0, 4 * len(WalkCounter))
         pool.eye.length = pool.light.length = 0
         self.pass_nonfinite = 0
@@ -115,6 +120,10 @@ class BdptTechnique(Technique):
                       image=np.zeros((int(camera["width"] * camera["height"]), 3)))
         self.last_pass = p   # kept for inspection (tests, notebooks): the vertex memory of the last samples
         return p
+
+    def sampler_args(self):
+        """Extra arguments of the kernels that draw random numbers (BDPT_SAMPLER_PARAM, cl/rng.h): none."""
+        return ()
 
     def sample_pool(self, size):
         """The streams, the vertex memory (tens of MB) and the per-slot arrays, made once per pool size."""
@@ -142,7 +151,7 @@ class BdptTechnique(Technique):
             r["eye_base"], r["light_base"] = p.pool.eye.length, p.pool.light.length
             program.launch(self.queue, self.kernel("bdpt_regenerate"), count, *self.scene.args(), p.camera,
                            p.args, r, slots, p.pool.eye.current, p.pool.light.current, p.pool.eye.vertices,
-                           p.pool.light.vertices, p.pool.slots)
+                           p.pool.light.vertices, p.pool.slots, *self.sampler_args())
         cl.enqueue_fill_buffer(self.queue, p.pool.counters, np.int32(0), 4 * WalkCounter.TERMINATED_SAMPLES, 4)
         p.pool.eye.length += fresh
         p.pool.light.length += fresh
@@ -165,9 +174,11 @@ class BdptTechnique(Technique):
 
     def extend(self, p, stream):
         """bdpt_extend: one vertex more on every subpath of `stream`, survivors into its spare."""
+        step = BDPT_STEP.zeros(1)[0]
+        step["light_path"], step["length"] = stream.is_light, stream.length
         program.launch(self.queue, self.kernel("bdpt_extend"), stream.length, *self.scene.args(), p.camera,
-                       p.args, np.int32(stream.is_light), np.int32(stream.length), stream.current, stream.spare,
-                       p.pool.counters, stream.vertices, p.pool.slots, p.pool.lane_counts)
+                       p.args, step, stream.current, stream.spare, p.pool.counters, stream.vertices,
+                       p.pool.slots, p.pool.lane_counts, *self.sampler_args())
         self.count_walk_step(p, stream)
 
     def terminated_slots(self, p):

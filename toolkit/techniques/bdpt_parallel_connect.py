@@ -15,15 +15,22 @@ class BdptParallelConnect(BdptTechnique):
 
     def connect(self, p, count):
         npix = int(p.camera["width"] * p.camera["height"])
+        records = self.connection_records(p, count)
+        return np.zeros((npix, 3)) if records is None else self.reduce_records(*records[:2], npix)
+
+    def connection_records(self, p, count):
+        """Evaluate every connection of the terminated samples: (values (n, 4) float32, pixels (n,),
+        the device buffer of connection counts per pool slot), or None when there is none.
+        The records of one slot are consecutive, in slot order."""
         pool = p.pool.size
         if count == 0:
-            return np.zeros((npix, 3))
+            return None
         counts = self.reused(("counts", pool), lambda: self.int_buffer(pool))
         program.launch(self.queue, self.kernel("bdpt_parallel_connect_count"), pool, np.int32(pool),
                        p.pool.slots, counts)
         firsts, total = self.compactor.exclusive_scan(counts, pool)
         if total == 0:
-            return np.zeros((npix, 3))
+            return None
         # Record buffers grow by powers of two and are reused by the next connect phases.
         capacity = 1 << max(12, (total - 1).bit_length())
         values, pixels, lanes = self.reused(("records", capacity), lambda: (
@@ -34,4 +41,4 @@ class BdptParallelConnect(BdptTechnique):
                        p.pool.light.vertices, values, pixels, lanes)
         if self.count_simd:
             self.simd.add_stream_step("connect", total)
-        return self.reduce_records(*self.read_records(values, pixels, total), npix)
+        return (*self.read_records(values, pixels, total), counts)

@@ -1,0 +1,121 @@
+/* Primary-sample-space Metropolis (Kelemen, Szirmay-Kalos, Antal, Csonka 2002, "A Simple and
+ * Robust Mutation Strategy for the Metropolis Light Transport Algorithm"), as the talk's slide
+ * "Metropolis Light Transport" runs it: many independent chains, one work-item per chain.
+ *
+ * A chain's state is a vector of uniforms u in [0, 1)^MLT_MAX_DIMS (the dimensions of rng.h's
+ * table), stored dimension-major: primary[dim * chains + chain], so the work-items of a warp
+ * touch consecutive words. Only the first `dims` of them were used by the state's path (its
+ * prefix, from the vertex counts: toolkit/techniques/mlt.py); the rest are unused, uniform noise.
+ *
+ * One iteration: mlt_mutate writes every chain's proposal, the BDPT kernels evaluate it
+ * (cl/rng.h answers their uniforms from the proposal), the host sums each proposal's
+ * contribution f (luminance of all its strategies), mlt_accept keeps or rejects it.
+ *
+ * The mutation (Kelemen sec. 4, the talk's variation "only mutate sample dimensions used in
+ * both current and mutated sample"):
+ *   large step (probability large_step): every dimension drawn afresh, a BDPT sample;
+ *   small step: a dimension the current state used is perturbed by Kelemen's exponential
+ *     kernel, u' = u +- s2 exp(-log(s2 / s1) v) wrapped to [0, 1) (s1 = 1/1024, s2 = 1/64);
+ *     a dimension it did not use is drawn afresh. Of the proposal's dimensions, the ones it
+ *     uses and the current state used are thus perturbed, the others fresh.
+ * Why the proposal is symmetric, T(x -> y) = T(y -> x), as Metropolis-Hastings with
+ * a = min(1, f(y) / f(x)) needs: a state is the values of the dimensions it uses (f depends on
+ * nothing else). The density of proposing y's used values from x is the product, over the
+ * dimensions both use, of the perturbation density k(x_d, y_d), times 1 (uniform) for the
+ * dimensions only y uses; the dimensions only x uses do not appear (y ignores them). From y
+ * back to x the same dimensions are perturbed (both use them) with k(y_d, x_d) = k(x_d, y_d)
+ * (the kernel depends on |y_d - x_d| around the circle only), and x's extra dimensions come
+ * fresh with density 1. Same product both ways. A large step is an independent uniform
+ * proposal, symmetric as well; the mixture of the two is symmetric. Dimensions past
+ * MLT_MAX_DIMS are fresh at every iteration (cl/rng.h): the same "fresh, density 1" case.
+ * The workload is even: every chain writes MLT_MAX_DIMS values per iteration, whatever its path.
+ *
+ * Random numbers of the mutation itself come from Philox, keyed by (chain, iteration) under
+ * MLT_MUTATION_KEY: dimension 0 chooses the step, 1 decides the acceptance, 2 + d mutates
+ * dimension d. Host: toolkit/techniques/mlt.py; test kernel: cl/mlt_test.cl. */
+#ifndef MLT_H
+#define MLT_H
+
+#include "common.h"
+#include "rng.h"
+
+#ifndef MLT_MAX_DIMS
+#define MLT_MAX_DIMS 128   /* set by the host: 8 + 8 * 15, subpaths of up to 16 vertices */
+#endif
+#define MLT_MUTATION_KEY 0x6d757461u
+#define MLT_S1 (1.0f / 1024.0f)
+#define MLT_S2 (1.0f / 64.0f)
+
+inline Sampler mlt_mutation_sampler(const MltIteration* it, int chain) {
+    return sampler_init(it->seed ^ MLT_MUTATION_KEY, (uint)chain, (uint)it->iteration);
+}
+
+/* Kelemen's small step of one uniform u, driven by one uniform r: the sign from r < 1/2, the
+ * size s2 exp(-log(s2 / s1) v) with v uniform in [0, 1) (sizes from 1/1024 to 1/64, denser
+ * towards the small ones), wrapped around [0, 1). Symmetric: +dv and -dv equally likely. */
+inline float mlt_perturb(float u, float r) {
+    bool up = r < 0.5f;
+    float v = up ? 2.0f * r : 2.0f * r - 1.0f;
+    float dv = MLT_S2 * exp(-log(MLT_S2 / MLT_S1) * v);
+    float x = up ? u + dv : u - dv;
+    x -= floor(x);
+    return x < 1.0f ? x : 0.0f;   /* -1e-9 wraps to 1 - 1e-9, which rounds to 1.0f: that is 0 */
+}
+
+/* Every chain of the first it.active writes its proposal (a large step in the START and
+ * CANDIDATE modes). chains[c].large_step records which step it was. */
+__kernel void mlt_mutate(const MltIteration it, __global const float* current, __global float* proposal,
+                         __global MltChain* chains)
+{
+    int c = get_global_id(0);
+    if (c >= it.active) return;
+    Sampler m = mlt_mutation_sampler(&it, c);
+    bool large = it.mode != MLT_MUTATE || sampler_get(&m, 0) < it.large_step;
+    int used = large ? 0 : chains[c].dims_current;
+    for (int d = 0; d < MLT_MAX_DIMS; ++d) {
+        float r = sampler_get(&m, 2u + (uint)d);
+        size_t i = (size_t)d * (size_t)it.chains + (size_t)c;
+        proposal[i] = d < used ? mlt_perturb(current[i], r) : r;
+    }
+    chains[c].large_step = large;
+}
+
+/* Metropolis-Hastings acceptance of the proposals whose contributions f (luminance over all
+ * strategies) and used dimensions the host has summed: a = min(1, f(y) / f(x)), and a = 1 from
+ * a state with f = 0 (the start may have one). START: always accepted. CANDIDATE (start =
+ * resample): weighted reservoir sampling, kept with probability f / (sum of f so far), so after
+ * N candidates the state is candidate i with probability f_i / sum f. The accepted vector is
+ * copied into the chain's current one; `acceptance` is what the host weights the splats with. */
+__kernel void mlt_accept(const MltIteration it, __global float* current, __global const float* proposal,
+                         __global MltChain* chains, __global const float* f_proposal,
+                         __global const int* dims_proposal)
+{
+    int c = get_global_id(0);
+    if (c >= it.active) return;
+    Sampler m = mlt_mutation_sampler(&it, c);
+    MltChain chain = chains[c];
+    float fy = f_proposal[c];
+    float a;
+    if (it.mode == MLT_START) {
+        a = 1.0f;
+    } else if (it.mode == MLT_CANDIDATE) {
+        chain.candidates += fy;
+        a = chain.candidates > 0.0f ? fy / chain.candidates : 1.0f;   /* all zero so far: any will do */
+    } else {
+        a = chain.f_current > 0.0f ? fmin(1.0f, fy / chain.f_current) : 1.0f;
+    }
+    bool accept = sampler_get(&m, 1) < a;
+    if (accept) {
+        for (int d = 0; d < MLT_MAX_DIMS; ++d) {
+            size_t i = (size_t)d * (size_t)it.chains + (size_t)c;
+            current[i] = proposal[i];
+        }
+        chain.f_current = fy;
+        chain.dims_current = dims_proposal[c];
+    }
+    chain.accepted = accept;
+    chain.acceptance = a;
+    chains[c] = chain;
+}
+
+#endif

@@ -1,0 +1,24 @@
+/* Test kernel: the Metropolis mutation and acceptance of cl/mlt.h on a known target in
+ * primary sample space instead of a light path (host: toolkit/mlt_toy.py, tests/test_mlt.py).
+ * The target uses a different number of dimensions in two regions, like paths of different
+ * lengths:
+ *     u0 <  1/2:  f = 1/2 + u0           uses dimension 0 only (u1 is not read)
+ *     u0 >= 1/2:  f = 2 u0 * 3 u1^2       uses dimensions 0 and 1
+ * Its integral is 3/8 + 3/4 = 9/8. The dimensions past MLT_MAX_DIMS are never read here. */
+#include "mlt.h"
+
+__kernel void mlt_test_target(const MltIteration it, __global const float* proposal, __global float* f,
+                              __global int* dims)
+{
+    int c = get_global_id(0);
+    if (c >= it.active) return;
+    float u0 = proposal[c];
+    if (u0 < 0.5f) {
+        f[c] = 0.5f + u0;
+        dims[c] = 1;
+    } else {
+        float u1 = proposal[(size_t)it.chains + (size_t)c];
+        f[c] = 6.0f * u0 * u1 * u1;
+        dims[c] = 2;
+    }
+}

@@ -1,0 +1,205 @@
+"""Metropolis light transport (toolkit/techniques/mlt.py, cl/mlt.h): the mutation on a known
+target, agreement with the references, the startup bias, SIMD efficiency, the dimension
+overflow, and the command line.
+
+MLT's samples are correlated along each chain, so no test takes a standard error from one
+render: every statistical check compares independent runs (seeds).
+"""
+import os
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import toolkit
+from toolkit import mlt_bias, mlt_toy
+from toolkit.api import DroppedSamplesWarning
+from toolkit.reference import reference_at, relative_mean_error, z_test
+from toolkit.stats import chi2_sf, pearson
+from toolkit.validate import InputError
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture(autouse=True)
+def dropped_samples_are_errors():
+    """A non-finite sample is a bug: in these tests it fails the test."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DroppedSamplesWarning)
+        yield
+
+
+def render(scene, spp, seed, res, **options):
+    return toolkit.render(scene, technique="mlt", spp=spp, seed=seed, resolution=(res, res), count_simd=False,
+                          options=options)
+
+
+# -- (a) the mutation and acceptance kernels on a known target -------------------------------------
+
+# Pearson's statistic of N independent samples over the pooled cells follows chi-square with
+# cells - 1 degrees of freedom when the samples have the target's distribution; we fail at
+# p < ALPHA. The samples are the final states of independent chains (one per chain: no
+# correlation). After a naive start, 150 iterations with large steps of probability 0.3 leave
+# a total-variation distance of at most (1 - 0.3 * (9/8) / 6)^150 ~ 2e-4 to the target (an
+# independence proposal accepted with probability >= f(y) / max f), whose effect on the
+# statistic (~N * 2e-4^2 per cell) is far below its spread (sqrt(2 * 63) ~ 11).
+ALPHA = 1e-3
+BINS = 8
+
+
+def chi2_p(states):
+    observed, _, _ = np.histogram2d(states[:, 0], states[:, 1], bins=BINS, range=[[0, 1], [0, 1]])
+    statistic, dof, *_ = pearson(observed, mlt_toy.bin_probabilities(BINS) * len(states))
+    return chi2_sf(statistic, dof)
+
+
+def test_chains_converge_to_the_target_which_changes_its_number_of_dimensions(queue):
+    states = mlt_toy.run_chains(queue, 16384, 150, seed=1, large_step=0.3)
+    assert chi2_p(states) > ALPHA
+    # The test has teeth: the start (a large step: uniform) is far from the target.
+    assert chi2_p(mlt_toy.run_chains(queue, 16384, 0, seed=1)) < 1e-12
+
+
+def test_small_steps_alone_keep_the_target_invariant(queue):
+    """Symmetry of the small step, across the change of dimension (u0 = 1/2) and the wrap
+    (u0 = 0 ~ 1), where f jumps: chains started exactly in the target and moved by small steps
+    only (large_step 0) must stay in it. An asymmetric proposal (e.g. perturbing u1 of a state
+    that does not use it, and not drawing it afresh) would drift."""
+    start = mlt_toy.sample_target(16384, seed=2)
+    assert chi2_p(start) > ALPHA
+    states, trace, rate = mlt_toy.run_chains(queue, 16384, 200, seed=3, large_step=0.0, initial=start,
+                                             history=True)
+    assert chi2_p(states) > ALPHA
+    steps = np.abs(np.diff(trace[:, 0]))
+    steps = np.minimum(steps, 1.0 - steps)            # around the circle
+    assert steps.max() <= 1.0 / 64 + 1e-6             # Kelemen's largest step s2
+    assert (steps > 0).mean() > 0.5 and rate > 0.5    # it moves, small steps are mostly accepted
+
+
+# -- (b) agreement with the references ------------------------------------------------------------
+
+# 11 seeds (the z-test wants >= 10 degrees of freedom), each an independent MLT render at 8x8
+# (every pixel a region of the reference: 32x32 reference pixels, 8x8 for covered_lamp).
+# start = resample removes the startup bias in expectation (measured: bias^2 below its noise).
+# The image mean's luminance equals the estimate of b, a mean over the large steps (plain
+# BDPT samples), so its error is BDPT's for that many samples: covered_lamp's per-sample
+# relative deviation is ~2.9 (measured), and 32 candidates x 1024 chains x 11 seeds = 360k
+# large steps give it a standard error of ~0.5%; the others' is ~0.2%.
+SEEDS = 11
+AGREEMENT = {"cornell_box": dict(spp=64, chains=1024, candidates=8),
+             "cornell_spheres": dict(spp=64, chains=1024, candidates=8),
+             "covered_lamp": dict(spp=64, chains=1024, candidates=32)}
+
+
+@pytest.mark.parametrize("scene_name", sorted(AGREEMENT))
+def test_mlt_agrees_with_the_reference_over_independent_runs(scene_name):
+    scene = toolkit.load_scene(ROOT / "scenes" / scene_name)
+    settings = dict(AGREEMENT[scene_name])
+    spp = settings.pop("spp")
+    images = np.array([render(scene, spp, seed, 8, start="resample", **settings).image for seed in range(SEEDS)])
+    ref, ref_err = reference_at(scene, 8, 8)
+    mean, stderr = images.mean(0), images.std(0, ddof=1) / np.sqrt(SEEDS)
+    rel = relative_mean_error(mean, ref)
+    mean_se = images.reshape(SEEDS, -1, 3).mean(1).std(0, ddof=1) / np.sqrt(SEEDS) / ref.reshape(-1, 3).mean(0)
+    test = z_test(mean, stderr, ref, ref_err, alpha=0.01, dof=SEEDS - 1)
+    print(f"mlt {scene_name}: {test}; mean rel error {np.round(rel, 4)} (its standard error {np.round(mean_se, 4)})")
+    assert np.all(rel < 0.01), f"mean off by {rel}"
+    assert test.passed, str(test)
+
+
+def test_the_region_test_detects_a_wrong_image(cornell_box):
+    """Not toothless at this noise: a 10% darker image fails."""
+    images = np.array([render(cornell_box, 64, seed, 8, start="resample", chains=1024, candidates=8).image
+                       for seed in range(SEEDS)])
+    ref, ref_err = reference_at(cornell_box, 8, 8)
+    stderr = images.std(0, ddof=1) / np.sqrt(SEEDS)
+    assert not z_test(images.mean(0) * 0.9, stderr, ref, ref_err, dof=SEEDS - 1).passed
+
+
+# -- (c) startup bias ------------------------------------------------------------------------------
+
+def test_startup_bias_is_detected_falls_with_mutations_and_resampling_removes_it():
+    """covered_lamp at 16x16, 1024 chains, 6 runs each (toolkit/mlt_bias.py): bias^2 and the
+    variance of one run, both relative to the mean squared reference. The noise floor of the
+    bias^2 estimate is about variance / runs * sqrt(2 / pixels): a bias is detected when bias^2
+    exceeds ten times variance / runs."""
+    scene = toolkit.load_scene(ROOT / "scenes" / "covered_lamp")
+    short = mlt_bias.measure(scene, 1024, 1, start="naive", runs=6)
+    longer = mlt_bias.measure(scene, 1024, 16, start="naive", runs=6)
+    resampled = mlt_bias.measure(scene, 1024, 1, start="resample", runs=6, options={"candidates": 16})
+    for row in (short, longer, resampled):
+        print(mlt_bias.format_row(row))
+    assert short["bias2"] > 10 * short["variance"] / short["runs"]      # detected
+    assert longer["bias2"] < 0.5 * short["bias2"]                       # falls with mutations per chain
+    assert resampled["bias2"] < 0.1 * short["bias2"]                    # resampling removes most of it
+    assert resampled["bias2"] < 3 * resampled["variance"] / resampled["runs"]   # ... down to the noise
+
+
+# -- (d) SIMD efficiency ---------------------------------------------------------------------------
+
+def test_every_stream_phase_is_at_least_97_percent_efficient(cornell_box):
+    result = toolkit.render(cornell_box, technique="mlt", spp=32, seed=1, resolution=(32, 32), warp_width=32,
+                            options={"chains": 16384})
+    eff = result.stats["simd_efficiency"]
+    print(eff)
+    assert {"mutate", "walk", "compact", "connect", "accept", "overall"} <= set(eff)
+    assert all(v >= 0.97 for v in eff.values()), eff
+
+
+# -- (e) more dimensions than a chain stores -------------------------------------------------------
+
+def test_paths_longer_than_the_stored_dimensions_use_fresh_numbers_and_stay_unbiased(cornell_box):
+    """max_dims 16 stores the start and the first scattering of each subpath (rng.h): every
+    longer path reads fresh numbers for the rest, at every iteration. The image still agrees
+    with the reference (mean, and regions over 11 seeds)."""
+    images, overflow = [], 0
+    for seed in range(SEEDS):
+        r = render(cornell_box, 64, seed, 8, start="resample", chains=1024, candidates=8, max_dims=16)
+        images.append(r.image)
+        overflow += r.stats["mlt"]["overflow_proposals"]
+    images = np.array(images)
+    assert overflow > 0.3 * SEEDS * 64 * 64          # most proposals of the box are longer
+    ref, ref_err = reference_at(cornell_box, 8, 8)
+    assert np.all(relative_mean_error(images.mean(0), ref) < 0.01)
+    test = z_test(images.mean(0), images.std(0, ddof=1) / np.sqrt(SEEDS), ref, ref_err, dof=SEEDS - 1)
+    assert test.passed, str(test)
+
+
+def test_option_limits_are_checked(cornell_box):
+    for options, name in (({"max_dims": 4}, "max_dims"), ({"chains": 0}, "chains"), ({"large_step": 0.0}, "large_step"),
+                          ({"start": "cold"}, "start"), ({"candidates": 2.5}, "candidates")):
+        with pytest.raises(InputError, match=name):
+            toolkit.render(cornell_box, technique="mlt", spp=1, resolution=(4, 4), options=options)
+
+
+# -- chain counts at the extremes --------------------------------------------------------------------
+
+def test_one_chain_and_64k_chains(cornell_box):
+    one = render(cornell_box, 4, 0, 4, chains=1)
+    assert one.stats["mlt"]["chains"] == 1 and one.stats["mlt"]["mutations"] == 64
+    assert np.isfinite(one.image).all() and one.image.sum() > 0
+    many = render(cornell_box, 64, 0, 32, chains=65536)
+    assert many.stats["mlt"]["chains"] == 65536 and many.stats["mlt"]["mutations"] == 65536
+    ref, _ = reference_at(cornell_box, 32, 32)
+    assert np.all(relative_mean_error(many.image, ref) < 0.03)
+
+
+# -- (f) the command line ----------------------------------------------------------------------------
+
+def test_render_command_writes_an_image_without_nan_and_shows_progress(tmp_path):
+    from toolkit.images import read_exr
+    out = tmp_path / "lamp.exr"
+    start = time.perf_counter()
+    result = subprocess.run([sys.executable, "-m", "toolkit", "render", "scenes/covered_lamp", "--technique", "mlt",
+                             "--spp", "64", "--out", str(out)], cwd=ROOT, capture_output=True, text=True,
+                            timeout=300, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert result.returncode == 0, result.stderr
+    print(result.stdout, f"{time.perf_counter() - start:.1f} s")
+    assert "spp" in result.stderr                     # the progress bar
+    assert "dropped samples 0" in result.stdout
+    image = read_exr(out)
+    assert image.shape[:2] == (64, 64) and np.isfinite(image).all() and image.mean() > 0

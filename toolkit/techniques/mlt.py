@@ -1,0 +1,275 @@
+"""Metropolis light transport: many independent primary-sample-space chains (Kelemen et al. 2002)
+over the bidirectional estimator, as in the talk's slides "Metropolis Light Transport" and
+"Startup Bias". Kernels: cl/mlt.cl (cl/mlt.h: mutation and acceptance; the BDPT kernels of
+cl/bdpt_parallel_connect.cl built with -DMLT=1 read their uniforms from the chains' vectors).
+
+One iteration, read like the slide:
+    mutate every chain (large step with probability `large_step`, else a small step);
+    evaluate all proposals as one batch of BDPT samples (compacted walks, parallel connect);
+    accept or reject per chain;
+    splat the proposal with weight a and the current state with weight 1 - a.
+
+The estimator. A sample x (a point of primary sample space [0, 1)^D: the image position, the
+light sample, every scattering decision) has the contribution h_j(x) to pixel j, the sum of
+all its MIS-weighted strategies (s, t) that land there (t = 1 lands anywhere), and the scalar
+contribution f(x) = luminance(sum_j h_j(x)). Each chain's states follow the density f / b with
+b = integral of f over [0, 1)^D, so with M mutations in all, proposals y_i with acceptance a_i
+and current states x_i,
+
+    I_j = P * b * E_{f/b}[h_j / f]  ~  P * b / M * sum_i ( a_i h_j(y_i) / f(y_i) + (1 - a_i) h_j(x_i) / f(x_i) )
+                                                  (times the chain's weight w_c / mean(w) for start = resample)
+
+(P = pixels: the image position is uniform over the whole image, so a sample reaches pixel j
+with probability 1 / P; Kelemen eq. 7 with Veach's expected-value splatting, sec. 11.5).
+b is estimated on the fly from the large steps, which are ordinary BDPT samples:
+b ~ (1 / L) sum over the L large steps of f(y) (the start's samples count too).
+
+The start. `naive` (the talk): a chain starts at one large step, distributed like a BDPT
+sample (uniform in primary sample space), not like f / b: the first mutations of every chain
+are biased towards where samples are many rather than bright (startup bias), and with many
+chains and few mutations each, that bias dominates (toolkit/mlt_bias.py measures it).
+`resample` (Veach 1997, sec. 11.3.3): chain c draws N candidates (large steps) and keeps one
+with probability f_k / sum_k f_k; with the weight w_c = (1/N) sum_k f_k, E[w_c g(x_c)] equals
+the integral of f g for every g, at the start and (the mutations keep f / b invariant) at every
+later iteration: no startup bias in expectation. Each chain's splats are weighted by
+w_c / mean_c(w_c) (a ratio estimator: its bias is O(1 / (chains x N)), far below the startup
+bias it removes), so the image still sums to b from all large steps.
+
+Splats (pixel, value) are added on the host in float64, like the t = 1 records of BDPT
+(bdpt_base.per_pixel_sums): no float atomics. Each chain's current state keeps its records
+on the host until it is replaced.
+
+Options (keyword arguments of toolkit.render(..., options=...)):
+
+| option | default | meaning |
+| --- | --- | --- |
+| `chains` | 4096 (the BDPT pool size) | independent chains; 1 .. 2^20 (`mlt.chains`), at most the mutations of the render |
+| `large_step` | 0.3 | probability of a large step (every dimension fresh) |
+| `start` | `naive` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of `candidates` large steps, chosen in proportion to f |
+| `candidates` | 16 | large steps per chain for `start = resample` (`mlt.candidates`) |
+| `max_dims` | 128 | primary-sample dimensions a chain stores: 8 + 8 per vertex of the longer subpath, so 128 holds subpaths of 16 vertices (`mlt.max_dims`). A path that reads more gets fresh random numbers for the extra dimensions at every iteration (cl/rng.h): still correct, and counted (`overflow_proposals`) |
+| BDPT options | | `pool_size`, `regenerate_fraction`, `coalesced_scatter` as for bdpt_parallel_connect |
+
+spp means mutations: a render of spp samples per pixel makes spp x pixels mutations in all
+(iterations of `chains` mutations; the last may use fewer chains). The start's samples come
+on top. The image has no standard error of its own (one pass; MLT samples are correlated):
+compare independent runs (seeds), as tests/test_mlt.py and toolkit/mlt_bias.py do.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+import pyopencl as cl
+
+from .. import program
+from ..film import Film
+from ..layout import BDPT_SLOT, LUMINANCE_WEIGHTS, MLT_CHAIN, MLT_ITERATION, MltMode
+from ..validate import InputError, finite_number, whole_number
+from .bdpt_base import per_pixel_sums
+from .bdpt_parallel_connect import BdptParallelConnect
+
+STARTS = ("naive", "resample")
+START_DIMS = 8     # rng.h: pixel, light pick, light point, emission direction (and one spare)
+DIMS_PER_VERTEX = 8
+
+
+def used_dims(eye_vertices, light_vertices):
+    """Dimensions a BDPT sample used (a prefix, rng.h's table): vertex k >= 1 of either subpath
+    scatters with dimensions 8 + 8 (k - 1) .. 8 + 8 k - 1, and the last stored vertex may have."""
+    return START_DIMS + DIMS_PER_VERTEX * (np.maximum(eye_vertices, light_vertices) - 1)
+
+
+@dataclass
+class Chains:
+    """The chains' device memory and the host's view of their current states."""
+    count: int
+    current: cl.Buffer       # float[max_dims][count]: the current states' primary-sample vectors
+    proposal: cl.Buffer      # float[max_dims][count]: this iteration's proposals
+    records: cl.Buffer       # MltChain[count]
+    f_proposal: cl.Buffer    # float[count], written by the host
+    dims_proposal: cl.Buffer  # int[count], written by the host
+    iteration: int = 0
+    f_current: np.ndarray = None        # float64 f of each current state
+    cur_values: np.ndarray = None       # the current states' records: (n, 3) float64 values,
+    cur_pixels: np.ndarray = None       #   their pixels
+    cur_chain: np.ndarray = None        #   and their chains
+    splats: np.ndarray = None           # (pixels, 3) float64 sum of the weighted splats
+    candidate_sum: np.ndarray = None    # start = resample: sum of f over each chain's candidates
+    weight: np.ndarray = None           # each chain's splat weight: 1, or w_c / mean(w) (resample)
+    large_sum: float = 0.0              # sum of f over the large steps (for b)
+    large_count: int = 0
+    accepted: int = 0
+    mutations: int = 0
+    overflow: int = 0                   # proposals that read more than max_dims dimensions
+    nonfinite: int = 0
+
+
+class Mlt(BdptParallelConnect):
+    name = "mlt"
+    source = "mlt.cl"
+    family = "mlt"
+
+    def __init__(self, queue, device_scene, chains=None, large_step=0.3, start="naive", candidates=16,
+                 max_dims=128, **kwargs):
+        self.chain_count = whole_number("mlt.chains", chains if chains is not None else BdptParallelConnect.pool_size,
+                                        "chains")
+        self.large_step = finite_number("mlt.large_step", large_step, "large_step")
+        if start not in STARTS:
+            raise InputError(f"start must be one of {', '.join(STARTS)}, got {start!r}")
+        self.start = start
+        self.candidates = whole_number("mlt.candidates", candidates, "candidates")
+        self.max_dims = whole_number("mlt.max_dims", max_dims, "max_dims")
+        defines = {"MLT": True, "MLT_MAX_DIMS": self.max_dims}
+        defines.update(kwargs.pop("extra_defines", None) or {})
+        super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
+
+    # --- the render: start the chains, then iterate ------------------------------------------
+
+    def render(self, width, height, spp, seed=0, progress=None):
+        film = Film(width, height)
+        camera = self.scene.camera(width, height)
+        pixels = width * height
+        total = pixels * spp
+        c = self.begin(camera, np.uint32(seed), min(self.chain_count, total))
+        shown = 0
+        while c.mutations < total:
+            self.iterate(c, min(c.count, total - c.mutations), MltMode.MUTATE)
+            if progress is not None and c.mutations // pixels > shown:
+                progress.update(c.mutations // pixels - shown)
+                shown = c.mutations // pixels
+        film.add_pass(self.image(c).reshape(height, width, 3), spp, nonfinite=c.nonfinite)
+        self.queue.finish()
+        return film
+
+    def begin(self, camera, seed, count):
+        """The chains' memory and their first states (`start`)."""
+        ctx, n = self.queue.context, program.padded(count)
+        vectors = 4 * n * self.max_dims
+        c = Chains(count, cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
+                   cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
+                   cl.Buffer(ctx, cl.mem_flags.READ_WRITE, MLT_CHAIN.dtype.itemsize * n),
+                   cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n), self.int_buffer(count))
+        cl.enqueue_fill_buffer(self.queue, c.records, np.int32(0), 0, MLT_CHAIN.dtype.itemsize * n)
+        c.f_current = np.zeros(count)
+        c.candidate_sum, c.weight = np.zeros(count), np.ones(count)
+        c.cur_values, c.cur_pixels, c.cur_chain = np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64)
+        c.splats = np.zeros((int(camera["width"] * camera["height"]), 3))
+        self.camera, self.seed, self.last_chains = camera, seed, c
+        if self.start == "naive":
+            self.iterate(c, count, MltMode.START)
+        else:
+            for _ in range(self.candidates):
+                self.iterate(c, count, MltMode.CANDIDATE)
+            if c.candidate_sum.any():
+                c.weight = c.candidate_sum / c.candidate_sum.mean()
+        return c
+
+    def iterate(self, c, active, mode):
+        """One iteration of the first `active` chains: mutate, evaluate, accept, splat."""
+        it = MLT_ITERATION.zeros(1)[0]
+        it["seed"], it["iteration"], it["chains"], it["active"] = self.seed, c.iteration, c.count, active
+        it["large_step"], it["mode"] = self.large_step, int(mode)
+        self.mutate(c, it)
+        values, pixels, chain, f, dims = self.evaluate_proposals(c, active)
+        records = self.accept(c, it, f, dims)
+        self.splat(c, records, values, pixels, chain, f, mode)
+        c.iteration += 1
+
+    def mutate(self, c, it):
+        """mlt_mutate: every active chain writes its proposal (cl/mlt.h)."""
+        program.launch(self.queue, self.kernel("mlt_mutate"), int(it["active"]), it, c.current, c.proposal,
+                       c.records)
+        if self.count_simd:
+            self.simd.add_stream_step("mutate", int(it["active"]))
+
+    def evaluate_proposals(self, c, active):
+        """The proposals as one batch of BDPT samples (sample id = chain): their records
+        (values (n, 3) float64, pixels, chains) and per chain f and the dimensions used."""
+        p = self.start_pass(self.camera, self.seed, c.iteration, active, chains=c.count)
+        p.records, p.dims = [], np.full(active, START_DIMS, np.int64)
+        self.evaluate(p)
+        if p.records:
+            values, pixels, chain = (np.concatenate(x) for x in zip(*p.records))
+        else:
+            values, pixels, chain = np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64)
+        finite = np.isfinite(values).all(1)
+        if not finite.all():     # a bug to report (DroppedSamplesWarning), never a NaN in the chain
+            c.nonfinite += int((~finite).sum())
+            values, pixels, chain = values[finite], pixels[finite], chain[finite]
+        f = np.bincount(chain, values @ np.asarray(LUMINANCE_WEIGHTS), minlength=active)
+        c.overflow += int((p.dims > self.max_dims).sum())
+        return values, pixels, chain, np.maximum(f, 0.0), np.minimum(p.dims, self.max_dims)
+
+    def connect(self, p, count):
+        """The parallel connect phase; its records stay with their chains (p.records) instead of
+        going to the image; p.dims gets each terminated sample's used dimensions."""
+        records = self.connection_records(p, count)
+        if records is not None:
+            values, pixels, counts_buffer = records
+            counts = self.read_ints(counts_buffer, p.pool.size)
+            slots = self.read_structs(BDPT_SLOT, p.pool.slots, p.pool.size)
+            done = counts > 0
+            ids = slots["sample_id"][done]
+            p.dims[ids] = used_dims(slots["eye_vertices"][done], slots["light_vertices"][done])
+            chain = np.repeat(ids, counts[done])
+            ok = pixels >= 0
+            p.records.append((values[ok, :3].astype(np.float64), pixels[ok], chain[ok]))
+        return 0.0
+
+    def accept(self, c, it, f, dims):
+        """mlt_accept (cl/mlt.h) with the proposals' f and dimensions; returns the chain records."""
+        active = int(it["active"])
+        cl.enqueue_copy(self.queue, c.f_proposal, f.astype(np.float32))
+        cl.enqueue_copy(self.queue, c.dims_proposal, dims.astype(np.int32))
+        program.launch(self.queue, self.kernel("mlt_accept"), active, it, c.current, c.proposal, c.records,
+                       c.f_proposal, c.dims_proposal)
+        if self.count_simd:
+            self.simd.add_stream_step("accept", active)
+        return self.read_structs(MLT_CHAIN, c.records, active)
+
+    def splat(self, c, records, values, pixels, chain, f, mode):
+        """Expected-value splats (MUTATE only), the large steps' f for b, and the new current records."""
+        active = len(records)
+        large = records["large_step"] != 0
+        c.large_sum += float(f[large].sum())
+        c.large_count += int(large.sum())
+        a = records["acceptance"].astype(np.float64)
+        accepted = records["accepted"] != 0
+        if mode == MltMode.CANDIDATE:
+            c.candidate_sum[:active] += f
+        if mode == MltMode.MUTATE:
+            weight = c.weight[:active]
+            w_prop = np.divide(a * weight, f, out=np.zeros(active), where=f > 0)
+            mine = c.cur_chain < active
+            f_cur = c.f_current[:active]
+            w_cur = np.divide((1.0 - a) * weight, f_cur, out=np.zeros(active), where=f_cur > 0)
+            v = np.concatenate([values * w_prop[chain][:, None], c.cur_values[mine] * w_cur[c.cur_chain[mine]][:, None]])
+            c.splats += per_pixel_sums(v, np.concatenate([pixels, c.cur_pixels[mine]]), len(c.splats))
+            c.mutations += active
+            c.accepted += int(accepted.sum())
+        replaced = np.zeros(c.count, bool)
+        replaced[:active] = accepted
+        keep, new = ~replaced[c.cur_chain], replaced[chain]
+        c.cur_values = np.concatenate([c.cur_values[keep], values[new]])
+        c.cur_pixels = np.concatenate([c.cur_pixels[keep], pixels[new]])
+        c.cur_chain = np.concatenate([c.cur_chain[keep], chain[new]])
+        c.f_current[:active][accepted] = f[accepted]
+
+    def image(self, c):
+        """P * b / M * (sum of the splats): the estimator of the module docstring."""
+        b = c.large_sum / max(c.large_count, 1)
+        return c.splats * (len(c.splats) * b / max(c.mutations, 1))
+
+    # --- measuring --------------------------------------------------------------------------
+
+    def sampler_args(self):
+        return (self.last_chains.proposal,)
+
+    def extra_stats(self):
+        stats = super().extra_stats()
+        c = self.last_chains
+        stats["mlt"] = {"chains": c.count, "start": self.start, "large_step": self.large_step,
+                        "mutations": c.mutations, "mutations_per_chain": c.mutations / c.count,
+                        "acceptance_rate": c.accepted / max(c.mutations, 1),
+                        "b": c.large_sum / max(c.large_count, 1), "large_steps": c.large_count,
+                        "max_dims": self.max_dims, "overflow_proposals": c.overflow}
+        return stats
