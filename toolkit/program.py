@@ -195,13 +195,15 @@ def padded(n, local_size=LOCAL_SIZE):
 _bound = {}
 
 
-def _same(a, b):
-    """Whether kernel argument values a and b are the same: the same buffer object, or numpy
-    scalars/records of the same type and bytes."""
-    if a is b:
-        return True
-    return (isinstance(a, np.generic) and isinstance(b, np.generic) and a.dtype == b.dtype
-            and a.tobytes() == b.tobytes())
+def _fingerprint(value):
+    """What identifies a kernel argument's value: a buffer by identity, a numpy scalar or record
+    by its bytes (copied: a record may be changed in place between launches); anything else is
+    set at every launch."""
+    if isinstance(value, cl.MemoryObjectHolder):
+        return value
+    if isinstance(value, np.generic):
+        return (value.dtype.str, value.tobytes())
+    return object()
 
 
 def launch(queue, kernel, n, *args, local_size=LOCAL_SIZE):
@@ -216,9 +218,10 @@ def launch(queue, kernel, n, *args, local_size=LOCAL_SIZE):
     if len(args) != len(last):
         raise TypeError(f"{kernel.function_name} takes {len(last)} arguments, {len(args)} given")
     for i, value in enumerate(args):
-        if not _same(last[i], value):
+        fingerprint = _fingerprint(value)
+        if last[i] is not fingerprint and last[i] != fingerprint:
             own.set_arg(i, value)
-            last[i] = value
+            last[i] = fingerprint
     return cl.enqueue_nd_range_kernel(queue, own, (padded(n, local_size),), (local_size,))
 
 
