@@ -1,0 +1,725 @@
+"""The autograder of the course assignments (tutorials/assignments/; see its README.md).
+
+    python -m toolkit grade ASSIGNMENT --stub > mine.cl           # the student's starting point
+    python -m toolkit grade ASSIGNMENT --kernel mine.cl [--json]  # grade a submission (or several)
+    python -m toolkit grade ASSIGNMENT --solution                 # grade the toolkit's own kernel
+
+A submission is copied into a fresh folder under the name of the toolkit file it replaces
+(`compact.h`, `bdpt_parallel_connect.cl`, `mis.h`, `pt_inplace_regen.cl`) and built in its place:
+program.build looks includes up in that folder first, then in cl/ (Technique.source_dir does the
+same for a technique). The toolkit itself is never edited.
+
+Every check runs in a subprocess of its own with a time limit, so a kernel that hangs or crashes
+loses that check's points and the grader goes on. A kernel that does not build loses every
+check, with the compiler's first error at a line of the student's file. Builds are cached on
+disk (pyopencl's binary cache, PoCL's kernel cache), so the subprocesses compile each program once.
+"""
+import json
+import os
+import shutil
+import subprocess
+import sys
+import tempfile
+import time
+from dataclasses import dataclass, field
+from importlib import resources
+from pathlib import Path
+
+import numpy as np
+
+TIME_LIMIT = 30   # seconds per check (a check takes 1-5 s on a 2-core CPU)
+
+
+def assignments_dir():
+    """The folder of the assignments (installed data package toolkit.assignments, or the checkout)."""
+    try:
+        installed = resources.files("toolkit.assignments")
+        if installed.joinpath("README.md").is_file():
+            return Path(str(installed))
+    except (ModuleNotFoundError, TypeError):
+        pass
+    return Path(__file__).resolve().parent.parent / "tutorials" / "assignments"
+
+
+@dataclass
+class Check:
+    name: str
+    points: int
+    what: str
+    run: object
+
+
+@dataclass
+class Assignment:
+    name: str
+    title: str
+    replaces: str          # the toolkit file (in cl/) that a submission is built in place of
+    stub: str              # the student's starting file, in tutorials/assignments/<name>/
+    helpers: tuple = ()    # grader kernels in that folder, copied beside the submission
+    checks: list = field(default_factory=list)
+
+    @property
+    def folder(self):
+        return assignments_dir() / self.name
+
+
+ASSIGNMENTS = {a.name: a for a in (
+    Assignment("compaction", "Immediate stream compaction", "compact.h", "compact_stub.cl", ("compaction_checks.cl",)),
+    Assignment("parallel_connect", "Parallel connect indexing: scan and binary search",
+               "bdpt_parallel_connect.cl", "parallel_connect_stub.cl", ("parallel_connect_checks.cl",)),
+    Assignment("mis", "MIS weights for BDPT: balance and power heuristics", "mis.h", "mis_stub.cl"),
+    Assignment("inplace_regen", "In-place sample regeneration", "pt_inplace_regen.cl", "inplace_regen_stub.cl"),
+)}
+
+
+class CheckFailed(Exception):
+    """A check's one-line reason for losing its points."""
+
+
+def check(assignment, name, points, what):
+    def register(function):
+        ASSIGNMENTS[assignment].checks.append(Check(name, points, what, function))
+        return function
+    return register
+
+
+# --- grading: one subprocess per check ---------------------------------------------------
+
+def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None):
+    """Grade one file (`kernel`) or the toolkit's own (`solution`) for assignment `name`.
+    Returns {"assignment", "file", "score", "max", "seconds", "checks": [{name, points, earned, reason}]}."""
+    from .program import cl_dir
+    a = ASSIGNMENTS[name]
+    source = cl_dir() / a.replaces if solution else Path(kernel)
+    if not source.is_file():
+        raise ValueError(f"no such kernel file: {source}")
+    shown = str(source) if not solution else f"the toolkit's {a.replaces}"
+    start = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="grade-") as folder:
+        shutil.copyfile(source, Path(folder) / a.replaces)
+        for helper in a.helpers:
+            shutil.copyfile(a.folder / helper, Path(folder) / helper)
+        problem = _run(name, "build", folder, time_limit, device, source.name)
+        rows = []
+        for c in a.checks:
+            reason = f"the kernel does not build: {problem}" if problem else \
+                _run(name, c.name, folder, time_limit, device, source.name)
+            rows.append({"name": c.name, "points": c.points, "earned": 0 if reason else c.points,
+                         "what": c.what, "reason": reason})
+    return {"assignment": name, "file": shown, "score": sum(r["earned"] for r in rows),
+            "max": sum(r["points"] for r in rows), "seconds": round(time.perf_counter() - start, 2),
+            "checks": rows}
+
+
+def _run(name, check_name, folder, time_limit, device, shown):
+    """Run one check in a subprocess; None if it passed, else its one-line reason."""
+    command = [sys.executable, "-m", "toolkit.grade", "--worker", name, check_name, folder, shown]
+    if device:
+        command.append(device)
+    env = dict(os.environ)
+    here = str(Path(__file__).resolve().parent.parent)   # the same toolkit runs the check
+    env["PYTHONPATH"] = here + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
+    try:
+        run = subprocess.run(command, capture_output=True, text=True, timeout=time_limit, env=env)
+    except subprocess.TimeoutExpired:
+        return (f"stopped after {time_limit} s: the kernel does not finish (an endless loop, or a "
+                "barrier that not every work-item reaches?)")
+    lines = run.stdout.strip().splitlines()
+    if run.returncode == 0 and lines:
+        try:
+            return json.loads(lines[-1])["reason"]
+        except (ValueError, KeyError):
+            pass
+    last = (run.stderr.strip().splitlines() or ["no message"])[-1]
+    how = f"signal {-run.returncode}" if run.returncode < 0 else f"exit status {run.returncode}"
+    return f"the check crashed ({how}; an out-of-bounds access?): {last}"
+
+
+def _worker(args):
+    name, check_name, folder, shown = args[:4]
+    device = args[4] if len(args) > 4 else None
+    from .program import KernelBuildError
+    a = ASSIGNMENTS[name]
+    try:
+        c = Context(folder, device)
+        if check_name == "build":
+            BUILDS[name](c)
+        else:
+            next(k for k in a.checks if k.name == check_name).run(c)
+        reason = None
+    except CheckFailed as failed:
+        reason = str(failed)
+    except KernelBuildError as error:
+        reason = _build_reason(str(error), a.replaces, shown)
+    except Exception as error:   # a broken kernel can make the host code fail anywhere
+        text = str(error).strip().splitlines()
+        reason = f"{type(error).__name__}: {text[0] if text else ''}".strip()
+    print(json.dumps({"reason": reason}))
+
+
+def _build_reason(log, replaces, shown):
+    """The compiler's first error, at the student's file and line (their file is built as `replaces`)."""
+    lines = [line.strip() for line in log.splitlines()]
+    errors = [line for line in lines if "error" in line.lower() and ":" in line and "OpenCL build" not in line]
+    first = errors[0] if errors else (lines[0] if lines else "no compiler message")
+    return first.replace(f"{replaces}:", f"{shown}:")
+
+
+class Context:
+    """What a check works with: the device queue and the folder holding the submission."""
+
+    def __init__(self, folder, device=None):
+        from .device import get_queue
+        self.folder = folder
+        self.queue = get_queue(device)
+        self._scenes = {}
+
+    def scene(self, name="cornell_box"):
+        from .device_scene import DeviceScene
+        from .scene import bundled_scene_dir, load_scene
+        if name not in self._scenes:
+            scene = load_scene(bundled_scene_dir(name))
+            self._scenes[name] = (scene, DeviceScene(self.queue, scene))
+        return self._scenes[name]
+
+    def technique(self, cls, student=True, scene="cornell_box", **attributes):
+        """An instance of technique `cls` built from the submission (or the toolkit's own files)."""
+        if student:
+            attributes["source_dir"] = self.folder
+        variant = type(cls.__name__, (cls,), attributes)
+        return variant(self.queue, self.scene(scene)[1])
+
+    def build(self, name, defines=None):
+        from . import program
+        return program.build(self.queue.context, name, defines, directory=self.folder)
+
+    def buffer(self, array):
+        import pyopencl as cl
+        return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR,
+                         hostbuf=np.ascontiguousarray(array))
+
+    def read(self, buffer, dtype, n, offset=0):
+        import pyopencl as cl
+        out = np.empty(n, dtype)
+        if n:
+            cl.enqueue_copy(self.queue, out, buffer, src_offset=offset)
+        return out
+
+
+# --- 1. immediate stream compaction (cl/compact.h) ----------------------------------------
+
+def _compaction_program(c):
+    from . import program
+    return c.build("compaction_checks.cl", {"LOCAL_SIZE": program.LOCAL_SIZE})
+
+
+def _compact(c, flags):
+    """compact_immediate (cl/compact.cl) with the submission's compact.h: (output slots, counter)."""
+    from . import program
+    built = _compaction_program(c)
+    n = len(flags)
+    counter, out = c.buffer(np.zeros(1, np.int32)), c.buffer(np.full(n + program.LOCAL_SIZE, -1, np.int32))
+    program.launch(c.queue, program.kernel(built, "compact_immediate"), n, c.buffer(flags.astype(np.int32)),
+                   np.int32(n), counter, out)
+    return c.read(out, np.int32, n + program.LOCAL_SIZE), int(c.read(counter, np.int32, 1)[0])
+
+
+def _compaction_problem(flags, out, count, what=""):
+    """None if out[:count] holds exactly the live indices of `flags`, else the reason."""
+    expected = np.flatnonzero(flags)
+    got = out[:max(0, min(count, len(flags)))]
+    missing = np.setdiff1d(expected, got)
+    if len(missing):
+        return f"{what}compaction lost {len(missing)} of {len(expected)} live items; first missing index {missing[0]}"
+    values, times = np.unique(got, return_counts=True)
+    if np.any(times > 1):
+        return f"{what}item {values[times > 1][0]} was written {times[times > 1][0]} times"
+    dead = np.setdiff1d(got, expected)
+    if len(dead):
+        return f"{what}dead item {dead[0]} was written to the output"
+    if count != len(expected):
+        return f"{what}the counter says {count} survivors, there are {len(expected)}"
+    return None
+
+
+def _random_masks(seed=1):
+    rng = np.random.default_rng(seed)
+    return [(f"n = {n}, {p:.0%} alive: ", rng.random(n) < p) for n, p in ((1000, 0.5), (4099, 0.1), (192, 0.9))]
+
+
+@check("compaction", "scan", 20, "compact_group_scan: exclusive scan and total of each work-group")
+def _check_scan(c):
+    from . import program
+    built = _compaction_program(c)
+    n, L = 1000, program.LOCAL_SIZE
+    values = np.random.default_rng(2).integers(0, 5, n).astype(np.int32)
+    groups = -(-n // L)
+    dst, sums = c.buffer(np.full(n, -1, np.int32)), c.buffer(np.full(groups, -1, np.int32))
+    program.launch(c.queue, program.kernel(built, "scan_blocks"), n, c.buffer(values), np.int32(n), np.int32(0),
+                   dst, sums)
+    got, got_sums = c.read(dst, np.int32, n), c.read(sums, np.int32, groups)
+    padded = np.zeros(groups * L, np.int32)
+    padded[:n] = values
+    blocks = padded.reshape(groups, L)
+    expected = (np.cumsum(blocks, axis=1) - blocks).ravel()[:n]
+    wrong = np.flatnonzero(got != expected)
+    if len(wrong):
+        i = wrong[0]
+        raise CheckFailed(f"the exclusive scan is wrong at item {i} (work-group {i // L}, local id {i % L}): "
+                          f"expected {expected[i]}, got {got[i]} ({len(wrong)} of {n} items wrong)")
+    wrong = np.flatnonzero(got_sums != blocks.sum(1))
+    if len(wrong):
+        k = wrong[0]
+        raise CheckFailed(f"the total of work-group {k} is {got_sums[k]}, expected {blocks[k].sum()}")
+
+
+@check("compaction", "compact", 25, "immediate_compact_slot on random masks (sizes not a multiple of the group)")
+def _check_compact(c):
+    for what, mask in _random_masks():
+        problem = _compaction_problem(mask, *_compact(c, mask), what)
+        if problem:
+            raise CheckFailed(problem)
+
+
+@check("compaction", "edges", 15, "all dead, all alive, one item, a partial last work-group")
+def _check_edges(c):
+    rng = np.random.default_rng(3)
+    cases = [("all 1000 dead: ", np.zeros(1000, bool)), ("all 1000 alive: ", np.ones(1000, bool)),
+             ("n = 1: ", np.ones(1, bool)), ("n = 63: ", rng.random(63) < 0.5), ("all 64 alive: ", np.ones(64, bool))]
+    for what, mask in cases:
+        problem = _compaction_problem(mask, *_compact(c, mask), what)
+        if problem:
+            raise CheckFailed(problem)
+
+
+@check("compaction", "one_atomic", 10, "each work-group's survivors fill one range in local-id order (one atomic per group)")
+def _check_group_order(c):
+    from . import program
+    L = program.LOCAL_SIZE
+    mask = np.random.default_rng(4).random(4099) < 0.5
+    out, count = _compact(c, mask)
+    problem = _compaction_problem(mask, out, count)
+    if problem:
+        raise CheckFailed(problem)
+    out = out[:count]
+    for group in range(-(-len(mask) // L)):
+        slots = np.flatnonzero((out >= group * L) & (out < (group + 1) * L))
+        items = out[slots]
+        if len(slots) and (np.any(np.diff(slots) != 1) or np.any(np.diff(items) <= 0)):
+            raise CheckFailed(f"work-group {group}'s survivors are not one range in local-id order: items "
+                              f"{items[:4].tolist()}... at slots {slots[:4].tolist()}... (reserve the group's "
+                              "range with one atomic_add, then add each item's rank)")
+
+
+@check("compaction", "twice", 10, "barriers: two compactions in a row in one kernel (as pt_compact_regen_extend does)")
+def _check_twice(c):
+    from . import program
+    built = _compaction_program(c)
+    rng = np.random.default_rng(5)
+    n = 4099
+    a, b = rng.random(n) < 0.5, rng.random(n) < 0.3
+    counters = c.buffer(np.zeros(2, np.int32))
+    outs = [c.buffer(np.full(n + program.LOCAL_SIZE, -1, np.int32)) for _ in range(2)]
+    program.launch(c.queue, program.kernel(built, "grade_compact_twice"), n, c.buffer(a.astype(np.int32)),
+                   c.buffer(b.astype(np.int32)), np.int32(n), counters, *outs)
+    counts = c.read(counters, np.int32, 2)
+    for what, mask, out, count in (("first call: ", a, outs[0], counts[0]), ("second call: ", b, outs[1], counts[1])):
+        problem = _compaction_problem(mask, c.read(out, np.int32, n + program.LOCAL_SIZE), int(count), what)
+        if problem:
+            raise CheckFailed(problem + " (is every read of the scratch done before the next write to it? "
+                                        "a barrier is missing)")
+
+
+@check("compaction", "render", 20, "pt_compact_regen with your compact.h: the toolkit's image, SIMD efficiency >= 97%")
+def _check_compaction_render(c):
+    from .techniques import PtCompactRegen
+    images, efficiency = [], None
+    for student in (True, False):
+        tech = c.technique(PtCompactRegen, student)
+        images.append(tech.render(32, 32, 32, seed=1).image())
+        efficiency = efficiency or tech.simd_efficiency()
+    _same_image(images[0], images[1], "pt_compact_regen with the toolkit's compact.h")
+    low = {phase: round(e, 3) for phase, e in efficiency.items() if e < 0.97}
+    if low:
+        raise CheckFailed(f"SIMD efficiency below 97% in {low}")
+
+
+def _same_image(image, expected, whom, rtol=1e-5, atol=1e-7):
+    if image.shape != expected.shape:
+        raise CheckFailed(f"the image is {image.shape}, {whom} gives {expected.shape}")
+    close = np.isclose(image, expected, rtol=rtol, atol=atol).all(-1)
+    if not close.all():
+        y, x = np.argwhere(~close)[0]
+        raise CheckFailed(f"the image differs from {whom} in {int((~close).sum())} of {close.size} pixels; first at "
+                          f"(x={x}, y={y}): {np.round(image[y, x], 5).tolist()} instead of "
+                          f"{np.round(expected[y, x], 5).tolist()}")
+
+
+# --- 2. parallel connect indexing (cl/bdpt_parallel_connect.cl) ----------------------------
+
+def _parallel_connect(c):
+    from .techniques import BdptParallelConnect
+    tech = c.technique(BdptParallelConnect)
+    return tech, c.build("parallel_connect_checks.cl", tech.defines)
+
+
+def _search(c, counts):
+    """find_sample for every connection g of the exclusive scan of `counts`: (found, expected, firsts)."""
+    from . import program
+    _, built = _parallel_connect(c)
+    counts = np.asarray(counts, np.int32)
+    firsts = (np.cumsum(counts) - counts).astype(np.int32)
+    total = int(counts.sum())
+    found = c.buffer(np.full(total, -1, np.int32))
+    program.launch(c.queue, program.kernel(built, "grade_find_sample"), total, c.buffer(firsts),
+                   np.int32(len(counts)), np.int32(total), found)
+    expected = np.searchsorted(firsts, np.arange(total), side="right") - 1
+    return c.read(found, np.int32, total), expected, firsts
+
+
+def _search_problem(c, counts, what=""):
+    found, expected, firsts = _search(c, counts)
+    wrong = np.flatnonzero(found != expected)
+    if len(wrong):
+        g = wrong[0]
+        e = expected[g]
+        return (f"{what}connection {g} found sample {found[g]}, expected {e} (firsts[{e}] = {firsts[e]} <= {g}, "
+                f"count {counts[e]}); {len(wrong)} of {len(found)} connections wrong")
+    return None
+
+
+@check("parallel_connect", "count", 20, "bdpt_parallel_connect_count: connections of each terminated sample, 0 otherwise")
+def _check_count(c):
+    from . import program
+    from .layout import BDPT_SLOT
+    tech, _ = _parallel_connect(c)
+    rng = np.random.default_rng(6)
+    n = 500
+    slots = BDPT_SLOT.zeros(n)
+    slots["live"] = rng.integers(-1, 3, n)
+    slots["light_vertices"] = rng.integers(1, 9, n)
+    slots["eye_vertices"] = rng.integers(2, 9, n)
+    counts = c.buffer(np.full(program.padded(n), -1, np.int32))
+    program.launch(c.queue, tech.kernel("bdpt_parallel_connect_count"), n, np.int32(n), c.buffer(slots), counts)
+    got = c.read(counts, np.int32, n)
+    expected = np.where(slots["live"] == 0, (slots["light_vertices"] + 1) * slots["eye_vertices"] - 1, 0)
+    wrong = np.flatnonzero(got != expected)
+    if len(wrong):
+        i = wrong[0]
+        raise CheckFailed(f"slot {i} (live {slots['live'][i]}, {slots['light_vertices'][i]} light and "
+                          f"{slots['eye_vertices'][i]} eye vertices) has {got[i]} connections, expected {expected[i]}")
+
+
+@check("parallel_connect", "search", 25, "find_sample for every connection, random counts with zeros")
+def _check_search(c):
+    rng = np.random.default_rng(7)
+    for n in (300, 1000):
+        counts = np.where(rng.random(n) < 0.3, 0, rng.integers(1, 40, n))
+        problem = _search_problem(c, counts, f"{n} samples: ")
+        if problem:
+            raise CheckFailed(problem)
+
+
+@check("parallel_connect", "search_edges", 20, "find_sample: one sample holds every connection, a pool of one, all ones")
+def _check_search_edges(c):
+    cases = []
+    for k in (0, 150, 299):
+        counts = np.zeros(300, np.int32)
+        counts[k] = 500
+        cases.append((f"all 500 connections in sample {k} of 300: ", counts))
+    cases += [("a pool of one sample: ", np.array([37])), ("every count 1: ", np.ones(200, np.int32)),
+              ("zeros at both ends: ", np.r_[np.zeros(5, np.int32), np.arange(1, 20), np.zeros(7, np.int32)])]
+    for what, counts in cases:
+        problem = _search_problem(c, counts, what)
+        if problem:
+            raise CheckFailed(problem)
+
+
+@check("parallel_connect", "image", 35, "bdpt_parallel_connect with your kernel: the image of bdpt_naive_connect")
+def _check_parallel_image(c):
+    from .techniques import BdptNaiveConnect, BdptParallelConnect
+    image = c.technique(BdptParallelConnect).render(16, 16, 4, seed=3).image()
+    expected = c.technique(BdptNaiveConnect, student=False).render(16, 16, 4, seed=3).image()
+    _same_image(image, expected, "bdpt_naive_connect's", rtol=1e-4, atol=1e-6)
+
+
+# --- 3. MIS weights (cl/mis.h) ------------------------------------------------------------
+
+_PATHS = 100   # real paths per scene
+
+
+def _real_paths(c, scene_name):
+    """Eye paths of the toolkit's own BDPT that end on the front of a light, light -> eye order."""
+    from .techniques import BdptParallelConnect
+    tech = c.technique(BdptParallelConnect, student=False, scene=scene_name)
+    tech.render(64, 64, 1, seed=0)
+    eye, eye_count, _, _ = tech.read_vertices()
+    paths = []
+    for slot in range(len(eye_count)):
+        for k in range(1, eye_count[slot]):
+            v = eye[slot, k]
+            if v["light"] >= 0 and np.dot(v["normal"][:3], v["wo"][:3]) > 0:
+                paths.append(eye[slot, :k + 1][::-1].copy())
+                break
+        if len(paths) >= _PATHS:
+            break
+    return tech, paths
+
+
+def _split_weights(c, tech, scene_name, paths, student=True, power=False):
+    """The MIS weight of every split s of each path (cl/bdpt_test.cl with the submission's mis.h)."""
+    import pyopencl as cl
+    from . import program
+    from .layout import BDPT_VERTEX
+    scene, ds = c.scene(scene_name)
+    defines = dict(scene.features(), MAX_VERTICES=tech.max_vertices, MIS_POWER=power)
+    built = program.build(c.queue.context, "bdpt_test.cl", defines, directory=c.folder if student else None)
+    kernel = program.kernel(built, "bdpt_test_mis_splits")
+    camera = ds.camera(64, 64)
+    out = []
+    for path in paths:
+        n = len(path)
+        scratch = [cl.Buffer(c.queue.context, cl.mem_flags.READ_WRITE, BDPT_VERTEX.dtype.itemsize * n * tech.max_vertices)
+                   for _ in range(2)]
+        weights = c.buffer(np.full(n, np.nan, np.float32))
+        program.launch(c.queue, kernel, n, *ds.args(), camera, np.int32(n), c.buffer(path), *scratch, weights)
+        out.append(c.read(weights, np.float32, n))
+    return out
+
+
+def _mis_cases(c):
+    for scene_name in ("cornell_box", "cornell_spheres"):
+        tech, paths = _real_paths(c, scene_name)
+        if len(paths) < 20:
+            raise RuntimeError(f"too few paths reached a light in {scene_name}")
+        yield scene_name, tech, paths
+
+
+def _sum_problem(scene_name, weights, what="balance"):
+    for w in weights:
+        total = float(np.sum(w))
+        if not np.all(np.isfinite(w)) or np.any(w < 0) or np.any(w > 1 + 1e-5) or abs(total - 1) > 1e-4:
+            return (f"{scene_name}: the {what} weights of the {len(w)} strategies of a {len(w)}-vertex path sum to "
+                    f"{total:.5f}, not 1: {np.round(w, 4).tolist()}")
+    return None
+
+
+def _match_problem(scene_name, weights, expected, what):
+    for w, e in zip(weights, expected):
+        wrong = np.flatnonzero(~(np.abs(w - e) <= 2e-4))
+        if len(wrong):
+            s = wrong[0]
+            return (f"{scene_name}: strategy s = {s} of a {len(w)}-vertex path has weight {w[s]:.5f}, the {what} "
+                    f"gives {e[s]:.5f}")
+    return None
+
+
+@check("mis", "balance_sum", 25, "balance heuristic: the weights of every split of real paths sum to one")
+def _check_balance_sum(c):
+    for scene_name, tech, paths in _mis_cases(c):
+        problem = _sum_problem(scene_name, _split_weights(c, tech, scene_name, paths))
+        if problem:
+            raise CheckFailed(problem)
+
+
+@check("mis", "balance", 15, "balance heuristic: each weight is p_s / sum_i p_i")
+def _check_balance(c):
+    for scene_name, tech, paths in _mis_cases(c):
+        problem = _match_problem(scene_name, _split_weights(c, tech, scene_name, paths),
+                                 _split_weights(c, tech, scene_name, paths, student=False), "balance heuristic")
+        if problem:
+            raise CheckFailed(problem)
+
+
+@check("mis", "power", 25, "power heuristic (-DMIS_POWER=1): each weight is p_s^2 / sum_i p_i^2, sums to one")
+def _check_power(c):
+    for scene_name, tech, paths in _mis_cases(c):
+        weights = _split_weights(c, tech, scene_name, paths, power=True)
+        balance = _split_weights(c, tech, scene_name, paths, student=False)
+        expected = [b * b / np.sum(b * b) for b in balance]
+        problem = _sum_problem(scene_name, weights, "power") or _match_problem(
+            scene_name, weights, expected, "power heuristic")
+        if problem:
+            raise CheckFailed(problem)
+
+
+@check("mis", "image", 35, "bdpt_parallel_connect with your weights matches the reference within statistical error")
+def _check_mis_image(c):
+    from .reference import reference_at, relative_mean_error, z_test
+    from .techniques import BdptParallelConnect
+    scene, _ = c.scene("cornell_box")
+    tech = c.technique(BdptParallelConnect, target_batch=1 << 10)   # 16 passes: the error from passes
+    film = tech.render(8, 8, 256, seed=5)
+    image, stderr = film.image(), film.stderr()
+    ref, ref_err = reference_at(scene, 8, 8)
+    if not np.isfinite(image).all():
+        raise CheckFailed("the image has non-finite pixels")
+    rel = relative_mean_error(image, ref)
+    if np.any(rel > 0.03):
+        raise CheckFailed(f"the image mean is off the reference by {np.round(100 * rel, 1).tolist()}% (R, G, B)")
+    test = z_test(image, stderr, ref, ref_err, alpha=0.01, dof=film.degrees_of_freedom)
+    if not test.passed:
+        raise CheckFailed(f"the image does not match the reference within its statistical error: {test}")
+
+
+# --- 4. in-place regeneration (cl/pt_inplace_regen.cl) -------------------------------------
+
+_UNTOUCHED = -7   # fills the path records before a launch: slots that must not change keep it
+
+
+def _regenerate(c, alive, next_sample, budget):
+    """Run the submission's pt_inplace_regen_regenerate on one pool: the slot's sample ids after it
+    (PathState.slot; _UNTOUCHED where nothing was written), alive flags, any_alive, regenerated."""
+    import pyopencl as cl
+    from . import program
+    from .layout import PATH_STATE
+    from .techniques import PtInplaceRegen
+    tech = c.technique(PtInplaceRegen)
+    n = len(alive)
+    capacity = program.padded(n)
+    paths = PATH_STATE.soa_buffer(c.queue.context, capacity)
+    cl.enqueue_fill_buffer(c.queue, paths, np.int32(_UNTOUCHED), 0, paths.size)
+    flags, counter = c.buffer(np.r_[alive, np.zeros(capacity - n)].astype(np.int32)), c.buffer(np.int32([next_sample]))
+    any_alive, regenerated = c.buffer(np.zeros(1, np.int32)), c.buffer(np.full(capacity, -1, np.int32))
+    camera = tech.scene.camera(16, 16)
+    program.launch(c.queue, tech.kernel("pt_inplace_regen_regenerate"), n, camera, np.uint32(1), np.int32(n),
+                   np.int32(0), np.int32(budget), counter, np.int32(capacity), paths, flags, any_alive, regenerated)
+    ids = c.read(paths, np.int32, n, PATH_STATE.soa_offset("slot", capacity))
+    return (ids, c.read(flags, np.int32, n), int(c.read(any_alive, np.int32, 1)[0]),
+            c.read(regenerated, np.int32, n))
+
+
+def _pools():
+    rng = np.random.default_rng(8)
+    alive = (rng.random(1000) < 0.5).astype(np.int32)
+    free = int((alive == 0).sum())
+    return [("1000 slots, every free slot gets a sample: ", alive, 100, 100000),
+            ("1000 slots, the budget runs out: ", alive, 100, 100 + free // 2)]
+
+
+@check("inplace_regen", "ids", 30, "free slots start the next samples of the budget, once each; live slots are left alone")
+def _check_ids(c):
+    for what, alive, first, budget in _pools():
+        ids, flags, _, _ = _regenerate(c, alive, first, budget)
+        free = np.flatnonzero(alive == 0)
+        started = free[ids[free] != _UNTOUCHED]
+        touched = np.flatnonzero((alive != 0) & (ids != _UNTOUCHED))
+        if len(touched):
+            raise CheckFailed(f"{what}slot {touched[0]} held a live path and was overwritten")
+        expected = np.arange(first, min(budget, first + len(free)))
+        got = np.sort(ids[started])
+        if len(got) != len(expected) or np.any(got != expected):
+            extra = np.setdiff1d(got, expected)
+            missing = np.setdiff1d(expected, got)
+            detail = (f"sample {extra[0]} is not in {first} .. {budget - 1}" if len(extra) else
+                      f"sample {missing[0]} was not started" if len(missing) else "a sample was started twice")
+            raise CheckFailed(f"{what}{len(got)} samples started, expected {len(expected)} "
+                              f"({first} .. {expected[-1] if len(expected) else first - 1}): {detail}")
+        wrong = np.flatnonzero(flags != ((alive != 0) | (ids != _UNTOUCHED)))
+        if len(wrong):
+            raise CheckFailed(f"{what}slot {wrong[0]}: alive is {flags[wrong[0]]} after the step")
+
+
+@check("inplace_regen", "any_alive", 15, "any_alive: set when a slot holds a live path, left 0 when all are done")
+def _check_any_alive(c):
+    n = 1000
+    one = np.zeros(n, np.int32)
+    one[517] = 1
+    cases = [("free slots and samples left", np.zeros(n, np.int32), 0, 5000, 1),
+             ("budget spent, one path still alive", one, 5000, 5000, 1),
+             ("budget spent, every path ended", np.zeros(n, np.int32), 5000, 5000, 0)]
+    for what, alive, first, budget, expected in cases:
+        got = _regenerate(c, alive, first, budget)[2]
+        if got != expected:
+            raise CheckFailed(f"{what}: any_alive is {got}, expected {expected}")
+
+
+@check("inplace_regen", "regenerated", 10, "regenerated[] marks the lanes that started a sample (SIMD counters)")
+def _check_regenerated(c):
+    for what, alive, first, budget in _pools():
+        free = np.flatnonzero(alive == 0)
+        expected = np.zeros(len(alive), np.int32)
+        expected[free[:max(0, min(len(free), budget - first))]] = 1   # how many; which ones may vary
+        got = _regenerate(c, alive, first, budget)[3]
+        if np.any((got != 0) & (alive != 0)) or int((got != 0).sum()) != int(expected.sum()):
+            raise CheckFailed(f"{what}regenerated[] marks {int((got != 0).sum())} lanes, "
+                              f"{int(expected.sum())} started a sample")
+
+
+@check("inplace_regen", "image", 45, "pt_inplace_regen with your kernel: the toolkit's image, sample for sample")
+def _check_regen_image(c):
+    from .techniques import PtInplaceRegen
+    films, techs = [], []
+    for student in (True, False):
+        tech = c.technique(PtInplaceRegen, student, stream_size=256)   # 1080 samples through 256 slots
+        films.append(tech.render(15, 9, 8, seed=2))
+        techs.append(tech)
+    _same_image(films[0].image(), films[1].image(), "the toolkit's pt_inplace_regen", rtol=0, atol=0)
+    if not np.array_equal(films[0].count, films[1].count):
+        raise CheckFailed("the samples per pixel differ from the toolkit's")
+    mine, theirs = (t.simd_efficiency().get("generate") for t in techs)
+    if mine != theirs:
+        raise CheckFailed(f"the regeneration step's SIMD efficiency is {mine:.3f}, the toolkit's {theirs:.3f}")
+
+
+# --- what the "build" step of each assignment builds ----------------------------------------
+
+def _build_parallel_connect(c):
+    _parallel_connect(c)
+
+
+def _build_mis(c):
+    from .techniques import BdptParallelConnect
+    scene, _ = c.scene("cornell_box")
+    tech = c.technique(BdptParallelConnect)
+    for power in (False, True):
+        c.build("bdpt_test.cl", dict(scene.features(), MAX_VERTICES=tech.max_vertices, MIS_POWER=power))
+
+
+def _build_inplace(c):
+    from .techniques import PtInplaceRegen
+    c.technique(PtInplaceRegen)
+
+
+BUILDS = {"compaction": _compaction_program, "parallel_connect": _build_parallel_connect, "mis": _build_mis,
+          "inplace_regen": _build_inplace}
+
+
+# --- reports ------------------------------------------------------------------------------
+
+def format_report(result):
+    lines = [f"{result['assignment']}: {result['file']}: {result['score']}/{result['max']}"]
+    width = max(len(r["name"]) for r in result["checks"])
+    for r in result["checks"]:
+        line = f"  {r['earned']:3d}/{r['points']:<3d} {r['name']:<{width}}  {r['what']}"
+        if r["reason"]:
+            line += f"\n            -> {r['reason']}"
+        lines.append(line)
+    lines.append(f"  graded in {result['seconds']:.1f} s")
+    return "\n".join(lines)
+
+
+def cmd_grade(args):
+    """`python -m toolkit grade`: see the module docstring."""
+    a = ASSIGNMENTS[args.assignment]
+    if args.stub:
+        sys.stdout.write((a.folder / a.stub).read_text())
+        return 0
+    if not args.solution and not args.kernel:
+        raise ValueError(f"give --kernel PATH (your file; start from `python -m toolkit grade {a.name} --stub`) "
+                         "or --solution")
+    if args.time_limit <= 0:
+        raise ValueError("--time-limit must be a positive number of seconds")
+    files = [None] if args.solution else args.kernel
+    for path in files:
+        if path is not None and not Path(path).is_file():
+            raise ValueError(f"no such kernel file: {path}")
+    for path in files:
+        result = grade(a.name, path, solution=args.solution, time_limit=args.time_limit, device=args.device)
+        print(json.dumps(result) if args.json else format_report(result), flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    if sys.argv[1:2] == ["--worker"]:
+        _worker(sys.argv[2:])
