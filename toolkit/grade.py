@@ -326,8 +326,8 @@ def _check_twice(c):
     for what, mask, out, count in (("first call: ", a, outs[0], counts[0]), ("second call: ", b, outs[1], counts[1])):
         problem = _compaction_problem(mask, c.read(out, np.int32, n + program.LOCAL_SIZE), int(count), what)
         if problem:
-            raise CheckFailed(problem + " (is every read of the scratch done before the next write to it? "
-                                        "a barrier is missing)")
+            raise CheckFailed(problem + " (if `compact` passes: a barrier is missing, some work-item writes "
+                                        "the scratch before every other one has read it)")
 
 
 @check("compaction", "render", 20, "pt_compact_regen with your compact.h: the toolkit's image, SIMD efficiency >= 97%")
