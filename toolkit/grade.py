@@ -16,6 +16,8 @@ disk (pyopencl's binary cache, PoCL's kernel cache), so the subprocesses compile
 """
 import json
 import os
+import re
+import signal
 import shutil
 import subprocess
 import sys
@@ -131,7 +133,14 @@ def _run(name, check_name, folder, time_limit, device, shown):
         except (ValueError, KeyError):
             pass
     last = (run.stderr.strip().splitlines() or ["no message"])[-1]
-    how = f"signal {-run.returncode}" if run.returncode < 0 else f"exit status {run.returncode}"
+    how = f"exit status {run.returncode}"
+    if run.returncode < 0:
+        try:
+            how = signal.Signals(-run.returncode).name
+        except ValueError:
+            how = f"signal {-run.returncode}"
+    if last == "no message" and how == "SIGSEGV":
+        last = "a segmentation fault"
     return f"the check crashed ({how}; an out-of-bounds access?): {last}"
 
 
@@ -160,7 +169,8 @@ def _worker(args):
 def _build_reason(log, replaces, shown):
     """The compiler's first error, at the student's file and line (their file is built as `replaces`)."""
     lines = [line.strip() for line in log.splitlines()]
-    errors = [line for line in lines if "error" in line.lower() and ":" in line and "OpenCL build" not in line]
+    located = [line for line in lines if "error" in line.lower() and re.search(r"\.(cl|h):\d+", line)]
+    errors = located or [line for line in lines if "error:" in line.lower()]
     first = errors[0] if errors else (lines[0] if lines else "no compiler message")
     return first.replace(f"{replaces}:", f"{shown}:")
 
@@ -213,15 +223,19 @@ def _compaction_program(c):
     return c.build("compaction_checks.cl", {"LOCAL_SIZE": program.LOCAL_SIZE})
 
 
-def _compact(c, flags):
+def _compact(c, flags, atomics=False):
     """compact_immediate (cl/compact.cl) with the submission's compact.h: (output slots, counter)."""
     from . import program
     built = _compaction_program(c)
     n = len(flags)
-    counter, out = c.buffer(np.zeros(1, np.int32)), c.buffer(np.full(n + program.LOCAL_SIZE, -1, np.int32))
+    # counter[1]: the atomics on counter[0] (compaction_checks.cl counts them)
+    counter, out = c.buffer(np.zeros(2, np.int32)), c.buffer(np.full(n + program.LOCAL_SIZE, -1, np.int32))
     program.launch(c.queue, program.kernel(built, "compact_immediate"), n, c.buffer(flags.astype(np.int32)),
                    np.int32(n), counter, out)
-    return c.read(out, np.int32, n + program.LOCAL_SIZE), int(c.read(counter, np.int32, 1)[0])
+    counts = c.read(counter, np.int32, 2)
+    if atomics:
+        return c.read(out, np.int32, n + program.LOCAL_SIZE), int(counts[0]), int(counts[1])
+    return c.read(out, np.int32, n + program.LOCAL_SIZE), int(counts[0])
 
 
 def _compaction_problem(flags, out, count, what=""):
@@ -297,10 +311,14 @@ def _check_group_order(c):
     from . import program
     L = program.LOCAL_SIZE
     mask = np.random.default_rng(4).random(4099) < 0.5
-    out, count = _compact(c, mask)
+    out, count, atomics = _compact(c, mask, atomics=True)
     problem = _compaction_problem(mask, out, count)
     if problem:
         raise CheckFailed(problem)
+    groups = -(-len(mask) // L)
+    if atomics > groups:
+        raise CheckFailed(f"{atomics} atomic operations on the counter for {groups} work-groups: reserve each "
+                          "group's range with one atomic_add (by one work-item), not one per survivor")
     out = out[:count]
     for group in range(-(-len(mask) // L)):
         slots = np.flatnonzero((out >= group * L) & (out < (group + 1) * L))
@@ -318,11 +336,11 @@ def _check_twice(c):
     rng = np.random.default_rng(5)
     n = 4099
     a, b = rng.random(n) < 0.5, rng.random(n) < 0.3
-    counters = c.buffer(np.zeros(2, np.int32))
+    counters = c.buffer(np.zeros(4, np.int32))   # [0] and [2], each with its atomics count beside it
     outs = [c.buffer(np.full(n + program.LOCAL_SIZE, -1, np.int32)) for _ in range(2)]
     program.launch(c.queue, program.kernel(built, "grade_compact_twice"), n, c.buffer(a.astype(np.int32)),
                    c.buffer(b.astype(np.int32)), np.int32(n), counters, *outs)
-    counts = c.read(counters, np.int32, 2)
+    counts = c.read(counters, np.int32, 4)[::2]
     for what, mask, out, count in (("first call: ", a, outs[0], counts[0]), ("second call: ", b, outs[1], counts[1])):
         problem = _compaction_problem(mask, c.read(out, np.int32, n + program.LOCAL_SIZE), int(count), what)
         if problem:
