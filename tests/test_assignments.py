@@ -125,12 +125,14 @@ PLACEHOLDERS = {"mine.cl", "THIS_FILE", "DIR/*.cl", "submissions/*.cl"}
 def named_files(text):
     """Paths a handout names in backticks: anything with a slash or a source-file suffix."""
     names = re.findall(r"`([^`\s]+)`", text)
-    return [n for n in names if re.search(r"\.(cl|h|py|md|ipynb)$", n) or n.endswith("/")]
+    return [n for n in names if re.search(r"\w\.(cl|h|py|md|ipynb)$", n) or n.endswith("/")]
 
 
 def commands(text):
-    return [line.strip().lstrip("$ ").split("  #")[0] for line in text.splitlines()
-            if line.strip().lstrip("$ ").startswith("python -m toolkit")]
+    """Commands on their own lines (code blocks) and in backticks."""
+    lines = [line.strip().lstrip("$ ").split("  #")[0] for line in text.splitlines()
+             if line.strip().lstrip("$ ").startswith("python -m toolkit")]
+    return lines + re.findall(r"`(python -m toolkit [^`]+)`", text)
 
 
 @pytest.mark.parametrize("handout", HANDOUTS, ids=lambda p: p.parent.name)
