@@ -32,7 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
-TIME_LIMIT = 30   # seconds per check (a check takes 1-5 s on a 2-core CPU)
+TIME_LIMIT = 30     # seconds per check (a check takes 0.1-3 s on a 2-core CPU)
+STARTUP_LIMIT = 60  # seconds for a worker to start (Python, numpy, pyopencl, the OpenCL queue)
 
 
 def assignments_dir():
@@ -104,14 +105,14 @@ def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None)
         shutil.copyfile(source, Path(folder) / a.replaces)
         for helper in a.helpers:
             shutil.copyfile(a.folder / helper, Path(folder) / helper)
-        reasons = _run_checks(name, ["build"] + [c.name for c in a.checks], folder, time_limit, device,
+        reasons, times = _run_checks(name, ["build"] + [c.name for c in a.checks], folder, time_limit, device,
                               source.name)
     problem = reasons.pop("build")
     rows = []
     for c in a.checks:
         reason = f"the kernel does not build: {problem}" if problem else reasons[c.name]
         rows.append({"name": c.name, "points": c.points, "earned": 0 if reason else c.points,
-                     "what": c.what, "reason": reason})
+                     "what": c.what, "reason": reason, "seconds": round(times.get(c.name, 0.0), 2)})
     return {"assignment": name, "file": shown, "score": sum(r["earned"] for r in rows),
             "max": sum(r["points"] for r in rows), "seconds": round(time.perf_counter() - start, 2),
             "checks": rows}
@@ -122,21 +123,23 @@ def _run_checks(name, pending, folder, time_limit, device, shown):
     check as one JSON line on its stdout. A check that runs past `time_limit` or crashes the worker
     gets its reason, the worker is killed, and a fresh one goes on with the remaining checks.
     A failed build stops the grading: every check then loses its points for that reason.
-    Returns {check name: None if it passed, else its one-line reason}."""
-    reasons = {}
+    Returns {check name: None if it passed, else its one-line reason}, {check name: seconds}."""
+    reasons, times = {}, {}
     pending = list(pending)
     while pending:
-        for check_name, reason in _worker_session(name, list(pending), folder, time_limit, device, shown):
+        for check_name, reason, seconds in _worker_session(name, list(pending), folder, time_limit, device, shown):
             reasons[check_name] = reason
+            times[check_name] = seconds
             pending.remove(check_name)
             if check_name == "build" and reason:
-                return dict(reasons, **{p: None for p in pending})
-    return reasons
+                return dict(reasons, **{p: None for p in pending}), times
+    return reasons, times
 
 
 def _worker_session(name, pending, folder, time_limit, device, shown):
-    """One worker process: yields (check, reason) as the checks finish; the last one it yields is
-    the check it was stopped or crashed in (if any), and then it is gone."""
+    """One worker process: yields (check, reason, seconds) as the checks finish; the last one it
+    yields is the check it was stopped or crashed in (if any), and then it is gone. Start-up (Python,
+    the OpenCL queue) has STARTUP_LIMIT seconds; each check's time limit starts when it starts."""
     import selectors
     command = [sys.executable, "-m", "toolkit.grade", "--worker", name, folder, shown, device or "", *pending]
     env = dict(os.environ)
@@ -146,20 +149,22 @@ def _worker_session(name, pending, folder, time_limit, device, shown):
         worker = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=errors, env=env, start_new_session=True)
         selector = selectors.DefaultSelector()
         selector.register(worker.stdout, selectors.EVENT_READ)
-        current, deadline, buffer = pending[0], time.monotonic() + time_limit, b""
+        current, buffer = pending[0], b""
+        started = time.monotonic()
+        deadline = started + max(time_limit, STARTUP_LIMIT)
         try:
             while True:
                 left = deadline - time.monotonic()
                 if left <= 0 or not selector.select(timeout=left):
                     _kill(worker)
                     yield current, (f"stopped after {time_limit:g} s: the kernel does not finish (an endless loop, "
-                                    "or a barrier that not every work-item reaches?)")
+                                    "or a barrier that not every work-item reaches?)"), time.monotonic() - started
                     return
                 chunk = os.read(worker.stdout.fileno(), 65536)
                 if not chunk:   # the worker is gone before it reported `current`
                     worker.wait()
                     errors.seek(0)
-                    yield current, _crash_reason(worker.returncode, errors.read())
+                    yield current, _crash_reason(worker.returncode, errors.read()), time.monotonic() - started
                     return
                 buffer += chunk
                 *lines, buffer = buffer.split(b"\n")
@@ -171,9 +176,10 @@ def _worker_session(name, pending, folder, time_limit, device, shown):
                     if not isinstance(message, dict) or message.get("grade-worker") is None:
                         continue
                     if "start" in message:
-                        current, deadline = message["start"], time.monotonic() + time_limit
+                        current, started = message["start"], time.monotonic()
+                        deadline = started + time_limit
                     elif "done" in message:
-                        yield message["done"], message["reason"]
+                        yield message["done"], message["reason"], time.monotonic() - started
                         if message["done"] == pending[-1] or (message["done"] == "build" and message["reason"]):
                             return
         finally:
@@ -219,11 +225,10 @@ def _worker(args):
         sys.stdout.write("\n" + json.dumps(dict(tag, **message)) + "\n")
         sys.stdout.flush()
 
-    c = None
+    c = Context(folder, device or None, shown)   # fails (no device): the grader reports it as a crash
     for check_name in names:
         say(start=check_name)
         try:
-            c = c or Context(folder, device or None, shown)
             if check_name == "build":
                 BUILDS[name](c)
             else:
