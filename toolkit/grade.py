@@ -149,7 +149,7 @@ def _worker_session(name, pending, folder, time_limit, device, shown):
         worker = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=errors, env=env, start_new_session=True)
         selector = selectors.DefaultSelector()
         selector.register(worker.stdout, selectors.EVENT_READ)
-        current, buffer = pending[0], b""
+        current, buffer, announced = pending[0], b"", False
         started = time.monotonic()
         deadline = started + max(time_limit, STARTUP_LIMIT)
         try:
@@ -157,6 +157,8 @@ def _worker_session(name, pending, folder, time_limit, device, shown):
                 left = deadline - time.monotonic()
                 if left <= 0 or not selector.select(timeout=left):
                     _kill(worker)
+                    if not announced:
+                        raise RuntimeError(f"the grader's worker did not start within {STARTUP_LIMIT} s")
                     yield current, (f"stopped after {time_limit:g} s: the kernel does not finish (an endless loop, "
                                     "or a barrier that not every work-item reaches?)"), time.monotonic() - started
                     return
@@ -164,6 +166,12 @@ def _worker_session(name, pending, folder, time_limit, device, shown):
                 if not chunk:   # the worker is gone before it reported `current`
                     worker.wait()
                     errors.seek(0)
+                    if not announced:   # not the student's kernel: no OpenCL device, a broken install...
+                        last = (errors.read().strip().splitlines() or [f"exit status {worker.returncode}"])[-1]
+                        if "NoOpenCLError: " in last:
+                            from .device import NoOpenCLError
+                            raise NoOpenCLError(last.split("NoOpenCLError: ", 1)[1])
+                        raise RuntimeError(f"the grader's worker did not start: {last}")
                     yield current, _crash_reason(worker.returncode, errors.read()), time.monotonic() - started
                     return
                 buffer += chunk
@@ -176,6 +184,7 @@ def _worker_session(name, pending, folder, time_limit, device, shown):
                     if not isinstance(message, dict) or message.get("grade-worker") is None:
                         continue
                     if "start" in message:
+                        announced = True
                         current, started = message["start"], time.monotonic()
                         deadline = started + time_limit
                     elif "done" in message:
