@@ -34,6 +34,7 @@ import numpy as np
 
 TIME_LIMIT = 30     # seconds per check (a check takes 0.1-3 s on a 2-core CPU)
 STARTUP_LIMIT = 60  # seconds for a worker to start (Python, numpy, pyopencl, the OpenCL queue)
+BUILD_LIMIT = 180   # seconds to build a submission's programs (a cold compiler cache; nothing runs yet)
 
 
 def assignments_dir():
@@ -139,7 +140,8 @@ def _run_checks(name, pending, folder, time_limit, device, shown):
 def _worker_session(name, pending, folder, time_limit, device, shown):
     """One worker process: yields (check, reason, seconds) as the checks finish; the last one it
     yields is the check it was stopped or crashed in (if any), and then it is gone. Start-up (Python,
-    the OpenCL queue) has STARTUP_LIMIT seconds; each check's time limit starts when it starts."""
+    the OpenCL queue) has STARTUP_LIMIT seconds, the build BUILD_LIMIT (a compiler does not hang, but
+is slow with a cold cache); each check's time limit starts when it starts."""
     import selectors
     command = [sys.executable, "-m", "toolkit.grade", "--worker", name, folder, shown, device or "", *pending]
     env = dict(os.environ)
@@ -186,7 +188,7 @@ def _worker_session(name, pending, folder, time_limit, device, shown):
                     if "start" in message:
                         announced = True
                         current, started = message["start"], time.monotonic()
-                        deadline = started + time_limit
+                        deadline = started + (max(time_limit, BUILD_LIMIT) if current == "build" else time_limit)
                     elif "done" in message:
                         yield message["done"], message["reason"], time.monotonic() - started
                         if message["done"] == pending[-1] or (message["done"] == "build" and message["reason"]):
@@ -870,25 +872,42 @@ def _check_regen_image(c):
 
 
 # --- what the "build" step of each assignment builds ----------------------------------------
+# Everything the checks build, the student's programs and the toolkit's reference ones: the build
+# step has BUILD_LIMIT seconds (a cold compiler cache), a check only its time limit.
+
+def _build_compaction(c):
+    from .techniques import PtCompactRegen
+    _compaction_program(c)
+    _compaction_program(c, reference_scan=True)
+    for student in (True, False):
+        c.technique(PtCompactRegen, student)
+
 
 def _build_parallel_connect(c):
+    from .techniques import BdptNaiveConnect
     _parallel_connect(c)
+    c.technique(BdptNaiveConnect, student=False)
 
 
 def _build_mis(c):
+    from . import program
     from .techniques import BdptParallelConnect
-    scene, _ = c.scene("cornell_box")
-    tech = c.technique(BdptParallelConnect)
-    for power in (False, True):
-        c.build("bdpt_test.cl", dict(scene.features(), MAX_VERTICES=tech.max_vertices, MIS_POWER=power))
+    for scene_name in ("cornell_box", "cornell_spheres"):
+        scene, _ = c.scene(scene_name)
+        for student in (True, False):
+            tech = c.technique(BdptParallelConnect, student, scene=scene_name)
+            for power in (False, True):
+                defines = dict(scene.features(), MAX_VERTICES=tech.max_vertices, MIS_POWER=power)
+                program.build(c.queue.context, "bdpt_test.cl", defines, directory=c.folder if student else None)
 
 
 def _build_inplace(c):
     from .techniques import PtInplaceRegen
-    c.technique(PtInplaceRegen)
+    for student in (True, False):
+        c.technique(PtInplaceRegen, student)
 
 
-BUILDS = {"compaction": _compaction_program, "parallel_connect": _build_parallel_connect, "mis": _build_mis,
+BUILDS = {"compaction": _build_compaction, "parallel_connect": _build_parallel_connect, "mis": _build_mis,
           "inplace_regen": _build_inplace}
 
 
