@@ -128,7 +128,14 @@ def _run_checks(name, pending, folder, time_limit, device, shown):
     reasons, times = {}, {}
     pending = list(pending)
     while pending:
-        for check_name, reason, seconds in _worker_session(name, list(pending), folder, time_limit, device, shown):
+        # a fresh worker after a hang or crash builds first too (from the caches, under BUILD_LIMIT)
+        session = pending if pending[0] == "build" else ["build"] + pending
+        for check_name, reason, seconds in _worker_session(name, session, folder, time_limit, device, shown):
+            if check_name == "build" and "build" in reasons:
+                if reason:   # it built before: the rebuild was stopped or crashed; the next check pays
+                    reasons[pending[0]], times[pending[0]] = reason, seconds
+                    pending.pop(0)
+                continue
             reasons[check_name] = reason
             times[check_name] = seconds
             pending.remove(check_name)
