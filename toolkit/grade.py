@@ -129,7 +129,7 @@ def _run_checks(name, pending, folder, time_limit, device, shown):
     pending = list(pending)
     while pending:
         # a fresh worker after a hang or crash builds first too (from the caches, under BUILD_LIMIT)
-        session = pending if pending[0] == "build" else ["build"] + pending
+        session = list(pending) if pending[0] == "build" else ["build"] + pending
         for check_name, reason, seconds in _worker_session(name, session, folder, time_limit, device, shown):
             if check_name == "build" and "build" in reasons:
                 if reason:   # it built before: the rebuild was stopped or crashed; the next check pays
