@@ -63,6 +63,7 @@ class Assignment:
     replaces: str          # the toolkit file (in cl/) that a submission is built in place of
     stub: str              # the student's starting file, in tutorials/assignments/<name>/
     helpers: tuple = ()    # grader kernels in that folder, copied beside the submission
+    run_first: tuple = ()  # checks that run before the others (the report keeps the checks' order)
     checks: list = field(default_factory=list)
 
     @property
@@ -71,7 +72,10 @@ class Assignment:
 
 
 ASSIGNMENTS = {a.name: a for a in (
-    Assignment("compaction", "Immediate stream compaction", "compact.h", "compact_stub.cl", ("compaction_checks.cl",)),
+    # The checks of one piece (Oclgrind's, then immediate_compact_slot on the toolkit's scan) run
+    # before those that run the student's scan on PoCL, where a racy scan can corrupt memory.
+    Assignment("compaction", "Immediate stream compaction", "compact.h", "compact_stub.cl", ("compaction_checks.cl",),
+               ("races", "compact", "edges", "one_atomic")),
     Assignment("parallel_connect", "Parallel connect indexing: scan and binary search",
                "bdpt_parallel_connect.cl", "parallel_connect_stub.cl", ("parallel_connect_checks.cl",)),
     Assignment("mis", "MIS weights for BDPT: balance and power heuristics", "mis.h", "mis_stub.cl"),
@@ -106,7 +110,8 @@ def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None)
         shutil.copyfile(source, Path(folder) / a.replaces)
         for helper in a.helpers:
             shutil.copyfile(a.folder / helper, Path(folder) / helper)
-        reasons, times = _run_checks(name, ["build"] + [c.name for c in a.checks], folder, time_limit, device,
+        order = list(a.run_first) + [c.name for c in a.checks if c.name not in a.run_first]
+        reasons, times = _run_checks(name, ["build"] + order, folder, time_limit, device,
                               source.name)
     problem = reasons.pop("build")
     rows = []
@@ -197,7 +202,11 @@ is slow with a cold cache); each check's time limit starts when it starts."""
                         current, started = message["start"], time.monotonic()
                         deadline = started + (max(time_limit, BUILD_LIMIT) if current == "build" else time_limit)
                     elif "done" in message:
-                        yield message["done"], message["reason"], time.monotonic() - started
+                        if message.get("suspect") and not message.get("fresh"):
+                            # an exception in the host code, after other checks ran kernels in this
+                            # process: perhaps one of them corrupted its memory. Again, in a fresh worker.
+                            return
+                        yield message["done"], message["reason"], message["seconds"]
                         if message["done"] == pending[-1] or (message["done"] == "build" and message["reason"]):
                             return
         finally:
@@ -243,9 +252,12 @@ def _worker(args):
         sys.stdout.write("\n" + json.dumps(dict(tag, **message)) + "\n")
         sys.stdout.flush()
 
+    os.environ.setdefault("PYOPENCL_CACHE_FAILURE_FATAL", "")   # pyopencl reads it when its cache fails
     c = Context(folder, device or None, shown)   # fails (no device): the grader reports it as a crash
+    ran = 0   # checks run in this worker so far (the build does not count)
     for check_name in names:
         say(start=check_name)
+        suspect, start = False, time.perf_counter()
         try:
             if check_name == "build":
                 BUILDS[name](c)
@@ -259,9 +271,13 @@ def _worker(args):
         except Exception as error:   # a broken kernel can make the host code fail anywhere
             text = str(error).strip().splitlines()
             reason = f"{type(error).__name__}: {text[0] if text else ''}".strip()
-        say(done=check_name, reason=reason)
-        if check_name == "build" and reason:
-            break
+            suspect = True   # ... even in a later check, if it corrupted this process's memory
+        say(done=check_name, reason=reason, suspect=suspect, fresh=ran == 0, seconds=time.perf_counter() - start)
+        if check_name == "build":
+            if reason:
+                break
+        else:
+            ran += 1
 
 
 def _build_reason(log, replaces, shown):
