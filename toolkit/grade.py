@@ -16,6 +16,10 @@ the worker, loses its points with the reason ("stopped after 30 s", "the check c
 that does not build loses every check, with the compiler's first error at a line of the
 student's file. Builds are cached in the worker and on disk (pyopencl's binary cache, PoCL's
 kernel cache), so a program is compiled once per submission, and a fresh worker reuses it.
+Sharing a process has one risk: a kernel that writes out of bounds can corrupt the worker's memory
+and make a later check fail in the host code. So the checks of one piece run before the checks of
+the whole file (Assignment.run_first), and a check that fails with a host exception after other
+checks ran in its worker is run again in a fresh one.
 """
 import json
 import os
