@@ -124,35 +124,9 @@ inline float light_emit_pdf(const BdptVertex* v, const BdptVertex* to) {
 
 inline float remap0(float f) { return f != 0.0f ? f : 1.0f; }
 
-/* ---- MIS: the balance heuristic over all strategies that could make this path ---------- */
+/* ---- MIS: the weight of one strategy among all that could make this path (mis.h) ---- */
 
-typedef struct {
-    float pt_rev, ptm_rev, qs_rev, qsm_rev;   /* recomputed reverse densities at the connection */
-} ConnectionPdfs;
-
-inline float mis_weight(__global const BdptVertex* eye, __global const BdptVertex* light,
-                        int s, int t, const ConnectionPdfs* c) {
-    float sum = 0.0f;
-    /* Hypothetical strategies with more light vertices: walk the eye subpath backwards. */
-    float r = 1.0f;
-    for (int i = t - 1; i > 0; --i) {
-        float rev = i == t - 1 ? c->pt_rev : i == t - 2 ? c->ptm_rev : eye[i + 1].pdf_rev;
-        r *= remap0(rev) / remap0(eye[i].pdf_fwd);
-        bool delta_i = i == t - 1 ? false : (eye[i].flags & VERTEX_DELTA) != 0;
-        bool delta_prev = i - 1 == t - 1 ? false : (eye[i - 1].flags & VERTEX_DELTA) != 0;
-        if (!delta_i && !delta_prev) sum += r;
-    }
-    /* Hypothetical strategies with more eye vertices: walk the light subpath backwards. */
-    r = 1.0f;
-    for (int i = s - 1; i >= 0; --i) {
-        float rev = i == s - 1 ? c->qs_rev : i == s - 2 ? c->qsm_rev : light[i + 1].pdf_rev;
-        r *= remap0(rev) / remap0(light[i].pdf_fwd);
-        bool delta_i = i == s - 1 ? false : (light[i].flags & VERTEX_DELTA) != 0;
-        bool delta_prev = i > 0 ? (light[i - 1].flags & VERTEX_DELTA) != 0 : false;  /* area lights are not delta */
-        if (!delta_i && !delta_prev) sum += r;
-    }
-    return 1.0f / (1.0f + sum);
-}
+#include "mis.h"
 
 /* ---- one connection ------------------------------------------------------------------- */
 

@@ -31,3 +31,20 @@ def test_installed_package_finds_kernels_and_scenes(tmp_path):
     assert info["cl"].startswith(os.path.dirname(info["package"]))
     assert os.path.isfile(os.path.join(info["scene"], "scene.json"))
     assert info["mean"][0] > 0
+
+
+def test_installed_package_hands_out_the_assignment_stubs(tmp_path):
+    """`grade ASSIGNMENT --stub` reads the stub from the installed package (toolkit.assignments),
+    run from a folder outside the checkout. (Grading itself is tested in test_assignments.py.)"""
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    run = subprocess.run([sys.executable, "-m", "toolkit", "grade", "compaction", "--stub"], cwd=tmp_path, env=env,
+                         capture_output=True, text=True)
+    if "No module named toolkit" in run.stderr or "No module named 'toolkit'" in run.stderr:
+        pytest.skip("the toolkit is not installed in this environment (only the checkout is on the path)")
+    assert run.returncode == 0, run.stderr
+    assert "TODO" in run.stdout and "immediate_compact_slot" in run.stdout
+    where = subprocess.run([sys.executable, "-c", "from toolkit.grade import assignments_dir; print(assignments_dir())"],
+                           cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert where.returncode == 0, where.stderr
+    folder = where.stdout.strip()
+    assert os.path.isfile(os.path.join(folder, "compaction", "compaction_checks.cl")), folder

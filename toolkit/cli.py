@@ -121,6 +121,17 @@ def build_parser():
                    help="instead: render each technique for about SECONDS and compare RMSE against the reference")
     p.add_argument("--json", action="store_true")
     bvh_option(p)
+
+    from .grade import ASSIGNMENTS, TIME_LIMIT
+    p = sub.add_parser("grade", help="grade a course assignment (tutorials/assignments/): score /100 per check")
+    device_option(p)
+    p.add_argument("assignment", choices=list(ASSIGNMENTS))
+    p.add_argument("--kernel", nargs="+", metavar="PATH", help="your file(s), built in place of the toolkit's")
+    p.add_argument("--solution", action="store_true", help="grade the toolkit's own kernel (the reference solution)")
+    p.add_argument("--stub", action="store_true", help="print the assignment's starting file")
+    p.add_argument("--json", action="store_true", help="one JSON line per graded file")
+    p.add_argument("--time-limit", type=_number, default=TIME_LIMIT, metavar="SECONDS",
+                   help=f"per check (default {TIME_LIMIT}); a kernel that runs longer loses the check")
     return parser
 
 
@@ -151,6 +162,9 @@ def main(argv=None):
             return cmd_bench(args)
         if args.command == "crosscheck":
             return cmd_crosscheck(args)
+        if args.command == "grade":
+            from .grade import cmd_grade
+            return cmd_grade(args)
     except (NoOpenCLError, KernelBuildError) as error:
         # A compiler log and the list of devices with their fixes keep their lines.
         print(f"error: {error}", file=sys.stderr)

@@ -1,0 +1,205 @@
+"""The course assignments' autograder (toolkit/grade.py, tutorials/assignments/): the reference
+solutions score 100, the untouched stubs 0, each deliberately wrong kernel (tests/fixtures/
+assignments/) loses exactly the checks it breaks, a kernel that does not build, does not finish
+or crashes costs its points while the grader goes on, and the handouts name only files and
+commands that exist. Each submission is graded once (graded() caches the result) by one worker
+subprocess; builds come from the on-disk caches."""
+import json
+import re
+import shlex
+import subprocess
+import sys
+from functools import lru_cache
+from pathlib import Path
+
+import pytest
+
+from toolkit.grade import ASSIGNMENTS, assignments_dir, grade
+
+ROOT = Path(__file__).resolve().parent.parent
+FIXTURES = ROOT / "tests" / "fixtures" / "assignments"
+LIMIT = 60   # seconds to grade one submission on a 2-core machine (issue 12)
+
+# fixture -> the checks it must lose (it keeps every other one), and what its bug breaks
+WRONG = {
+    # The scan returns the inclusive sum. `scan` tests compact_group_scan alone; compact, edges and
+    # one_atomic run immediate_compact_slot on the toolkit's scan, so they pass; twice and render
+    # run the student's whole file, where every rank is one too high.
+    ("compaction", "off_by_one_scan"): {"scan", "twice", "render"},
+    # No barrier between reading the left neighbour and adding it: the scan is wrong on PoCL (a
+    # work-group runs its work-items one after the other between barriers), twice and render are
+    # wrong or crash, and Oclgrind reports the data race at the student's line (`races`).
+    # immediate_compact_slot itself is right: compact, edges and one_atomic (toolkit's scan) pass.
+    ("compaction", "missing_barrier"): {"scan", "twice", "races", "render"},
+    # One atomic_add per survivor: every item lands somewhere, but not in one range per group.
+    ("compaction", "atomic_per_item"): {"one_atomic"},
+    # compact_group_scan writes to address 64 for values above 1, which only `scan` feeds it:
+    # the worker dies with SIGSEGV in that check and a fresh worker grades the rest.
+    ("compaction", "crash_in_scan"): {"scan"},
+    ("parallel_connect", "wrong_base"): {"search", "search_edges", "image"},
+    ("parallel_connect", "count_off_by_one"): {"count"},
+    ("mis", "power_not_squared"): {"power"},
+    ("mis", "no_delta_skip"): {"balance_sum", "balance", "power"},
+    ("inplace_regen", "budget_off_by_one"): {"ids", "any_alive", "regenerated"},
+    ("inplace_regen", "any_alive_only_started"): {"any_alive", "image"},
+}
+ENDLESS_LIMIT = 5   # seconds per check for the endless loop (its two hanging checks cost 2 x this)
+
+
+@lru_cache(maxsize=None)
+def graded(name, fixture=None, time_limit=None):
+    """The result of grading `fixture` (a file stem under tests/fixtures/assignments/NAME/, "stub" or
+    None for the reference solution), once per test session."""
+    extra = {"time_limit": time_limit} if time_limit else {}
+    if fixture is None:
+        return grade(name, solution=True, **extra)
+    a = ASSIGNMENTS[name]
+    path = assignments_dir() / name / a.stub if fixture == "stub" else FIXTURES / name / f"{fixture}.cl"
+    return grade(name, path, **extra)
+
+
+def lost(result):
+    return {c["name"] for c in result["checks"] if c["earned"] == 0}
+
+
+def assert_points_add_up(result):
+    assert result["max"] == 100
+    assert result["score"] == sum(c["earned"] for c in result["checks"])
+    for c in result["checks"]:
+        assert c["earned"] in (0, c["points"])
+        assert (c["reason"] is None) == (c["earned"] == c["points"]), c
+        assert c["reason"] is None or "\n" not in c["reason"]    # one line a student can act on
+    assert result["seconds"] < LIMIT, result
+
+
+@pytest.mark.parametrize("name", list(ASSIGNMENTS))
+def test_reference_solution_scores_100(name):
+    result = graded(name)
+    assert result["score"] == 100, [c for c in result["checks"] if c["reason"]]
+    assert result["file"] == f"the toolkit's {ASSIGNMENTS[name].replaces}"
+    assert_points_add_up(result)
+
+
+@pytest.mark.parametrize("name", list(ASSIGNMENTS))
+def test_untouched_stub_builds_and_scores_0_on_every_check(name):
+    result = graded(name, "stub")
+    assert result["score"] == 0
+    for c in result["checks"]:
+        assert "does not build" not in c["reason"] and "crashed" not in c["reason"], c
+        assert "stopped after" not in c["reason"], c
+    assert_points_add_up(result)
+
+
+@pytest.mark.parametrize("name,fixture", sorted(WRONG))
+def test_wrong_kernel_loses_the_checks_it_breaks_and_keeps_the_rest(name, fixture):
+    result = graded(name, fixture)
+    print(fixture, result["score"], [(c["name"], c["reason"]) for c in result["checks"] if c["reason"]])
+    assert lost(result) == WRONG[(name, fixture)]
+    assert_points_add_up(result)
+    for c in result["checks"]:
+        assert c["reason"] is None or "does not build" not in c["reason"], c
+
+
+def test_a_missing_barrier_is_reported_by_oclgrind_at_the_students_line():
+    reasons = {c["name"]: c["reason"] for c in graded("compaction", "missing_barrier")["checks"]}
+    assert reasons["races"].startswith("Oclgrind: read-write data race"), reasons["races"]
+    assert "line 48 of missing_barrier.cl" in reasons["races"], reasons["races"]
+
+
+def test_a_crashing_check_costs_its_points_and_a_fresh_worker_grades_the_rest():
+    result = graded("compaction", "crash_in_scan")
+    reasons = {c["name"]: c["reason"] for c in result["checks"]}
+    assert reasons["scan"].startswith("the check crashed (SIGSEGV"), reasons["scan"]
+    assert result["score"] == 80
+
+
+def test_every_fixture_is_graded_by_a_test():
+    files = {(p.parent.name, p.stem) for p in FIXTURES.glob("*/*.cl")}
+    assert files == set(WRONG) | {("compaction", "does_not_compile"), ("parallel_connect", "endless_loop")}
+    for name in ASSIGNMENTS:
+        assert sum(1 for a, _ in WRONG if a == name) >= 2
+        # at least two wrong kernels per assignment keep some of the functional checks
+        assert sum(1 for (a, _), broken in WRONG.items() if a == name
+                   and broken != {c.name for c in ASSIGNMENTS[name].checks}) >= 2
+
+
+def test_kernel_that_does_not_build_scores_0_with_the_compiler_message_at_its_line():
+    result = graded("compaction", "does_not_compile")
+    assert result["score"] == 0
+    for c in result["checks"]:
+        assert c["reason"].startswith("the kernel does not build:"), c
+        assert "does_not_compile.cl:48:" in c["reason"] and "zero" in c["reason"], c
+    assert result["seconds"] < 10
+
+
+def test_endless_loop_is_stopped_and_the_grader_goes_on():
+    result = graded("parallel_connect", "endless_loop", ENDLESS_LIMIT)
+    reasons = {c["name"]: c["reason"] for c in result["checks"]}
+    print(reasons)
+    assert lost(result) == {"count", "image"}
+    assert reasons["count"].startswith(f"stopped after {ENDLESS_LIMIT} s")
+    assert result["score"] == 45
+    assert_points_add_up(result)
+    assert result["seconds"] < 2 * ENDLESS_LIMIT + 30
+
+
+def run_cli(*args):
+    return subprocess.run([sys.executable, "-m", "toolkit", "grade", *args], cwd=ROOT, capture_output=True, text=True)
+
+
+def test_cli_grades_a_folder_as_json_rows_and_refuses_bad_input(tmp_path):
+    for name in ("a.cl", "b.cl"):
+        (tmp_path / name).write_text((FIXTURES / "compaction" / "does_not_compile.cl").read_text())
+    run = run_cli("compaction", "--kernel", *sorted(str(p) for p in tmp_path.glob("*.cl")), "--json")
+    assert run.returncode == 0, run.stderr
+    rows = [json.loads(line) for line in run.stdout.splitlines()]
+    assert [Path(r["file"]).name for r in rows] == ["a.cl", "b.cl"] and all(r["score"] == 0 for r in rows)
+    for args, message in ((["compaction"], "--kernel"), (["compaction", "--kernel", str(tmp_path / "none.cl")], "no such"),
+                          (["nonsense", "--solution"], "invalid choice")):
+        run = run_cli(*args)
+        assert run.returncode == 2 and "Traceback" not in run.stderr and message in run.stderr, run.stderr
+    run = run_cli("mis", "--stub")
+    assert run.returncode == 0 and "TODO" in run.stdout
+
+
+# --- the handouts are linted -------------------------------------------------------------------
+
+HANDOUTS = sorted(assignments_dir().glob("**/README.md"))
+PLACEHOLDERS = {"mine.cl", "THIS_FILE", "DIR/*.cl", "submissions/*.cl"}
+
+
+def named_files(text):
+    """Paths a handout names in backticks: anything with a slash or a source-file suffix."""
+    names = re.findall(r"`([^`\s]+)`", text)
+    return [n for n in names if re.search(r"\w\.(cl|h|py|md|ipynb)$", n) or n.endswith("/")]
+
+
+def commands(text):
+    """Commands on their own lines (code blocks) and in backticks."""
+    lines = [line.strip().lstrip("$ ").split("  #")[0] for line in text.splitlines()
+             if line.strip().lstrip("$ ").startswith("python -m toolkit")]
+    return lines + re.findall(r"`(python -m toolkit [^`]+)`", text)
+
+
+@pytest.mark.parametrize("handout", HANDOUTS, ids=lambda p: p.parent.name)
+def test_handout_names_only_files_that_exist(handout):
+    text = handout.read_text(encoding="utf-8")
+    missing = [n for n in named_files(text) if n not in PLACEHOLDERS
+               and not any((base / n).exists() for base in (ROOT, handout.parent, ROOT / "cl", assignments_dir()))]
+    assert not missing, f"{handout} names files that do not exist: {missing}"
+
+
+@pytest.mark.parametrize("handout", HANDOUTS, ids=lambda p: p.parent.name)
+def test_handout_commands_parse_and_the_cheap_ones_run(handout, tmp_path):
+    """Every command parses with the real CLI parser; the --stub ones run. The --solution and the
+    grading of a stub run in the tests above; a student's `mine.cl` is the stub there."""
+    from toolkit.cli import build_parser
+    found = commands(handout.read_text(encoding="utf-8"))
+    assert found, f"{handout} names no command"
+    for line in found:
+        words = shlex.split(line.split(">")[0])
+        assert words[:3] == ["python", "-m", "toolkit"], line
+        build_parser().parse_args(words[3:])            # exits (fails the test) on a bad command
+        if "--stub" in words:
+            run = subprocess.run([sys.executable, "-m", "toolkit", *words[3:]], capture_output=True, text=True)
+            assert run.returncode == 0 and "TODO" in run.stdout, line
