@@ -703,8 +703,9 @@ def _split_weights(c, tech, scene_name, paths, student=True, power=False):
     import pyopencl as cl
     from . import program
     from .layout import BDPT_VERTEX
-    scene, ds = c.scene(scene_name)
-    defines = dict(scene.features(), MAX_VERTICES=tech.max_vertices, MIS_POWER=power)
+    _, ds = c.scene(scene_name)
+    # The device scene's features: they say which BVH layout (binary or wide) the kernel traverses.
+    defines = dict(ds.features(), MAX_VERTICES=tech.max_vertices, MIS_POWER=power)
     built = program.build(c.queue.context, "bdpt_test.cl", defines, directory=c.folder if student else None)
     kernel = program.kernel(built, "bdpt_test_mis_splits")
     camera = ds.camera(64, 64)
@@ -920,11 +921,11 @@ def _build_mis(c):
     from . import program
     from .techniques import BdptParallelConnect
     for scene_name in ("cornell_box", "cornell_spheres"):
-        scene, _ = c.scene(scene_name)
+        _, ds = c.scene(scene_name)
         for student in (True, False):
             tech = c.technique(BdptParallelConnect, student, scene=scene_name)
             for power in (False, True):
-                defines = dict(scene.features(), MAX_VERTICES=tech.max_vertices, MIS_POWER=power)
+                defines = dict(ds.features(), MAX_VERTICES=tech.max_vertices, MIS_POWER=power)
                 program.build(c.queue.context, "bdpt_test.cl", defines, directory=c.folder if student else None)
 
 

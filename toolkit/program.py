@@ -129,11 +129,13 @@ def build(context, name, defines=None, directory=None):
             warnings.simplefilter("ignore", cl.CompilerWarning)
             program = program.build(options=options, cache_dir=_cache_dir())
     except cl.RuntimeError as error:
-        raise KernelBuildError(_format_build_error(name, error, options)) from None
-    log = _build_log_text(program)
+        raise KernelBuildError(_format_build_error(name, relocate(str(error), source), options)) from None
+    log = relocate(_build_log_text(program), source)
     if verbose and log.strip():
         print(f"--- build log of {name} on {device.name.strip()} ---\n{log}", file=sys.stderr)
     real = warning_lines(log)
+    if real and "-Werror" in options:  # for compilers that ignore the option (Oclgrind)
+        raise KernelBuildError(_format_build_error(name, log, options))
     if real:
         warnings.warn(KernelBuildWarning(f"{name}: " + "\n".join(real)), stacklevel=2)
     build_log.append((name, time.perf_counter() - start, False))
@@ -154,10 +156,33 @@ def _build_log_text(program):
         return ""
 
 
-def _format_build_error(name, error, options):
+_LINE_MARKER = re.compile(r'^#line (\d+) "([^"]+)"')
+# What compilers that ignore #line call the program's source (Oclgrind: "input.cl").
+_WHOLE_SOURCE = re.compile(r'(?<![\w./<-])(input\.cl|<source>):(\d+):(\d+):')
+
+
+def relocate(log, source):
+    """Compiler locations in the expanded source turned into our files and lines. Most compilers
+    follow the #line markers that expand_includes writes; some (Oclgrind) ignore them and name
+    the whole source "input.cl", line N of the expanded text: those are mapped back here."""
+    origin, file, line = [], "?", 0
+    for text in source.splitlines():
+        marker = _LINE_MARKER.match(text)
+        origin.append((file, line))
+        file, line = (marker.group(2), int(marker.group(1))) if marker else (file, line + 1)
+
+    def mapped(match):
+        number, column = int(match.group(2)), match.group(3)
+        if not 1 <= number <= len(origin):
+            return match.group(0)
+        file, line = origin[number - 1]
+        return f"{file}:{line}:{column}:"
+    return _WHOLE_SOURCE.sub(mapped, log)
+
+
+def _format_build_error(name, log, options):
     # pyopencl's error text holds every device's build log: one source of the log for every
     # implementation (asking the failed program for it returns nothing on some, e.g. Intel's).
-    log = str(error)
     # Keep the compiler's lines that point into our sources first, they are what a learner reads.
     # Compilers put the location first ("broken.h:3:36: error: ...") or after the severity
     # (PoCL: "error: broken.h:3:36: ..."); layout.h's #line name has a note in parentheses.
@@ -166,7 +191,7 @@ def _format_build_error(name, error, options):
     head = "\n".join(ours[:20]) if ours else ""
     return (f"OpenCL build of {name} failed (options: {' '.join(options)}).\n"
             + (f"Errors in our sources:\n{head}\n" if head else "")
-            + f"Full compiler log:\n{log or error}")
+            + f"Full compiler log:\n{log}")
 
 
 _kernels = {}
