@@ -5,11 +5,14 @@
 per device and driver version. A device whose compiler fails (PoCL 3.0's LLVM 14 on an AMD
 Zen 5, for one) is skipped, with the compiler's first error line as the reason.
 
-Ranking among usable devices (`RANKING`, measured on the CPUs we have): a GPU first; then PoCL
-(the newest version first: a distribution's PoCL before pip's 3.0); then Intel's CPU runtime,
-which builds everywhere but ran pt_naive at about half PoCL's samples/s on a 2-core AMD EPYC;
-then any other implementation. Oclgrind is a simulator for finding memory errors, a thousand
-times slower: it is only used when asked for by name.
+Ranking among usable devices (`RANKING`): a GPU first; then PoCL (the newest version first: a
+distribution's PoCL, whose newer LLVM knows newer CPUs, before pip's 3.0); then Intel's CPU
+runtime; then any other implementation. Intel's runtime (with its vectorizer off, see
+toolkit/runtimes.py) is faster on our kernels than PoCL on a 2-core AMD EPYC (1.4x for pt_naive
+and bdpt_parallel_connect), but PoCL comes first: it is open source, it is what the project's
+figures and tests are measured on, and Intel's runtime is the fallback for CPUs that PoCL 3.0
+cannot compile for. Pick Intel's with `--device intel` for speed. Oclgrind is a simulator for
+finding memory errors, a thousand times slower: it is only used when asked for by name.
 
 `--device` / `PYOPENCL_CTX` (`P:D` indices or a part of the name) override the automatic
 choice; `TOOLKIT_HIDE_PLATFORMS` (comma-separated parts of platform names) makes platforms

@@ -116,6 +116,10 @@ def build(context, name, defines=None, directory=None):
     if os.environ.get("TOOLKIT_WERROR") == "1":
         options.append("-Werror")  # the test suite: any compiler warning fails the build
     device = context.devices[0]
+    if "Intel" in device.platform.name:
+        # Intel's vectorizer setting (toolkit/runtimes.py) changes the code built from the same
+        # options: name it in them, so that pyopencl's binary cache keeps the two apart.
+        options.append(f"-DINTEL_VECTORIZER_{os.environ.get('CL_CONFIG_USE_VECTORIZER', 'True')}")
     key = hashlib.sha256("\0".join([source, " ".join(options), device.name, device.platform.name,
                                     device.driver_version, cl.VERSION_TEXT]).encode()).hexdigest()
     if (key, context.int_ptr) in _memo:
