@@ -6,9 +6,10 @@
  * whatever struct type) to out[slot]. The standalone kernels are in compact.cl; the host
  * side is toolkit/compaction.py.
  *
- * Needs -DLOCAL_SIZE=<work-group size> (the host passes program.LOCAL_SIZE): the local
- * scratch is sized at compile time, and every kernel that uses these functions must run
- * with exactly that local size (our kernels say so with reqd_work_group_size).
+ * Needs -DLOCAL_SIZE=<work-group size> (the host passes the technique's or Compactor's
+ * local_size, default program.LOCAL_SIZE = 64): the local scratch is sized at compile time,
+ * and every kernel that uses these functions must run with exactly that local size (our
+ * kernels say so with reqd_work_group_size; the tests run 32, 64 and 256).
  *
  * RULES FOR CALLERS. These functions contain barriers, so
  *   1. every work-item of the work-group must call them, the same number of times, from

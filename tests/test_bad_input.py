@@ -240,7 +240,7 @@ def test_scenes_at_the_scale_limits_render_like_the_box(cornell_box, technique):
 # -- the limits: one table (toolkit/validate.py), stated in scenes/FORMAT.md ---------------------
 
 SCENE_LIMITS = [n for n in LIMITS if n.split(".")[0] in ("camera", "material", "shape", "integrator", "scene", "mesh",
-                                                         "mlt")]   # and the technique options FORMAT.md states
+                                                         "technique", "mlt")]   # and the technique options FORMAT.md states
 
 
 def test_format_md_states_every_limit_the_loader_enforces():

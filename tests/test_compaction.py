@@ -15,6 +15,9 @@ from toolkit.compaction import Compactor
 
 L = program.LOCAL_SIZE
 METHODS = ["immediate", "multipass"]
+# The work-group sizes every compaction test runs at (the kernels' scans and local arrays are
+# sized by the LOCAL_SIZE define; a GPU may prefer another size than the CPU's default).
+LOCAL_SIZES = [32, 64, 256]
 
 
 @pytest.fixture(scope="module")
@@ -22,13 +25,16 @@ def queue():
     return device.get_queue()
 
 
-@pytest.fixture(scope="module")
-def compactor(queue):
-    return Compactor(queue)
+@pytest.fixture(scope="module", params=LOCAL_SIZES, ids=lambda size: f"L{size}")
+def compactor(queue, request):
+    c = Compactor(queue, local_size=request.param)
+    assert c.local_size == request.param
+    return c
 
 
-def check(method, out, mask):
-    """Assert that `out` is a correct compaction of `mask` for `method`."""
+def check(method, out, mask, local_size=L):
+    """Assert that `out` is a correct compaction of `mask` for `method` (by work-groups of
+    `local_size`)."""
     expected = np.flatnonzero(mask)
     assert out.dtype == np.int32
     if method == "multipass":
@@ -36,7 +42,7 @@ def check(method, out, mask):
         return
     assert len(out) == len(expected)
     np.testing.assert_array_equal(np.sort(out), expected)  # same set, no duplicates
-    groups = out // L
+    groups = out // local_size
     same_group = np.diff(groups) == 0
     # Each work-group's survivors are one contiguous run (one atomic per group) ...
     runs = int(np.count_nonzero(~same_group)) + 1 if len(out) else 0
@@ -63,8 +69,9 @@ def test_compaction_matches_numpy_at_every_size_and_density(compactor, method, n
     rng = np.random.default_rng(1000 * n + int(100 * density))
     mask = rng.random(n) < density
     out = compactor.compact_numpy(mask, method)
-    check(method, out, mask)
+    check(method, out, mask, compactor.local_size)
     assert compactor.last_stats["n"] == n
+    assert compactor.last_stats["work_groups"] == -(-n // compactor.local_size)
     assert compactor.last_stats["count"] == int(mask.sum())
     assert compactor.last_stats["method"] == method
 
@@ -74,32 +81,37 @@ def test_compaction_matches_numpy_at_every_size_and_density(compactor, method, n
 def test_medium_stream_compacts_like_numpy_at_any_density(compactor, method, density):
     rng = np.random.default_rng(7)
     mask = rng.random(100_003) < density
-    check(method, compactor.compact_numpy(mask, method), mask)
+    check(method, compactor.compact_numpy(mask, method), mask, compactor.local_size)
 
 
 @pytest.mark.parametrize("method", METHODS)
 def test_structured_masks_compact_like_numpy(compactor, method):
     """Patterns random masks rarely make: alternating lanes, whole dead groups, one survivor."""
-    n = 64 * 37 + 5
+    L = compactor.local_size
+    n = L * 37 + 5
     masks = [np.arange(n) % 2 == 0,
              (np.arange(n) // L) % 3 == 1,           # every third work-group fully alive
              np.arange(n) == n - 1,                   # only the last item, in the padded group
              np.arange(n) % L == L - 1]               # only the last lane of every group
     for mask in masks:
-        check(method, compactor.compact_numpy(mask, method), mask)
+        check(method, compactor.compact_numpy(mask, method), mask, L)
 
 
 @pytest.mark.parametrize("method", METHODS)
 def test_large_stream_compacts_like_numpy(queue, compactor, method):
-    n = 4_000_000  # three levels of block sums for the multi-pass scan (62500, 977, 16)
+    n = 4_000_000  # levels of block sums for the multi-pass scan: at L = 64 three (62500, 977, 16)
     mask = np.random.default_rng(4).random(n) < 0.35
     flags = cl_array.to_device(queue, mask.astype(np.int32))
     buffer, count = compactor.compact_indices(flags.data, n, method)
     out = np.empty(count, np.int32)
     cl.enqueue_copy(queue, out, buffer)
-    check(method, out, mask)
+    check(method, out, mask, compactor.local_size)
     if method == "multipass":
-        assert compactor.last_stats["launches"] == 4 + 3 + 1  # 4 scan levels, 3 add-backs, scatter
+        levels, blocks = 1, -(-n // compactor.local_size)
+        while blocks > 1:
+            levels, blocks = levels + 1, -(-blocks // compactor.local_size)
+        # at L = 64: 4 scan levels, 3 add-backs, the scatter
+        assert compactor.last_stats["launches"] == levels + (levels - 1) + 1
 
 
 # -- inputs ---------------------------------------------------------------------------------
@@ -108,11 +120,12 @@ def test_large_stream_compacts_like_numpy(queue, compactor, method):
 def test_flags_past_n_are_ignored(queue, compactor, method):
     """The padding work-items of the last group read nothing and count as dead, even when the
     buffer holds alive flags beyond n."""
+    L = compactor.local_size
     flags = cl_array.to_device(queue, np.ones(3 * L, np.int32))
-    buffer, count = compactor.compact_indices(flags.data, 65, method)
+    buffer, count = compactor.compact_indices(flags.data, L + 1, method)
     out = np.empty(count, np.int32)
     cl.enqueue_copy(queue, out, buffer)
-    check(method, out, np.ones(65, bool))
+    check(method, out, np.ones(L + 1, bool), L)
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -125,7 +138,7 @@ def test_any_nonzero_flag_of_any_input_kind_is_alive(queue, compactor, method):
         buffer, count = compactor.compact_indices(flags, len(values), method)
         out = np.empty(count, np.int32)
         cl.enqueue_copy(queue, out, buffer)
-        check(method, out, mask)
+        check(method, out, mask, compactor.local_size)
 
 
 def test_reused_output_buffer_restarts_its_counter(queue, compactor):
@@ -139,7 +152,7 @@ def test_reused_output_buffer_restarts_its_counter(queue, compactor):
             assert buffer is out and count == int(mask.sum())
             result = np.empty(count, np.int32)
             cl.enqueue_copy(queue, result, out)
-            check(method, result, mask)
+            check(method, result, mask, compactor.local_size)
 
 
 def test_unknown_method_is_refused(compactor):
@@ -226,16 +239,18 @@ RECORD = np.dtype([("payload", np.float32, 4), ("source", np.int32), ("generatio
                    ("pad0", np.int32), ("pad1", np.int32)])
 
 
-@pytest.fixture(scope="module")
-def record_program(queue):
-    """compact.h inlined the way program.build does it for a technique's kernel file."""
+@pytest.fixture(scope="module", params=LOCAL_SIZES, ids=lambda size: f"L{size}")
+def record_program(queue, request):
+    """compact.h inlined the way program.build does it for a technique's kernel file, and the
+    local size it is built for."""
     source = program.expand_includes("compact.h") + RECORD_KERNELS
-    options = program.define_options({"LOCAL_SIZE": L})
-    return cl.Program(queue.context, source).build(options=options)
+    options = program.define_options({"LOCAL_SIZE": request.param})
+    return cl.Program(queue.context, source).build(options=options), request.param
 
 
 @pytest.mark.parametrize("n", [1, 65, 4097, 200_000])
 def test_device_helper_compacts_struct_records(queue, record_program, n):
+    record_program, L = record_program
     assert RECORD.itemsize == 32
     rng = np.random.default_rng(n)
     records = np.zeros(n, RECORD)
@@ -251,7 +266,7 @@ def test_device_helper_compacts_struct_records(queue, record_program, n):
     alive_buf = cl.Buffer(ctx, mf.READ_WRITE, RECORD.itemsize * n)
     dead_buf = cl.Buffer(ctx, mf.READ_WRITE, RECORD.itemsize * n)
     kernel = cl.Kernel(record_program, "partition_records")
-    program.launch(queue, kernel, n, in_buf, keep_buf, np.int32(n), counters, alive_buf, dead_buf)
+    program.launch(queue, kernel, n, in_buf, keep_buf, np.int32(n), counters, alive_buf, dead_buf, local_size=L)
     counts = np.empty(2, np.int32)
     cl.enqueue_copy(queue, counts, counters)
     alive_idx, dead_idx = np.flatnonzero(keep), np.flatnonzero(keep == 0)
@@ -261,8 +276,8 @@ def test_device_helper_compacts_struct_records(queue, record_program, n):
     cl.enqueue_copy(queue, alive, alive_buf)
     cl.enqueue_copy(queue, dead, dead_buf)
     alive, dead = alive[:counts[0]], dead[:counts[1]]
-    check("immediate", alive["source"], keep != 0)
-    check("immediate", dead["source"], keep == 0)
+    check("immediate", alive["source"], keep != 0, L)
+    check("immediate", dead["source"], keep == 0, L)
     # Payloads travel with their records (exact: multiplying by 2 is exact in float).
     np.testing.assert_array_equal(alive["payload"], 2.0 * records["payload"][alive["source"]])
     np.testing.assert_array_equal(alive["generation"], records["generation"][alive["source"]] + 1)

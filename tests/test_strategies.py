@@ -5,11 +5,12 @@ import subprocess
 import sys
 
 import numpy as np
+import pyopencl as cl
 import pytest
 
 import toolkit
 from toolkit.simd import PhaseCounter
-from toolkit.techniques import TECHNIQUES
+from toolkit.techniques import TECHNIQUES, VARIANTS
 
 PT = ["pt_naive", "pt_inplace_regen", "pt_compact_regen", "pt_compact_regen/multipass"]
 
@@ -24,6 +25,46 @@ def test_strategies_compute_the_same_samples(scene_name, request):
     base = images["pt_naive"]
     for name, image in images.items():
         np.testing.assert_allclose(image, base, rtol=1e-5, atol=1e-6, err_msg=name)
+
+
+@pytest.mark.parametrize("technique", [*TECHNIQUES, *VARIANTS])
+def test_the_work_group_size_does_not_change_the_image(cornell_box, technique):
+    """Every technique built and launched at local sizes 32, 64 and 256 (the kernels'
+    reqd_work_group_size, local arrays and in-kernel compaction scans follow it) gives the same
+    image, bit for bit: random numbers are keyed by sample, not by work-item, and every sample
+    adds its parts in the same order whatever the work-groups."""
+    from toolkit import program
+    images = {}
+    for size in (32, 64, 256):
+        result = toolkit.render(cornell_box, technique=technique, spp=2, seed=5, resolution=(13, 7), local_size=size)
+        assert result.stats["local_size"] == size
+        assert result.stats["samples_per_pixel"] == [2, 2]
+        images[size] = result.image
+    for size in (32, 256):
+        np.testing.assert_array_equal(images[size], images[64], err_msg=f"{technique} at local size {size}")
+    # The build really took the size: a kernel with reqd_work_group_size(LOCAL_SIZE) reports it.
+    if technique == "pt_compact_regen":
+        from toolkit.api import as_scene
+        from toolkit.device import get_queue
+        from toolkit.device_scene import DeviceScene
+        queue = get_queue()
+        tech = TECHNIQUES[technique](queue, DeviceScene(queue, as_scene(cornell_box)), local_size=32)
+        kernel = program.kernel(tech.program, "pt_compact_regen_extend")
+        info = kernel.get_work_group_info(cl.kernel_work_group_info.COMPILE_WORK_GROUP_SIZE, queue.device)
+        assert list(info) == [32, 1, 1]
+
+
+@pytest.mark.parametrize("size", [0, 16, 48, 512, 64.0, True, "64"])
+def test_a_bad_work_group_size_is_refused_before_any_work(cornell_box, size):
+    from toolkit.compaction import Compactor
+    from toolkit.device import get_queue
+    from toolkit.validate import InputError
+    with pytest.raises(InputError, match="local_size"):
+        toolkit.render(cornell_box, technique="pt_naive", spp=1, resolution=(4, 4), local_size=size)
+    with pytest.raises(InputError, match="local_size"):
+        Compactor(get_queue(), local_size=size)
+    with pytest.raises(InputError, match="unknown option 'local_size'"):   # render's argument, not an option
+        toolkit.render(cornell_box, technique="pt_naive", spp=1, resolution=(4, 4), options={"local_size": 64})
 
 
 @pytest.mark.parametrize("technique", PT)

@@ -13,7 +13,7 @@ from .device_scene import DeviceScene
 from .layout import BVH_KINDS
 from .scene import Scene, bundled_scene_dir, check_scene, load_scene
 from .techniques import get_technique
-from .validate import InputError, render_args
+from .validate import InputError, local_size as checked_local_size, render_args
 
 
 class DroppedSamplesWarning(UserWarning):
@@ -44,7 +44,7 @@ def _options(cls, options):
     known = {name for c in cls.__mro__ if "__init__" in vars(c)
              for name, p in inspect.signature(c.__init__).parameters.items()
              if p.kind == p.KEYWORD_ONLY or (p.kind == p.POSITIONAL_OR_KEYWORD and p.default is not p.empty)}
-    known -= {"warp_width", "count_simd", "extra_defines"}
+    known -= {"warp_width", "count_simd", "extra_defines", "local_size"}   # render's own arguments
     for key in options:
         if key not in known:
             raise InputError(f"unknown option {key!r} for {cls.name} (known: {', '.join(sorted(known)) or 'none'})")
@@ -52,7 +52,7 @@ def _options(cls, options):
 
 
 def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, device=None,
-           warp_width=32, count_simd=True, progress=False, options=None, bvh="wide"):
+           warp_width=32, count_simd=True, progress=False, options=None, bvh="wide", local_size=64):
     """Render a scene (a Scene, a folder, a scene.json or None for the bundled Cornell box).
 
     `resolution` (width, height) keeps the scene's camera and field of view. `technique` is a
@@ -60,7 +60,9 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     `options` are passed to the technique. Returns a RenderResult with the image, its
     standard-error image and stats (timings, SIMD efficiency). `bvh` is "wide" (four children
     per node, tested together with float4 operations: SIMD inside one ray) or "binary"; both
-    give the same image (tests/test_wide_bvh.py).
+    give the same image (tests/test_wide_bvh.py). `local_size` is the work-group size the
+    kernels are built and launched with, a power of two 32 .. 256; random numbers are keyed by
+    sample, not by work-item, so the image does not depend on it (tests/test_strategies.py).
     """
     # Every argument is checked before any work (kernel builds, BVH) starts.
     if not isinstance(technique, str):
@@ -77,9 +79,10 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     scene = as_scene(scene)
     width, height = resolution or (scene.camera.width, scene.camera.height)
     spp, seed, width, height = render_args(spp, seed, width, height, warp_width)
+    local_size = checked_local_size(local_size)
     queue = get_queue(device)
     device_scene = DeviceScene(queue, scene, bvh=bvh)
-    tech = cls(queue, device_scene, warp_width=warp_width, count_simd=count_simd,
+    tech = cls(queue, device_scene, warp_width=warp_width, count_simd=count_simd, local_size=local_size,
                **{**variant_options, **options})
     bar = None
     if progress:
@@ -97,6 +100,7 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
         "technique": technique,
         "spp": spp,
         "resolution": [width, height],
+        "local_size": tech.local_size,
         "seconds": seconds,
         "samples_per_second": film.samples / seconds if seconds > 0 else float("inf"),
         "device": describe(queue.device),

@@ -19,6 +19,7 @@ import pyopencl as cl
 import pyopencl.array as cl_array
 
 from . import program
+from .validate import local_size as checked_local_size
 
 METHODS = ("immediate", "multipass")
 _INT = np.dtype(np.int32).itemsize
@@ -30,11 +31,16 @@ class Compactor:
     ``last_stats`` describes the last call (for the SIMD counters and for teaching): the
     method, the stream length ``n``, the number of survivors ``count``, the number of
     work-groups and of kernel launches it took.
+
+    `local_size` is the work-group size its kernels are built for (LOCAL_SIZE) and launched with;
+    a technique passes its own. Immediate compaction's output order depends on it (the groups),
+    the alive set does not.
     """
 
-    def __init__(self, queue):
+    def __init__(self, queue, local_size=program.LOCAL_SIZE):
         self.queue = queue
-        self.program = program.build(queue.context, "compact.cl", {"LOCAL_SIZE": program.LOCAL_SIZE})
+        self.local_size = checked_local_size(local_size)
+        self.program = program.build(queue.context, "compact.cl", {"LOCAL_SIZE": self.local_size})
         # One kernel object each (every `program.name` access would create a new one).
         self._kernels = {name: cl.Kernel(self.program, name) for name in
                          ("scan_blocks", "scan_add_block_offsets", "compact_scatter", "compact_immediate")}
@@ -56,7 +62,7 @@ class Compactor:
         if method not in METHODS:
             raise ValueError(f"method must be one of {METHODS}, not {method!r}")
         flags, n = self._device_flags(alive_flags, n)
-        if n >= 2**31 - program.LOCAL_SIZE:
+        if n >= 2**31 - self.local_size:
             raise ValueError("streams are indexed with 32-bit ints: n must be below 2**31")
         if out is None:
             out = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, _INT * max(n, 1))
@@ -72,7 +78,7 @@ class Compactor:
         if not 0 <= count <= n:  # only a broken kernel or runtime gets here (e.g. a missing barrier)
             raise RuntimeError(f"{method} compaction counted {count} survivors among {n} items")
         self.last_stats = {"method": method, "n": n, "count": count,
-                           "work_groups": -(-n // program.LOCAL_SIZE), "launches": self._launches}
+                           "work_groups": -(-n // self.local_size), "launches": self._launches}
         return out, count
 
     def compact_numpy(self, mask, method="immediate"):
@@ -115,10 +121,10 @@ class Compactor:
         """Exclusive scan src -> dst of n ints; returns a one-int buffer holding the total.
 
         Level 0 scans each work-group's slice and writes the group totals to block_sums; the
-        block sums are scanned in place by the same code (recursively, 64x fewer each level)
+        block sums are scanned in place by the same code (recursively, local_size x fewer each level)
         and added back. When a level fits in one work-group its block sum is the total.
         """
-        blocks = -(-n // program.LOCAL_SIZE)
+        blocks = -(-n // self.local_size)
         block_sums = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, _INT * blocks)
         self._launch(self._kernels["scan_blocks"], n, src, np.int32(n), np.int32(as_flags), dst, block_sums)
         if blocks == 1:
@@ -131,7 +137,7 @@ class Compactor:
 
     def _launch(self, kernel, n, *args):
         self._launches += 1
-        program.launch(self.queue, kernel, n, *args)
+        program.launch(self.queue, kernel, n, *args, local_size=self.local_size)
 
     def _device_flags(self, alive_flags, n):
         """(cl.Buffer of int32 flags, n) for any accepted input."""

@@ -17,7 +17,10 @@ from pathlib import Path
 import numpy as np
 import pyopencl as cl
 
-LOCAL_SIZE = 64  # one fixed work-group size: PoCL compiles a kernel per distinct local size
+# The default work-group size. A program is built for one local size (the LOCAL_SIZE define: the
+# kernels' reqd_work_group_size and __local arrays) and must be launched with it: the techniques
+# and the Compactor take `local_size` and pass it to both build() and launch().
+LOCAL_SIZE = 64
 
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
 
@@ -108,7 +111,8 @@ def build(context, name, defines=None, directory=None):
     """The built program for cl/<name> (or <directory>/<name>) under `defines`, memoised per device.
 
     With `directory`, `name` and its quoted includes are read from there first, then from cl/,
-    so a kernel of your own can include the toolkit's headers."""
+    so a kernel of your own can include the toolkit's headers. `defines["LOCAL_SIZE"]` (default
+    LOCAL_SIZE) is the work-group size the program must be launched with (launch's local_size)."""
     defines = dict(defines or {})
     defines.setdefault("LOCAL_SIZE", LOCAL_SIZE)
     source = expand_includes(name, directory)
@@ -210,7 +214,7 @@ def kernel(built, name):
 
 
 def padded(n, local_size=LOCAL_SIZE):
-    """Global size: n rounded up to the fixed local size (kernels guard with `gid >= n`)."""
+    """Global size: n rounded up to a multiple of the local size (kernels guard with `gid >= n`)."""
     return max(local_size, (n + local_size - 1) // local_size * local_size)
 
 
@@ -236,8 +240,9 @@ def _fingerprint(value):
 
 
 def launch(queue, kernel, n, *args, local_size=LOCAL_SIZE):
-    """Run `kernel` over n work-items with the fixed local size and a padded global size,
-    setting only the arguments that differ from its previous launch."""
+    """Run `kernel` over n work-items in work-groups of `local_size` (the LOCAL_SIZE its program
+    was built with) and a padded global size, setting only the arguments that differ from its
+    previous launch."""
     key = (kernel.int_ptr, kernel.function_name)
     if key not in _bound or _bound[key][0] is not kernel:
         # Keyed by the handle, checked by identity: a freed kernel's handle can be reused by

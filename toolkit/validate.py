@@ -45,7 +45,9 @@ LIMITS = {
     "bench.equal_time": (0.01, 86400.0, "seconds per technique"),
     "bench.repeats": (1, 1000, "interleaved repetitions"),
     "crosscheck.rays": (1, 1 << 26, "random rays"),
-    # Technique options (toolkit/techniques/mlt.py), stated in FORMAT.md's second table.
+    # Technique options, stated in FORMAT.md's second table.
+    "technique.local_size": (32, 256, "work-items per work-group, a power of two (toolkit.render's local_size); "
+                                      "the image does not depend on it"),
     "mlt.chains": (1, 1 << 18, "independent Metropolis chains; each stores two vectors of max_dims floats"),
     "mlt.large_step": (1e-3, 1.0, "probability of a large step; b comes from the large steps"),
     "mlt.candidates": (1, 1024, "large steps per chain for start = resample"),
@@ -190,6 +192,15 @@ def physical_memory():
         return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (ValueError, OSError, AttributeError):
         return 16 << 30
+
+
+def local_size(value, where="local_size"):
+    """A work-group size the kernels are built and launched with: a power of two within
+    LIMITS["technique.local_size"] (the kernels' scans and local arrays are sized by it)."""
+    value = whole_number("technique.local_size", value, where)
+    if value & (value - 1):
+        raise InputError(f"{where} must be a power of two, got {value}")
+    return value
 
 
 def render_args(spp, seed, width, height, warp_width=32):

@@ -9,6 +9,7 @@ from .. import program
 from ..film import Film
 from ..layout import LANE_COUNTS
 from ..simd import PhaseCounter
+from ..validate import InputError, local_size as checked_local_size
 
 
 class Technique:
@@ -25,14 +26,22 @@ class Technique:
     # the autograder (toolkit/grade.py) points it at a folder holding a student's file.
     source_dir = None
 
-    def __init__(self, queue, device_scene, warp_width=32, count_simd=True, extra_defines=None):
+    def __init__(self, queue, device_scene, warp_width=32, count_simd=True, extra_defines=None,
+                 local_size=program.LOCAL_SIZE):
         self.queue = queue
         self.scene = device_scene
         self.warp_width = warp_width
         self.count_simd = count_simd
+        # The work-group size: the program is built for it (LOCAL_SIZE) and every launch uses it.
+        # Random numbers are keyed by sample, not by work-item, so it does not change the image.
+        self.local_size = checked_local_size(local_size)
+        if self.local_size > queue.device.max_work_group_size:
+            raise InputError(f"local_size {self.local_size} exceeds the device's maximum work-group size "
+                             f"{queue.device.max_work_group_size}")
         defines = dict(device_scene.features())
         defines["COUNT_SIMD"] = bool(count_simd)
         defines.update(extra_defines or {})
+        defines["LOCAL_SIZE"] = self.local_size
         self.defines = defines
         start = time.perf_counter()
         self.program = program.build(queue.context, self.source, defines, directory=self.source_dir)
@@ -43,6 +52,14 @@ class Technique:
     def kernel(self, name):
         """The kernel object, retrieved once (each retrieval makes a new cl.Kernel)."""
         return program.kernel(self.program, name)
+
+    def launch(self, kernel, n, *args):
+        """program.launch in work-groups of this technique's local size (its program's LOCAL_SIZE)."""
+        return program.launch(self.queue, kernel, n, *args, local_size=self.local_size)
+
+    def padded(self, n):
+        """n rounded up to a multiple of this technique's local size (a launch's global size)."""
+        return program.padded(n, self.local_size)
 
     def render(self, width, height, spp, seed=0, progress=None):
         """Render `spp` samples per pixel; returns the film (see toolkit.api.render)."""
@@ -70,8 +87,8 @@ class Technique:
 
     def output_buffer(self, n):
         """One float4 per sample of the pass, pre-filled with .w = -1 ("not written yet")."""
-        buf = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * program.padded(n))
-        cl.enqueue_fill_buffer(self.queue, buf, np.array([0, 0, 0, -1], np.float32), 0, 16 * program.padded(n))
+        buf = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * self.padded(n))
+        cl.enqueue_fill_buffer(self.queue, buf, np.array([0, 0, 0, -1], np.float32), 0, 16 * self.padded(n))
         return buf
 
     def collect(self, film, buffer, n):
@@ -92,15 +109,15 @@ class Technique:
         return cache[key]
 
     def int_buffer(self, n, fill=None):
-        buf = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * max(1, program.padded(n)))
+        buf = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * max(1, self.padded(n)))
         if fill is not None:
-            cl.enqueue_fill_buffer(self.queue, buf, np.int32(fill), 0, 4 * max(1, program.padded(n)))
+            cl.enqueue_fill_buffer(self.queue, buf, np.int32(fill), 0, 4 * max(1, self.padded(n)))
         return buf
 
     def lane_counts_buffer(self, n):
         """One LaneCounts record per work-item (toolkit/layout.py), written when COUNT_SIMD."""
         return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
-                         LANE_COUNTS.dtype.itemsize * program.padded(max(n, 1)))
+                         LANE_COUNTS.dtype.itemsize * self.padded(max(n, 1)))
 
     def read_lane_counts(self, buffer, n):
         return self.read_structs(LANE_COUNTS, buffer, n)
@@ -117,9 +134,8 @@ class Technique:
         kernels take with it) is n padded to the local size: see stream_capacity()."""
         return record.soa_buffer(self.queue.context, self.stream_capacity(n))
 
-    @staticmethod
-    def stream_capacity(n):
-        return program.padded(n)
+    def stream_capacity(self, n):
+        return self.padded(n)
 
     def read_ints(self, buffer, n, columns=1):
         out = np.empty((n, columns) if columns > 1 else n, np.int32)

@@ -16,7 +16,6 @@ from dataclasses import dataclass
 import numpy as np
 import pyopencl as cl
 
-from .. import program
 from ..compaction import Compactor
 from ..layout import BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, SUBPATH, SlotState, WalkCounter
 from ..simd import PhaseCounter
@@ -85,7 +84,7 @@ class BdptTechnique(Technique):
         self.regenerate_fraction = regenerate_fraction
         self.coalesced_scatter = coalesced_scatter
         self.pool_size = pool_size or self.pool_size
-        self.compactor = Compactor(queue)
+        self.compactor = Compactor(queue, local_size=self.local_size)
         self.uncompacted = PhaseCounter(self.warp_width)   # the walk as it would be without compaction
 
     def run_pass(self, film, camera, seed, sample_base, spp):
@@ -135,7 +134,7 @@ class BdptTechnique(Technique):
                                  cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes))
         return self.reused(("pool", size), lambda: SamplePool(
             size, capacity, stream(0), stream(1),
-            slots=cl.Buffer(ctx, cl.mem_flags.READ_WRITE, BDPT_SLOT.dtype.itemsize * program.padded(size)),
+            slots=cl.Buffer(ctx, cl.mem_flags.READ_WRITE, BDPT_SLOT.dtype.itemsize * self.padded(size)),
             terminated=self.int_buffer(size), counters=self.int_buffer(len(WalkCounter)),
             lane_counts=self.lane_counts_buffer(size),
             all_slots=cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
@@ -149,9 +148,9 @@ class BdptTechnique(Technique):
             r = BDPT_REGENERATION.zeros(1)[0]
             r["count"], r["fresh"], r["first_id"] = count, fresh, p.next_id
             r["eye_base"], r["light_base"] = p.pool.eye.length, p.pool.light.length
-            program.launch(self.queue, self.kernel("bdpt_regenerate"), count, *self.scene.args(), p.camera,
-                           p.args, r, slots, p.pool.eye.current, p.pool.light.current, p.pool.eye.vertices,
-                           p.pool.light.vertices, p.pool.slots, *self.sampler_args())
+            self.launch(self.kernel("bdpt_regenerate"), count, *self.scene.args(), p.camera,
+                        p.args, r, slots, p.pool.eye.current, p.pool.light.current, p.pool.eye.vertices,
+                        p.pool.light.vertices, p.pool.slots, *self.sampler_args())
         cl.enqueue_fill_buffer(self.queue, p.pool.counters, np.int32(0), 4 * WalkCounter.TERMINATED_SAMPLES, 4)
         p.pool.eye.length += fresh
         p.pool.light.length += fresh
@@ -176,15 +175,15 @@ class BdptTechnique(Technique):
         """bdpt_extend: one vertex more on every subpath of `stream`, survivors into its spare."""
         step = BDPT_STEP.zeros(1)[0]
         step["light_path"], step["length"] = stream.is_light, stream.length
-        program.launch(self.queue, self.kernel("bdpt_extend"), stream.length, *self.scene.args(), p.camera,
-                       p.args, step, stream.current, stream.spare, p.pool.counters, stream.vertices,
-                       p.pool.slots, p.pool.lane_counts, *self.sampler_args())
+        self.launch(self.kernel("bdpt_extend"), stream.length, *self.scene.args(), p.camera,
+                    p.args, step, stream.current, stream.spare, p.pool.counters, stream.vertices,
+                    p.pool.slots, p.pool.lane_counts, *self.sampler_args())
         self.count_walk_step(p, stream)
 
     def terminated_slots(self, p):
         """bdpt_mark_terminated, then compaction: (the list of terminated slots, its length)."""
-        program.launch(self.queue, self.kernel("bdpt_mark_terminated"), p.pool.size, np.int32(p.pool.size),
-                       p.pool.slots, p.pool.terminated)
+        self.launch(self.kernel("bdpt_mark_terminated"), p.pool.size, np.int32(p.pool.size),
+                    p.pool.slots, p.pool.terminated)
         return self.compactor.compact_indices(p.pool.terminated, p.pool.size, method="immediate")
 
     def connect(self, p, count):

@@ -6,7 +6,6 @@ bdpt_parallel_connect: see bdpt_base.py and cl/bdpt_walk.h."""
 import numpy as np
 import pyopencl as cl
 
-from .. import program
 from ..simd import PhaseCounter
 from .bdpt_base import BdptTechnique
 
@@ -34,9 +33,9 @@ class BdptNaiveConnect(BdptTechnique):
         values, pixels = self.reused(("records", n), lambda: (
             cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * n), self.int_buffer(n)))
         cl.enqueue_fill_buffer(self.queue, pixels, np.int32(-1), 0, 4 * n)   # records a slot may leave unwritten
-        program.launch(self.queue, self.kernel("bdpt_naive_connect"), pool, *self.scene.args(), p.camera,
-                       np.int32(pool), p.pool.slots, p.pool.eye.vertices, p.pool.light.vertices, values, pixels,
-                       p.pool.lane_counts)
+        self.launch(self.kernel("bdpt_naive_connect"), pool, *self.scene.args(), p.camera,
+                    np.int32(pool), p.pool.slots, p.pool.eye.vertices, p.pool.light.vertices, values, pixels,
+                    p.pool.lane_counts)
         self.count_connect(p)
         return self.reduce_records(*self.read_records(values, pixels, n), npix)
 

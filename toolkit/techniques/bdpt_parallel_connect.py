@@ -5,7 +5,6 @@ connection, whatever the lengths of the subpaths."""
 import numpy as np
 import pyopencl as cl
 
-from .. import program
 from .bdpt_base import BdptTechnique
 
 
@@ -26,8 +25,8 @@ class BdptParallelConnect(BdptTechnique):
         if count == 0:
             return None
         counts = self.reused(("counts", pool), lambda: self.int_buffer(pool))
-        program.launch(self.queue, self.kernel("bdpt_parallel_connect_count"), pool, np.int32(pool),
-                       p.pool.slots, counts)
+        self.launch(self.kernel("bdpt_parallel_connect_count"), pool, np.int32(pool),
+                    p.pool.slots, counts)
         firsts, total = self.compactor.exclusive_scan(counts, pool)
         if total == 0:
             return None
@@ -36,9 +35,9 @@ class BdptParallelConnect(BdptTechnique):
         values, pixels, lanes = self.reused(("records", capacity), lambda: (
             cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * capacity),
             self.int_buffer(capacity), self.lane_counts_buffer(capacity)))
-        program.launch(self.queue, self.kernel("bdpt_parallel_connect"), total, *self.scene.args(), p.camera,
-                       np.int32(total), np.int32(pool), firsts, p.pool.slots, p.pool.eye.vertices,
-                       p.pool.light.vertices, values, pixels, lanes)
+        self.launch(self.kernel("bdpt_parallel_connect"), total, *self.scene.args(), p.camera,
+                    np.int32(total), np.int32(pool), firsts, p.pool.slots, p.pool.eye.vertices,
+                    p.pool.light.vertices, values, pixels, lanes)
         if self.count_simd:
             self.simd.add_stream_step("connect", total)
         return (*self.read_records(values, pixels, total), counts)

@@ -60,7 +60,6 @@ from dataclasses import dataclass
 import numpy as np
 import pyopencl as cl
 
-from .. import program
 from ..film import Film
 from ..layout import BDPT_SLOT, LUMINANCE_WEIGHTS, MLT_CHAIN, MLT_ITERATION, MltMode
 from ..validate import InputError, finite_number, whole_number
@@ -142,7 +141,7 @@ class Mlt(BdptParallelConnect):
 
     def begin(self, camera, seed, count):
         """The chains' memory and their first states (`start`)."""
-        ctx, n = self.queue.context, program.padded(count)
+        ctx, n = self.queue.context, self.padded(count)
         vectors = 4 * n * self.max_dims
         c = Chains(count, cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
                    cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
@@ -176,8 +175,8 @@ class Mlt(BdptParallelConnect):
 
     def mutate(self, c, it):
         """mlt_mutate: every active chain writes its proposal (cl/mlt.h)."""
-        program.launch(self.queue, self.kernel("mlt_mutate"), int(it["active"]), it, c.current, c.proposal,
-                       c.records)
+        self.launch(self.kernel("mlt_mutate"), int(it["active"]), it, c.current, c.proposal,
+                    c.records)
         if self.count_simd:
             self.simd.add_stream_step("mutate", int(it["active"]))
 
@@ -220,8 +219,8 @@ class Mlt(BdptParallelConnect):
         active = int(it["active"])
         cl.enqueue_copy(self.queue, c.f_proposal, f.astype(np.float32))
         cl.enqueue_copy(self.queue, c.dims_proposal, dims.astype(np.int32))
-        program.launch(self.queue, self.kernel("mlt_accept"), active, it, c.current, c.proposal, c.records,
-                       c.f_proposal, c.dims_proposal)
+        self.launch(self.kernel("mlt_accept"), active, it, c.current, c.proposal, c.records,
+                    c.f_proposal, c.dims_proposal)
         if self.count_simd:
             self.simd.add_stream_step("accept", active)
         return self.read_structs(MLT_CHAIN, c.records, active)

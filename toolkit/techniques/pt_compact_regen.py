@@ -11,7 +11,6 @@ work-group in local memory, one atomic per group); "multipass" labels, scans and
 import numpy as np
 import pyopencl as cl
 
-from .. import program
 from ..compaction import Compactor
 from ..layout import PATH_STATE, SHADOW_RAY, StreamCounter
 from .base import Technique
@@ -29,7 +28,7 @@ class PtCompactRegen(Technique):
             raise ValueError(f"compaction must be 'immediate' or 'multipass', not {compaction!r}")
         self.compaction = compaction
         self.shadow_queue = compaction == "immediate"
-        self.compactor = Compactor(self.queue) if compaction == "multipass" else None
+        self.compactor = Compactor(self.queue, self.local_size) if compaction == "multipass" else None
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         budget = camera["width"] * camera["height"] * spp
@@ -49,8 +48,8 @@ class PtCompactRegen(Technique):
             # Regenerate: fill the end of the stream with the next samples of the budget.
             count = min(size - length, budget - next_id)
             if count > 0:
-                program.launch(self.queue, generate, count, camera, seed, np.int32(length), np.int32(count),
-                               np.int32(next_id), np.int32(sample_base), capacity, stream)
+                self.launch(generate, count, camera, seed, np.int32(length), np.int32(count),
+                            np.int32(next_id), np.int32(sample_base), capacity, stream)
                 self.count_generate(count)
                 length += count
                 next_id += count
@@ -62,8 +61,8 @@ class PtCompactRegen(Technique):
             self.count_extend_and_compact(lane_counts, length, size, draining=next_id == budget)
             # Trace the queued shadow rays: a packed stream of its own.
             if queued:
-                program.launch(self.queue, self.kernel("pt_compact_regen_shadow"), queued, *self.scene.args(),
-                               np.int32(queued), capacity, shadow_rays, radiance, shadow_steps)
+                self.launch(self.kernel("pt_compact_regen_shadow"), queued, *self.scene.args(),
+                            np.int32(queued), capacity, shadow_rays, radiance, shadow_steps)
                 self.count_shadow(shadow_steps, queued)
             stream, spare = spare, stream
             length = survivors
@@ -74,18 +73,18 @@ class PtCompactRegen(Technique):
         """Returns (surviving paths, now packed at the start of `spare`; queued shadow rays)."""
         if self.compaction == "immediate":
             cl.enqueue_fill_buffer(self.queue, counters, np.int32(0), 0, 4 * len(StreamCounter))
-            program.launch(self.queue, self.kernel("pt_compact_regen_extend"), length, *self.scene.args(),
-                           seed, np.int32(length), capacity, stream, spare, shadow_rays, counters,
-                           radiance, lane_counts)
+            self.launch(self.kernel("pt_compact_regen_extend"), length, *self.scene.args(),
+                        seed, np.int32(length), capacity, stream, spare, shadow_rays, counters,
+                        radiance, lane_counts)
             lengths = self.read_ints(counters, len(StreamCounter))
             return int(lengths[StreamCounter.PATHS]), int(lengths[StreamCounter.SHADOW_RAYS])
         cl.enqueue_fill_buffer(self.queue, alive, np.int32(1), 0, 4 * length)   # every path in the stream is live
-        program.launch(self.queue, self.kernel("extend_in_place"), length, *self.scene.args(),
-                       seed, np.int32(length), capacity, stream, alive, radiance, lane_counts)
+        self.launch(self.kernel("extend_in_place"), length, *self.scene.args(),
+                    seed, np.int32(length), capacity, stream, alive, radiance, lane_counts)
         indices, survivors = self.compactor.compact_indices(alive, length, method="multipass")
         if survivors:
-            program.launch(self.queue, self.kernel("pt_compact_regen_gather"), survivors,
-                           np.int32(survivors), indices, capacity, stream, spare)
+            self.launch(self.kernel("pt_compact_regen_gather"), survivors,
+                        np.int32(survivors), indices, capacity, stream, spare)
         return survivors, 0
 
     # --- SIMD counting: one hook per stage, no-ops unless count_simd ----------------------

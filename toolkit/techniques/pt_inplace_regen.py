@@ -9,7 +9,6 @@ measures ~30% active threads per warp in that step.
 import numpy as np
 import pyopencl as cl
 
-from .. import program
 from ..layout import PATH_STATE
 from .base import Technique
 
@@ -33,15 +32,15 @@ class PtInplaceRegen(Technique):
         while True:
             # Regenerate: every free slot starts the next sample of the budget, if one is left.
             cl.enqueue_fill_buffer(self.queue, any_alive, np.int32(0), 0, 4)
-            program.launch(self.queue, self.kernel("pt_inplace_regen_regenerate"), slots, camera, seed,
-                           np.int32(slots), np.int32(sample_base), np.int32(budget), next_sample, capacity,
-                           paths, alive, any_alive, regenerated)
+            self.launch(self.kernel("pt_inplace_regen_regenerate"), slots, camera, seed,
+                        np.int32(slots), np.int32(sample_base), np.int32(budget), next_sample, capacity,
+                        paths, alive, any_alive, regenerated)
             self.count_regenerate(regenerated, slots)
             if not self.read_ints(any_alive, 1)[0]:
                 break   # budget spent and every path has ended
             # Extend: every slot with a live path traces one more vertex.
-            program.launch(self.queue, self.kernel("extend_in_place"), slots, *self.scene.args(), seed,
-                           np.int32(slots), capacity, paths, alive, radiance, lane_counts)
+            self.launch(self.kernel("extend_in_place"), slots, *self.scene.args(), seed,
+                        np.int32(slots), capacity, paths, alive, radiance, lane_counts)
             self.count_extend(lane_counts, slots, next_sample, budget)
         self.collect(film, radiance, budget)
 

@@ -6,7 +6,6 @@ of the loop is low (the talk reports ~33% active threads per warp).
 """
 import numpy as np
 
-from .. import program
 from .base import Technique
 
 
@@ -20,8 +19,8 @@ class PtNaive(Technique):
         n = int(camera["width"] * camera["height"]) * spp
         radiance = self.output_buffer(n)
         lane_counts = self.lane_counts_buffer(n if self.count_simd else 1)
-        program.launch(self.queue, self.kernel("pt_naive_render"), n, *self.scene.args(), camera, seed,
-                       np.int32(sample_base), np.int32(n), radiance, lane_counts)
+        self.launch(self.kernel("pt_naive_render"), n, *self.scene.args(), camera, seed,
+                    np.int32(sample_base), np.int32(n), radiance, lane_counts)
         self.collect(film, radiance, n)
         self.count_render(lane_counts, n)
 
