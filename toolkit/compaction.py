@@ -46,6 +46,10 @@ class Compactor:
                          ("scan_blocks", "scan_add_block_offsets", "compact_scatter", "compact_immediate")}
         self.last_stats = None
         self._launches = 0
+        # Scratch memory kept for the compactor's life (a stream is compacted every iteration):
+        # the atomic counter, the multi-pass offsets and the block sums of each scan level,
+        # each grown to the largest stream seen.
+        self._scratch = {}
 
     # -- public API -------------------------------------------------------------------------
 
@@ -54,7 +58,9 @@ class Compactor:
 
         `alive_flags` is a ``cl.Buffer`` of at least n int32 (0 = dead, else alive), a
         ``pyopencl.array.Array`` or a numpy array (any dtype; nonzero = alive; copied to the
-        device as int32). `out`, if given, is a buffer of at least n int32 to reuse.
+        device as int32). `out`, if given, is a buffer of at least n int32 to reuse (a stream
+        compacted every iteration should pass one: without it every call allocates its output;
+        the compactor's own scratch memory is kept between calls).
         Returns ``(out_buffer, count)``: the first `count` ints of out_buffer are the indices
         (in order for "multipass", in unspecified work-group order for "immediate"). The
         buffer always holds room for max(n, 1) ints; n = 0 gives count 0.
@@ -81,6 +87,19 @@ class Compactor:
                            "work_groups": -(-n // self.local_size), "launches": self._launches}
         return out, count
 
+    def reserve(self, n):
+        """Allocate now the scratch memory that compacting or scanning streams of up to n items
+        needs (else the first call of each larger size allocates it): a technique calls this
+        when it makes its streams, so that no iteration allocates."""
+        self._buffer("counter", 1)
+        self._buffer("offsets", n)
+        level, blocks = 0, -(-max(n, 1) // self.local_size)
+        while True:
+            self._buffer(("block_sums", level), blocks)
+            if blocks == 1:
+                return
+            level, blocks = level + 1, -(-blocks // self.local_size)
+
     def compact_numpy(self, mask, method="immediate"):
         """Convenience for numpy: the compacted index array (int32) of a 1-D mask."""
         mask = np.asarray(mask).ravel()
@@ -106,18 +125,18 @@ class Compactor:
     # -- the two methods ----------------------------------------------------------------------
 
     def _immediate(self, flags, n, out):
-        counter = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, _INT)
+        counter = self._buffer("counter", 1)
         cl.enqueue_fill_buffer(self.queue, counter, np.int32(0), 0, _INT)
         self._launch(self._kernels["compact_immediate"], n, flags, np.int32(n), counter, out)
         return _read_int(self.queue, counter)
 
     def _multipass(self, flags, n, out):
-        offsets = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, _INT * n)
+        offsets = self._buffer("offsets", n)
         total = self._scan(flags, offsets, n, as_flags=True)
         self._launch(self._kernels["compact_scatter"], n, flags, np.int32(n), offsets, out)
         return _read_int(self.queue, total)
 
-    def _scan(self, src, dst, n, as_flags):
+    def _scan(self, src, dst, n, as_flags, level=0):
         """Exclusive scan src -> dst of n ints; returns a one-int buffer holding the total.
 
         Level 0 scans each work-group's slice and writes the group totals to block_sums; the
@@ -125,15 +144,24 @@ class Compactor:
         and added back. When a level fits in one work-group its block sum is the total.
         """
         blocks = -(-n // self.local_size)
-        block_sums = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, _INT * blocks)
+        block_sums = self._buffer(("block_sums", level), blocks)
         self._launch(self._kernels["scan_blocks"], n, src, np.int32(n), np.int32(as_flags), dst, block_sums)
         if blocks == 1:
             return block_sums
-        total = self._scan(block_sums, block_sums, blocks, as_flags=False)
+        total = self._scan(block_sums, block_sums, blocks, as_flags=False, level=level + 1)
         self._launch(self._kernels["scan_add_block_offsets"], n, dst, np.int32(n), block_sums)
         return total
 
     # -- helpers ----------------------------------------------------------------------------
+
+    def _buffer(self, role, ints):
+        """Scratch memory for `role` of at least `ints` int32, kept between calls (the queue is
+        in order, so a call's kernels run after the previous call's are done with it)."""
+        buffer = self._scratch.get(role)
+        if buffer is None or buffer.size < _INT * ints:
+            buffer = self._scratch[role] = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
+                                                     _INT * max(ints, 1))
+        return buffer
 
     def _launch(self, kernel, n, *args):
         self._launches += 1

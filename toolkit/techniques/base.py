@@ -86,8 +86,10 @@ class Technique:
     # --- helpers shared by the techniques -------------------------------------------------
 
     def output_buffer(self, n):
-        """One float4 per sample of the pass, pre-filled with .w = -1 ("not written yet")."""
-        buf = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * self.padded(n))
+        """One float4 per sample of the pass, pre-filled with .w = -1 ("not written yet"); made
+        once per pass size and refilled by every pass (collect reads it before the next starts)."""
+        buf = self.reused(("output", n), lambda: cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
+                                                            16 * self.padded(n)))
         cl.enqueue_fill_buffer(self.queue, buf, np.array([0, 0, 0, -1], np.float32), 0, 16 * self.padded(n))
         return buf
 
@@ -111,8 +113,12 @@ class Technique:
     def int_buffer(self, n, fill=None):
         buf = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * max(1, self.padded(n)))
         if fill is not None:
-            cl.enqueue_fill_buffer(self.queue, buf, np.int32(fill), 0, 4 * max(1, self.padded(n)))
+            self.fill_ints(buf, fill)
         return buf
+
+    def fill_ints(self, buffer, value):
+        """Set every int of `buffer` to `value` (on the device, queued)."""
+        cl.enqueue_fill_buffer(self.queue, buffer, np.int32(value), 0, buffer.size)
 
     def lane_counts_buffer(self, n):
         """One LaneCounts record per work-item (toolkit/layout.py), written when COUNT_SIMD."""

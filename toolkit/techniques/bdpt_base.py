@@ -127,6 +127,7 @@ class BdptTechnique(Technique):
     def sample_pool(self, size):
         """The streams, the vertex memory (tens of MB) and the per-slot arrays, made once per pool size."""
         ctx, capacity = self.queue.context, self.stream_capacity(size)
+        self.compactor.reserve(size)   # its scratch memory too, once: no walk step or connect allocates
         vertex_bytes = BDPT_VERTEX.dtype.itemsize * size * self.max_vertices
 
         def stream(is_light):
@@ -184,7 +185,8 @@ class BdptTechnique(Technique):
         """bdpt_mark_terminated, then compaction: (the list of terminated slots, its length)."""
         self.launch(self.kernel("bdpt_mark_terminated"), p.pool.size, np.int32(p.pool.size),
                     p.pool.slots, p.pool.terminated)
-        return self.compactor.compact_indices(p.pool.terminated, p.pool.size, method="immediate")
+        listed = self.reused(("terminated_list", p.pool.size), lambda: self.int_buffer(p.pool.size))
+        return self.compactor.compact_indices(p.pool.terminated, p.pool.size, method="immediate", out=listed)
 
     def connect(self, p, count):
         """Evaluate the connections of the `count` terminated samples (slots in SLOT_TERMINATED);

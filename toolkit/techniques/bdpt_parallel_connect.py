@@ -24,10 +24,10 @@ class BdptParallelConnect(BdptTechnique):
         pool = p.pool.size
         if count == 0:
             return None
-        counts = self.reused(("counts", pool), lambda: self.int_buffer(pool))
+        counts, firsts = self.reused(("counts", pool), lambda: (self.int_buffer(pool), self.int_buffer(pool)))
         self.launch(self.kernel("bdpt_parallel_connect_count"), pool, np.int32(pool),
                     p.pool.slots, counts)
-        firsts, total = self.compactor.exclusive_scan(counts, pool)
+        firsts, total = self.compactor.exclusive_scan(counts, pool, out=firsts)
         if total == 0:
             return None
         # Record buffers grow by powers of two and are reused by the next connect phases.

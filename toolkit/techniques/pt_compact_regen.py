@@ -37,9 +37,9 @@ class PtCompactRegen(Technique):
         stream, spare, shadow_rays = self.reused(("streams", size), lambda: (
             self.soa_buffer(PATH_STATE, size), self.soa_buffer(PATH_STATE, size),  # compaction writes to spare
             self.soa_buffer(SHADOW_RAY, size)))
-        lane_counts, alive, shadow_steps, counters = self.reused(("lanes", size), lambda: (
+        lane_counts, alive, shadow_steps, counters, indices = self.reused(("lanes", size), lambda: (
             self.lane_counts_buffer(size), self.int_buffer(size), self.int_buffer(size),
-            self.int_buffer(len(StreamCounter))))
+            self.int_buffer(len(StreamCounter)), self.compacted_indices(size)))
         radiance = self.output_buffer(budget)
         generate = self.kernel("pt_compact_regen_generate")
 
@@ -57,7 +57,7 @@ class PtCompactRegen(Technique):
                 break   # budget spent and the stream has drained
             # Extend every path by one vertex, then compact the survivors into `spare`.
             survivors, queued = self.extend_and_compact(seed, length, capacity, stream, spare, alive, counters,
-                                                        shadow_rays, radiance, lane_counts)
+                                                        shadow_rays, radiance, lane_counts, indices)
             self.count_extend_and_compact(lane_counts, length, size, draining=next_id == budget)
             # Trace the queued shadow rays: a packed stream of its own.
             if queued:
@@ -68,8 +68,16 @@ class PtCompactRegen(Technique):
             length = survivors
         self.collect(film, radiance, budget)
 
+    def compacted_indices(self, size):
+        """Multi-pass compaction's output (the survivors' indices) and the compactor's scratch
+        memory, made with the streams: no iteration allocates. None for immediate compaction."""
+        if self.compactor is None:
+            return None
+        self.compactor.reserve(size)
+        return self.int_buffer(size)
+
     def extend_and_compact(self, seed, length, capacity, stream, spare, alive, counters, shadow_rays,
-                           radiance, lane_counts):
+                           radiance, lane_counts, indices=None):
         """Returns (surviving paths, now packed at the start of `spare`; queued shadow rays)."""
         if self.compaction == "immediate":
             cl.enqueue_fill_buffer(self.queue, counters, np.int32(0), 0, 4 * len(StreamCounter))
@@ -81,7 +89,7 @@ class PtCompactRegen(Technique):
         cl.enqueue_fill_buffer(self.queue, alive, np.int32(1), 0, 4 * length)   # every path in the stream is live
         self.launch(self.kernel("extend_in_place"), length, *self.scene.args(),
                     seed, np.int32(length), capacity, stream, alive, radiance, lane_counts)
-        indices, survivors = self.compactor.compact_indices(alive, length, method="multipass")
+        indices, survivors = self.compactor.compact_indices(alive, length, method="multipass", out=indices)
         if survivors:
             self.launch(self.kernel("pt_compact_regen_gather"), survivors,
                         np.int32(survivors), indices, capacity, stream, spare)

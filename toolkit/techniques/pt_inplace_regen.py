@@ -23,11 +23,12 @@ class PtInplaceRegen(Technique):
         budget = camera["width"] * camera["height"] * spp
         slots = min(self.stream_size, budget)
         capacity = np.int32(self.stream_capacity(slots))
-        paths, lane_counts, regenerated = self.reused(("slots", slots), lambda: (
-            self.soa_buffer(PATH_STATE, slots), self.lane_counts_buffer(slots), self.int_buffer(slots)))
-        alive = self.int_buffer(slots, fill=0)
-        next_sample = self.int_buffer(1, fill=0)
-        any_alive = self.int_buffer(1)
+        # Every buffer is made once per stream size and reused by every pass of the render.
+        paths, lane_counts, regenerated, alive, next_sample, any_alive = self.reused(("slots", slots), lambda: (
+            self.soa_buffer(PATH_STATE, slots), self.lane_counts_buffer(slots), self.int_buffer(slots),
+            self.int_buffer(slots), self.int_buffer(1), self.int_buffer(1)))
+        self.fill_ints(alive, 0)        # every slot free
+        self.fill_ints(next_sample, 0)  # the pass's first sample comes next
         radiance = self.output_buffer(budget)
         while True:
             # Regenerate: every free slot starts the next sample of the budget, if one is left.
