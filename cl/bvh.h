@@ -24,8 +24,12 @@ typedef struct {
  * Intersection"): shear and scale space so the ray runs along +z from the origin, then decide
  * with 2D edge functions. Two triangles that share an edge evaluate that edge's function from
  * the same numbers with opposite sign, so a ray can never slip between them (Moller-Trumbore
- * can, on the shared edge). No fused multiply-add here: it would break that symmetry. */
-#pragma OPENCL FP_CONTRACT OFF
+ * can, on the shared edge). No fused multiply-add here: it would break that symmetry, so the
+ * test's body (and the wide BVH's four-lane copy, hit_triangles) starts with
+ * `#pragma OPENCL FP_CONTRACT OFF`. At the start of a compound statement the pragma holds to
+ * the end of that block only (OpenCL C 6.10, as C99's STDC FP_CONTRACT), so all other code,
+ * shading included, keeps whatever contraction the compiler chooses (fused multiply-add on
+ * GPUs). tests/test_watertight.py fires rays at shared edges and vertices. */
 
 typedef struct {
     int kx, ky, kz;        /* axis permutation: kz is the ray's largest direction component */
@@ -48,6 +52,7 @@ static inline RayShear ray_shear(float3 d) {
 /* Accepts t in (tmin, tmax); u, v are the barycentrics of v1 and v2. */
 static inline bool hit_triangle(__global const Triangle* tri, float3 o, const RayShear* r, float tmin, float tmax,
                          float* t_out, float* u_out, float* v_out) {
+#pragma OPENCL FP_CONTRACT OFF
     float3 a = tri->v0.xyz - o, b = tri->v1.xyz - o, c = tri->v2.xyz - o;
     float az = axis(a, r->kz), bz = axis(b, r->kz), cz = axis(c, r->kz);
     float ax = axis(a, r->kx) - r->sx * az, ay = axis(a, r->ky) - r->sy * az;
@@ -200,10 +205,11 @@ static inline float4 hit_boxes(__global const WideNode* n, float3 o, float3 inv_
 
 /* hit_triangle for the four triangles of a group at once: the lanes with a hit in (tmin, tmax)
  * (a mask: -1 where hit) and their t, u, v. The same operations as hit_triangle, in the same
- * order, lane by lane (FP_CONTRACT is off above), so the two BVHs find bit-identical hits and
+ * order, lane by lane (FP_CONTRACT off in both), so the two BVHs find bit-identical hits and
  * the watertight property holds in every lane. Empty lanes are degenerate triangles: det = 0. */
 static inline int4 hit_triangles(__global const TriGroup* g, float3 o, const RayShear* r, float tmin, float tmax,
                           float4* t_out, float4* u_out, float4* v_out) {
+#pragma OPENCL FP_CONTRACT OFF
     float ox = axis(o, r->kx), oy = axis(o, r->ky), oz = axis(o, r->kz);
     float4 az = tri_group_coord(g, 0, r->kz) - oz;
     float4 bz = tri_group_coord(g, 1, r->kz) - oz;
