@@ -52,7 +52,7 @@ def _options(cls, options):
 
 
 def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, device=None,
-           warp_width=32, count_simd=True, progress=False, options=None, bvh="wide"):
+           warp_width=None, count_simd=True, progress=False, options=None, bvh="wide"):
     """Render a scene (a Scene, a folder, a scene.json or None for the bundled Cornell box).
 
     `resolution` (width, height) keeps the scene's camera and field of view. `technique` is a
@@ -60,7 +60,9 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     `options` are passed to the technique. Returns a RenderResult with the image, its
     standard-error image and stats (timings, SIMD efficiency). `bvh` is "wide" (four children
     per node, tested together with float4 operations: SIMD inside one ray) or "binary"; both
-    give the same image (tests/test_wide_bvh.py).
+    give the same image (tests/test_wide_bvh.py). `warp_width` is the W of the SIMD-efficiency
+    counters; None takes the device's (toolkit.device.choose_warp_width: 32 on NVIDIA and on a
+    CPU, 64 on AMD, 16 on Intel GPUs); stats["warp_width"] and ["warp_width_source"] say which.
     """
     # Every argument is checked before any work (kernel builds, BVH) starts.
     if not isinstance(technique, str):
@@ -104,6 +106,8 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
         "nonfinite": int(np.count_nonzero(~np.isfinite(image).all(-1))),
         "nonfinite_samples": film.nonfinite_samples,
         "samples_per_pixel": [int(film.count.min()), int(film.count.max())],
+        "warp_width": tech.warp_width,
+        "warp_width_source": tech.warp_width_source,
         "simd_efficiency": tech.simd_efficiency(),
         "traversal_efficiency": tech.traversal.efficiency() if count_simd else {},
         # BVH nodes (and wide leaves) visited per sample, closest-hit and shadow rays: --bvh wide cuts them.
