@@ -12,7 +12,7 @@
 #define VERTEX_WORDS ((int)(sizeof(BdptVertex) / sizeof(uint)))
 
 /* Vertex k of the subpath of pool slot `slot`. */
-inline int vertex_index(int slot, int k) { return slot * MAX_VERTICES + k; }
+static inline int vertex_index(int slot, int k) { return slot * MAX_VERTICES + k; }
 
 /* Store one vertex per work-item at memory[index] (index < 0: nothing to store).
  * Direct: each work-item writes its own 80 bytes, far from its neighbours' (uncoalesced).
@@ -20,7 +20,7 @@ inline int vertex_index(int slot, int k) { return slot * MAX_VERTICES + k; }
  * stages its vertices in local memory, then work-item j writes word j, j + LOCAL_SIZE, ...
  * of the staged block, so consecutive work-items write consecutive words of one vertex.
  * Both leave identical memory. Every work-item of the group must call this (barriers). */
-inline void store_vertex(__global BdptVertex* memory, int index, const BdptVertex* v,
+static inline __attribute__((always_inline)) void store_vertex(__global BdptVertex* memory, int index, const BdptVertex* v,
                          __local uint* stage, __local int* dest) {
 #if COALESCED_SCATTER
     int lid = get_local_id(0);
@@ -44,14 +44,14 @@ inline void store_vertex(__global BdptVertex* memory, int index, const BdptVerte
 /* The sampler of sample `id` of the pass (see the dimension table in rng.h). Under MLT the
  * sample is chain `id`'s proposal and pass.sample_base the iteration (toolkit/techniques/mlt.py). */
 #if MLT
-inline BdptSampler bdpt_sampler_mlt(const BdptPass* pass, int id, __global const float* primary) {
+static inline BdptSampler bdpt_sampler_mlt(const BdptPass* pass, int id, __global const float* primary) {
     BdptSampler s = {sampler_init(pass->seed ^ MLT_OVERFLOW_KEY, (uint)id, (uint)pass->sample_base), primary,
                      (uint)pass->chains, (uint)id};
     return s;
 }
 #define bdpt_sampler(cam, pass, id) bdpt_sampler_mlt(pass, id, mlt_primary)
 #else
-inline BdptSampler bdpt_sampler(const Camera* cam, const BdptPass* pass, int id) {
+static inline BdptSampler bdpt_sampler(const Camera* cam, const BdptPass* pass, int id) {
     return sampler_init(pass->seed, (uint)sample_pixel(cam, id), (uint)sample_number(cam, id, pass->sample_base));
 }
 #endif
@@ -59,7 +59,7 @@ inline BdptSampler bdpt_sampler(const Camera* cam, const BdptPass* pass, int id)
 /* The pixel of sample `id` and the camera sample (*u, *v) inside it. BDPT: the pass assigns
  * the pixel (camera.h). MLT: the pixel is part of the primary sample, (*u, *v) in [0, 1)^2
  * cover the whole image and are turned into a pixel and a position inside it. */
-inline int bdpt_pixel(const Camera* cam, int id, float* u, float* v) {
+static inline int bdpt_pixel(const Camera* cam, int id, float* u, float* v) {
 #if MLT
     float x = *u * (float)cam->width, y = *v * (float)cam->height;
     int px = min((int)x, cam->width - 1), py = min((int)y, cam->height - 1);
@@ -73,7 +73,7 @@ inline int bdpt_pixel(const Camera* cam, int id, float* u, float* v) {
 
 /* Extend a subpath by one vertex: intersect, store the vertex, sample the BSDF, roulette.
  * Sets *store_at to where the new vertex goes. Returns false when the subpath has ended. */
-inline bool subpath_extend(const SceneView* s, Subpath* p, BdptSampler* rng, bool light_path,
+static inline bool subpath_extend(const SceneView* s, Subpath* p, BdptSampler* rng, bool light_path,
                            BdptVertex* v, int* store_at, int* steps) {
     float3 d = p->dir.xyz;
     Hit h = trace_closest(s, p->origin.xyz, d, 0.0f, INFINITY, steps);

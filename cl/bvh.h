@@ -24,17 +24,21 @@ typedef struct {
  * Intersection"): shear and scale space so the ray runs along +z from the origin, then decide
  * with 2D edge functions. Two triangles that share an edge evaluate that edge's function from
  * the same numbers with opposite sign, so a ray can never slip between them (Moller-Trumbore
- * can, on the shared edge). No fused multiply-add here: it would break that symmetry. */
-#pragma OPENCL FP_CONTRACT OFF
+ * can, on the shared edge). No fused multiply-add here: it would break that symmetry, so the
+ * test's body (and the wide BVH's four-lane copy, hit_triangles) starts with
+ * `#pragma OPENCL FP_CONTRACT OFF`. At the start of a compound statement the pragma holds to
+ * the end of that block only (OpenCL C 6.10, as C99's STDC FP_CONTRACT), so all other code,
+ * shading included, keeps whatever contraction the compiler chooses (fused multiply-add on
+ * GPUs). tests/test_watertight.py fires rays at shared edges and vertices. */
 
 typedef struct {
     int kx, ky, kz;        /* axis permutation: kz is the ray's largest direction component */
     float sx, sy, sz;      /* shear and scale */
 } RayShear;
 
-inline float axis(float3 v, int k) { return k == 0 ? v.x : (k == 1 ? v.y : v.z); }
+static inline float axis(float3 v, int k) { return k == 0 ? v.x : (k == 1 ? v.y : v.z); }
 
-inline RayShear ray_shear(float3 d) {
+static inline RayShear ray_shear(float3 d) {
     float ax = fabs(d.x), ay = fabs(d.y), az = fabs(d.z);
     int kz = ax > ay ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2);
     int kx = kz == 2 ? 0 : kz + 1;
@@ -46,8 +50,9 @@ inline RayShear ray_shear(float3 d) {
 }
 
 /* Accepts t in (tmin, tmax); u, v are the barycentrics of v1 and v2. */
-inline bool hit_triangle(__global const Triangle* tri, float3 o, const RayShear* r, float tmin, float tmax,
+static inline bool hit_triangle(__global const Triangle* tri, float3 o, const RayShear* r, float tmin, float tmax,
                          float* t_out, float* u_out, float* v_out) {
+#pragma OPENCL FP_CONTRACT OFF
     float3 a = tri->v0.xyz - o, b = tri->v1.xyz - o, c = tri->v2.xyz - o;
     float az = axis(a, r->kz), bz = axis(b, r->kz), cz = axis(c, r->kz);
     float ax = axis(a, r->kx) - r->sx * az, ay = axis(a, r->ky) - r->sy * az;
@@ -70,7 +75,7 @@ inline bool hit_triangle(__global const Triangle* tri, float3 o, const RayShear*
  * equal t (coplanar overlapping triangles, a ray through a shared edge), the lowest triangle
  * index. So it does not depend on the order in which a BVH visits its leaves, and the binary
  * and wide BVHs report the same triangle. The search accepts t up to hit.t itself for this. */
-inline bool closer(float t, int tri, const Hit* hit) {
+static inline bool closer(float t, int tri, const Hit* hit) {
     return t < hit->t || (t == hit->t && tri < hit->tri);
 }
 
@@ -83,7 +88,7 @@ inline bool closer(float t, int tri, const Hit* hit) {
 #define BOX_SLACK (1.0f + 16.0f * FLT_EPSILON)
 
 /* Entry distance of the ray into the box, or INFINITY if it misses within (tmin, tmax). */
-inline float hit_box(__global const BvhNode* node, float3 o, float3 inv_d, float tmin, float tmax) {
+static inline float hit_box(__global const BvhNode* node, float3 o, float3 inv_d, float tmin, float tmax) {
     float3 t0 = (node->lo.xyz - o) * inv_d;
     float3 t1 = (node->hi.xyz - o) * inv_d;
     float3 near = fmin(t0, t1), far = fmax(t0, t1);
@@ -95,7 +100,7 @@ inline float hit_box(__global const BvhNode* node, float3 o, float3 inv_d, float
 #ifndef BVH_WIDE
 
 /* Closest hit in (tmin, tmax). `steps` counts visited nodes (traversal divergence counter). */
-inline Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
+static inline Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
     Hit hit = {tmax, 0.0f, 0.0f, -1};
     float3 inv_d = 1.0f / d;
     RayShear shear = ray_shear(d);
@@ -141,7 +146,7 @@ inline Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, flo
 }
 
 /* Whether anything lies on the segment (tmin, tmax): shadow rays stop at the first hit. */
-inline bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
+static inline bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
     float3 inv_d = 1.0f / d;
     RayShear shear = ray_shear(d);
     int stack[BVH_STACK_SIZE];
@@ -173,22 +178,22 @@ inline bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float 
 /* The wide BVH lives in one buffer of 16-byte words (s->nodes): WideNode and TriGroup records
  * (toolkit/layout.py), found by their position. A child reference >= 0 is an inner node,
  * < 0 is ~position of a leaf's TriGroup, WIDE_EMPTY an unused lane. */
-inline __global const WideNode* wide_node(const SceneView* s, int ref) {
+static inline __global const WideNode* wide_node(const SceneView* s, int ref) {
     return (__global const WideNode*)(s->nodes + ref);
 }
-inline __global const TriGroup* tri_group(const SceneView* s, int ref) {
+static inline __global const TriGroup* tri_group(const SceneView* s, int ref) {
     return (__global const TriGroup*)(s->nodes + ~ref);
 }
 /* Coordinate k (0 x, 1 y, 2 z) of vertex v of the group's four triangles: v0x, v0y, v0z, v1x, ... follow each other. */
-inline float4 tri_group_coord(__global const TriGroup* g, int v, int k) {
+static inline float4 tri_group_coord(__global const TriGroup* g, int v, int k) {
     return ((__global const float4*)g)[3 * v + k];
 }
-inline float lane(float4 v, int i) { return i == 0 ? v.s0 : (i == 1 ? v.s1 : (i == 2 ? v.s2 : v.s3)); }
-inline int lane_int(int4 v, int i) { return i == 0 ? v.s0 : (i == 1 ? v.s1 : (i == 2 ? v.s2 : v.s3)); }
+static inline float lane(float4 v, int i) { return i == 0 ? v.s0 : (i == 1 ? v.s1 : (i == 2 ? v.s2 : v.s3)); }
+static inline int lane_int(int4 v, int i) { return i == 0 ? v.s0 : (i == 1 ? v.s1 : (i == 2 ? v.s2 : v.s3)); }
 
 /* hit_box for the four children at once: entry distances, INFINITY where a child is missed
  * (or the lane is empty). The same operations as hit_box, lane by lane. */
-inline float4 hit_boxes(__global const WideNode* n, float3 o, float3 inv_d, float tmin, float tmax) {
+static inline float4 hit_boxes(__global const WideNode* n, float3 o, float3 inv_d, float tmin, float tmax) {
     float4 x0 = (n->lo_x - o.x) * inv_d.x, x1 = (n->hi_x - o.x) * inv_d.x;
     float4 y0 = (n->lo_y - o.y) * inv_d.y, y1 = (n->hi_y - o.y) * inv_d.y;
     float4 z0 = (n->lo_z - o.z) * inv_d.z, z1 = (n->hi_z - o.z) * inv_d.z;
@@ -200,10 +205,11 @@ inline float4 hit_boxes(__global const WideNode* n, float3 o, float3 inv_d, floa
 
 /* hit_triangle for the four triangles of a group at once: the lanes with a hit in (tmin, tmax)
  * (a mask: -1 where hit) and their t, u, v. The same operations as hit_triangle, in the same
- * order, lane by lane (FP_CONTRACT is off above), so the two BVHs find bit-identical hits and
+ * order, lane by lane (FP_CONTRACT off in both), so the two BVHs find bit-identical hits and
  * the watertight property holds in every lane. Empty lanes are degenerate triangles: det = 0. */
-inline int4 hit_triangles(__global const TriGroup* g, float3 o, const RayShear* r, float tmin, float tmax,
+static inline int4 hit_triangles(__global const TriGroup* g, float3 o, const RayShear* r, float tmin, float tmax,
                           float4* t_out, float4* u_out, float4* v_out) {
+#pragma OPENCL FP_CONTRACT OFF
     float ox = axis(o, r->kx), oy = axis(o, r->ky), oz = axis(o, r->kz);
     float4 az = tri_group_coord(g, 0, r->kz) - oz;
     float4 bz = tri_group_coord(g, 1, r->kz) - oz;
@@ -225,7 +231,7 @@ inline int4 hit_triangles(__global const TriGroup* g, float3 o, const RayShear* 
 
 /* Push the children a node's box test hit onto the stack, nearest on top (insertion sort of
  * at most four entries above `base`), so they are visited front to back. */
-inline int push_hit_children(int* stack_ref, float* stack_t, int top, int4 child, float4 enter) {
+static inline int push_hit_children(int* stack_ref, float* stack_t, int top, int4 child, float4 enter) {
     int base = top;
     for (int i = 0; i < BVH_WIDTH; ++i) {
         float ti = lane(enter, i);
@@ -240,7 +246,7 @@ inline int push_hit_children(int* stack_ref, float* stack_t, int top, int4 child
 }
 
 /* Closest hit in (tmin, tmax). `steps` counts visited nodes and leaves (traversal divergence counter). */
-inline Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
+static inline Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
     Hit hit = {tmax, 0.0f, 0.0f, -1};
     float3 inv_d = 1.0f / d;
     RayShear shear = ray_shear(d);
@@ -278,7 +284,7 @@ inline Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, flo
 }
 
 /* Whether anything lies on the segment (tmin, tmax): shadow rays stop at the first hit. */
-inline bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
+static inline bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
     float3 inv_d = 1.0f / d;
     RayShear shear = ray_shear(d);
     int stack_ref[BVH_STACK_SIZE];

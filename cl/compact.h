@@ -19,6 +19,11 @@
  *      Fold the guard into the flag instead: alive = gid < n && ...;
  *   2. the caller declares the scratch in the kernel (local arrays cannot be declared in
  *      non-kernel functions in OpenCL 1.x):  __local int scratch[COMPACT_SCRATCH_INTS];
+ *
+ * Like every helper in cl/ they are `static inline` (plain C99 `inline` leaves an undefined
+ * symbol on clang-based GPU compilers when a call is not inlined), and, because they contain
+ * barriers, also always_inline: PoCL 3.0 runs a kernel that calls a non-inlined static function
+ * with barriers into a crash (tests/test_portability.py checks both).
  */
 #ifndef COMPACT_H
 #define COMPACT_H
@@ -39,7 +44,7 @@
  * and keeps it to one short loop. It works for any LOCAL_SIZE, not only powers of two.
  * Uses scratch[0 .. LOCAL_SIZE-1]; the trailing barrier lets the caller reuse the scratch
  * (e.g. call again in a loop) right after it returns. */
-inline int compact_group_scan(int value, __local int* scratch, int* total)
+static inline __attribute__((always_inline)) int compact_group_scan(int value, __local int* scratch, int* total)
 {
     int lid = get_local_id(0);
     scratch[lid] = value;
@@ -72,7 +77,7 @@ inline int compact_group_scan(int value, __local int* scratch, int* total)
  * `counter` must be zero before the launch; afterwards it holds the number of survivors.
  * 32-bit atomic_add on a __global int is OpenCL 1.1 core (no extension needed).
  * Uses all COMPACT_SCRATCH_INTS ints of scratch; see the rules at the top of this file. */
-inline int immediate_compact_slot(bool alive, __local int* scratch, volatile __global int* counter)
+static inline __attribute__((always_inline)) int immediate_compact_slot(bool alive, __local int* scratch, volatile __global int* counter)
 {
     int total;
     int rank = compact_group_scan(alive ? 1 : 0, scratch, &total);

@@ -46,14 +46,14 @@
 #define MLT_S1 (1.0f / 1024.0f)
 #define MLT_S2 (1.0f / 64.0f)
 
-inline Sampler mlt_mutation_sampler(const MltIteration* it, int chain) {
+static inline Sampler mlt_mutation_sampler(const MltIteration* it, int chain) {
     return sampler_init(it->seed ^ MLT_MUTATION_KEY, (uint)chain, (uint)it->iteration);
 }
 
 /* Kelemen's small step of one uniform u, driven by one uniform r: the sign from r < 1/2, the
  * size s2 exp(-log(s2 / s1) v) with v uniform in [0, 1) (sizes from 1/1024 to 1/64, denser
  * towards the small ones), wrapped around [0, 1). Symmetric: +dv and -dv equally likely. */
-inline float mlt_perturb(float u, float r) {
+static inline float mlt_perturb(float u, float r) {
     bool up = r < 0.5f;
     float v = up ? 2.0f * r : 2.0f * r - 1.0f;
     float dv = MLT_S2 * exp(-log(MLT_S2 / MLT_S1) * v);

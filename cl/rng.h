@@ -14,22 +14,22 @@ typedef struct {
     uint dim;        /* next dimension for sampler_next() */
 } Sampler;
 
-inline float uint_to_unit(uint x) { return (float)(x >> 8) * (1.0f / 16777216.0f); /* in [0, 1) */ }
+static inline float uint_to_unit(uint x) { return (float)(x >> 8) * (1.0f / 16777216.0f); /* in [0, 1) */ }
 
-inline float4 rng_block(uint seed, uint pixel, uint sample, uint block) {
+static inline float4 rng_block(uint seed, uint pixel, uint sample, uint block) {
     philox4x32_ctr_t counter = {{pixel, sample, block, 0x6d6c7421u}};
     philox4x32_key_t key = {{seed, 0x9e3779b9u}};
     philox4x32_ctr_t r = philox4x32(counter, key);
     return (float4)(uint_to_unit(r.v[0]), uint_to_unit(r.v[1]), uint_to_unit(r.v[2]), uint_to_unit(r.v[3]));
 }
 
-inline Sampler sampler_init(uint seed, uint pixel, uint sample) {
+static inline Sampler sampler_init(uint seed, uint pixel, uint sample) {
     Sampler s = {seed, pixel, sample, 0xffffffffu, (float4)(0.0f), 0};
     return s;
 }
 
 /* The uniform number of dimension `dim` of this sample. */
-inline float sampler_get(Sampler* s, uint dim) {
+static inline float sampler_get(Sampler* s, uint dim) {
     uint block = dim >> 2;
     if (block != s->block) { s->cache = rng_block(s->seed, s->pixel, s->sample, block); s->block = block; }
     uint k = dim & 3u;
@@ -47,7 +47,7 @@ inline float sampler_get(Sampler* s, uint dim) {
 #define DIM_BSDF_V 4
 #define DIM_BSDF_LOBE 5
 #define DIM_ROULETTE 6
-inline uint bounce_dim(int bounce, uint offset) { return 4u + (uint)bounce * DIMS_PER_BOUNCE + offset; }
+static inline uint bounce_dim(int bounce, uint offset) { return 4u + (uint)bounce * DIMS_PER_BOUNCE + offset; }
 
 /* The sampler interface of a bidirectional sample: every random number it consumes is
  * dimension `dim` of sample (pixel, sample). A Metropolis sampler can drive the same BDPT code
@@ -62,7 +62,7 @@ inline uint bounce_dim(int bounce, uint offset) { return 4u + (uint)bounce * DIM
 #define BDPT_DIM_LIGHT_PICK 2
 #define BDPT_DIM_LIGHT_POINT 3
 #define BDPT_DIM_EMIT_DIR 5
-inline uint bdpt_scatter_dim(int vertex, bool light_path, uint offset) {
+static inline uint bdpt_scatter_dim(int vertex, bool light_path, uint offset) {
     return 8u + 8u * (uint)(vertex - 1) + (light_path ? 4u : 0u) + offset;
 }
 
@@ -81,7 +81,7 @@ typedef struct {
     __global const float* primary;   /* the chain's vector: primary[dim * chains + chain] */
     uint chains, chain;
 } BdptSampler;
-inline float bdpt_sample(BdptSampler* s, uint dim) {
+static inline float bdpt_sample(BdptSampler* s, uint dim) {
     return dim < MLT_MAX_DIMS ? s->primary[dim * s->chains + s->chain] : sampler_get(&s->overflow, dim);
 }
 /* The extra kernel parameter (and argument) that carries the vectors to the BDPT kernels. */
@@ -89,7 +89,7 @@ inline float bdpt_sample(BdptSampler* s, uint dim) {
 #define BDPT_SAMPLER_ARG , mlt_primary
 #else
 typedef Sampler BdptSampler;
-inline float bdpt_sample(BdptSampler* s, uint dim) { return sampler_get(s, dim); }
+static inline float bdpt_sample(BdptSampler* s, uint dim) { return sampler_get(s, dim); }
 #define BDPT_SAMPLER_PARAM
 #define BDPT_SAMPLER_ARG
 #endif

@@ -52,7 +52,7 @@ def _options(cls, options):
 
 
 def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, device=None,
-           warp_width=32, count_simd=True, progress=False, options=None, bvh="wide", local_size=64):
+           warp_width=None, count_simd=True, progress=False, options=None, bvh="wide", local_size=64):
     """Render a scene (a Scene, a folder, a scene.json or None for the bundled Cornell box).
 
     `resolution` (width, height) keeps the scene's camera and field of view. `technique` is a
@@ -63,6 +63,9 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     give the same image (tests/test_wide_bvh.py). `local_size` is the work-group size the
     kernels are built and launched with, a power of two 32 .. 256; random numbers are keyed by
     sample, not by work-item, so the image does not depend on it (tests/test_strategies.py).
+    `warp_width` is the W of the SIMD-efficiency counters; None takes the device's
+    (toolkit.device.choose_warp_width: 32 on NVIDIA and on a CPU, 64 on AMD, 16 on Intel GPUs);
+    stats["warp_width"] and ["warp_width_source"] say which.
     """
     # Every argument is checked before any work (kernel builds, BVH) starts.
     if not isinstance(technique, str):
@@ -108,6 +111,8 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
         "nonfinite": int(np.count_nonzero(~np.isfinite(image).all(-1))),
         "nonfinite_samples": film.nonfinite_samples,
         "samples_per_pixel": [int(film.count.min()), int(film.count.max())],
+        "warp_width": tech.warp_width,
+        "warp_width_source": tech.warp_width_source,
         "simd_efficiency": tech.simd_efficiency(),
         "traversal_efficiency": tech.traversal.efficiency() if count_simd else {},
         # BVH nodes (and wide leaves) visited per sample, closest-hit and shadow rays: --bvh wide cuts them.

@@ -95,7 +95,9 @@ def build_parser():
     p.add_argument("--spp", type=_positive, default=64, help="samples per pixel (default 64)")
     p.add_argument("--resolution", type=_resolution, default=(64, 64), help="WxH (default 64x64)")
     p.add_argument("--seed", type=_whole, default=0, help="0 .. 2^32 - 1")
-    p.add_argument("--warp-width", type=int, default=32, choices=[8, 16, 32, 64])
+    p.add_argument("--warp-width", type=int, default=None, choices=[8, 16, 32, 64],
+                   help="W of the SIMD-efficiency counters (default: the device's: 32 on NVIDIA and on a CPU, "
+                        "64 on AMD, 16 on Intel GPUs; `devices` shows it)")
     p.add_argument("--json", action="store_true", help="print a JSON object as the last line of stdout")
     p.add_argument("--out", default="out/compare", help="folder for images and plots (default out/compare)")
     p.add_argument("--no-progress", action="store_true")
@@ -200,7 +202,8 @@ def cmd_render(args):
              f"{stats['seconds']:.2f} s, {stats['samples_per_second']:,.0f} samples/s on {stats['device']}",
              f"  image mean (linear RGB) {np.round(stats['mean'], 5).tolist()}, non-finite pixels "
              f"{stats['nonfinite']}, dropped samples {stats['nonfinite_samples']}",
-             "  SIMD efficiency (W=32): " + ", ".join(f"{k} {v:.1%}" for k, v in simd.items())]
+             f"  SIMD efficiency (W={stats['warp_width']}, {stats['warp_width_source']}): "
+             + ", ".join(f"{k} {v:.1%}" for k, v in simd.items())]
     if "rmse" in stats:
         lines.append(f"  RMSE against the reference {stats['rmse']:.5f}")
     elif problem:
@@ -227,7 +230,7 @@ def cmd_compare(args):
     table = compare(args.scene, _technique_list(args.techniques), args.spp, resolution=args.resolution,
                     seed=args.seed, warp_width=args.warp_width, out_dir=args.out, device=args.device,
                     progress=not args.no_progress, bvh=args.bvh)
-    print(format_table(table, args.warp_width))
+    print(format_table(table))
     first = next(iter(table.values()))
     print("plots: " + ", ".join(first.get("plots", {}).values()))
     if args.json:

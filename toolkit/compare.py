@@ -16,9 +16,10 @@ from .reference import reference_at, rmse
 PHASES = ["generate", "extend", "walk", "shadow", "compact", "connect"]
 
 
-def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=32, out_dir="out/compare",
+def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, out_dir="out/compare",
             device=None, progress=False, plots=True, bvh="wide"):
-    """Render `scene` with each technique; returns {technique: figures} and writes images/plots."""
+    """Render `scene` with each technique; returns {technique: figures} and writes images/plots.
+    `warp_width` None: the device's (toolkit.device.choose_warp_width); each row says which."""
     scene = as_scene(scene)
     width, height = resolution or (scene.camera.width, scene.camera.height)
     out_dir = Path(out_dir)
@@ -38,6 +39,8 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=32, out_
             "traversal_efficiency": result.stats["traversal_efficiency"],
             "traversal_steps": result.stats["traversal_steps_per_sample"].get("closest", float("nan")),
             "bvh": bvh,
+            "warp_width": result.stats["warp_width"],
+            "warp_width_source": result.stats["warp_width_source"],
             "rmse": rmse(result.image, ref) if ref is not None else None,
             "nonfinite": result.stats["nonfinite"],
             "out": str(path),
@@ -45,19 +48,25 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=32, out_
     for a in techniques:
         table[a]["rmse_vs"] = {b: rmse(results[a].image, results[b].image) for b in techniques if b != a}
     if plots:
-        plot_paths = save_plots(scene.name, results, ref, out_dir, warp_width)
+        plot_paths = save_plots(scene.name, results, ref, out_dir, next(iter(table.values()))["warp_width"])
         for name in techniques:
             table[name]["plots"] = plot_paths
     return table
 
 
-def format_table(table, warp_width=32):
+def format_table(table, warp_width=None):
+    """The table as text; `warp_width` None: the W that the rows were counted with (and why)."""
+    first = next(iter(table.values()))
+    why = None
+    if warp_width is None:
+        warp_width, why = first.get("warp_width", 32), first.get("warp_width_source")
     phases = [p for p in PHASES if any(p in row["simd_efficiency"] for row in table.values())]
     head = f"{'technique':<28}{'seconds':>9}{'samples/s':>12}" + "".join(f"{p:>10}" for p in phases) + \
         f"{'overall':>10}{'BVH trav':>10}{'steps':>8}{'RMSE ref':>11}"
     lines = [f"SIMD efficiency = active lanes / lanes issued, warps of {warp_width} (an upper bound, as in the talk);",
              "BVH trav = traversal steps per lane / the warp's longest traversal (divergence inside intersection);",
-             f"steps = BVH nodes visited by closest-hit rays per sample ({next(iter(table.values()))['bvh']} BVH, --bvh)",
+             f"steps = BVH nodes visited by closest-hit rays per sample ({first['bvh']} BVH, --bvh)",
+             *([f"W = {warp_width}: {why} (--warp-width overrides)"] if why and why != "given" else []),
              head, "-" * len(head)]
     for name, row in table.items():
         eff = row["simd_efficiency"]

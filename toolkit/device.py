@@ -316,6 +316,68 @@ def describe_implementation(device):
     return f"{c.implementation}, {c.compiler}"
 
 
+# ---- the warp width that the SIMD counters model ---------------------------------------------
+
+NVIDIA_VENDOR_ID, AMD_VENDOR_ID, INTEL_VENDOR_ID = 0x10DE, 0x1002, 0x8086
+
+
+def choose_warp_width(is_gpu, vendor="", vendor_id=None, wavefront_width=None, sub_group_sizes=()):
+    """(W, why): the warp width the SIMD-efficiency counters (toolkit/simd.py) use by default on
+    a device described by these properties (device_warp_width reads them from a device):
+    - a CPU (or any non-GPU device): 32. The counters model a GPU there; a CPU's own vector
+      width (4 to 16 floats) would say little about how the kernels would fare on a GPU;
+    - NVIDIA: 32, the warp;
+    - AMD: the wavefront width the driver reports (cl_amd_device_attribute_query), else 64
+      (GCN and CDNA run wavefronts of 64; RDNA can run 32);
+    - Intel: 16, the SIMD width Intel's compiler gives most kernels (one hardware thread runs 16
+      work-items in lock step); where the device lists its sub-group sizes
+      (cl_intel_required_subgroup_size) and 16 is not among them, the smallest listed one;
+    - any other GPU: 32."""
+    vendor = (vendor or "").lower()
+    if not is_gpu:
+        return 32, "a CPU: the counters model a GPU warp of 32"
+    if vendor_id == NVIDIA_VENDOR_ID or "nvidia" in vendor:
+        return 32, "NVIDIA warp"
+    if vendor_id == AMD_VENDOR_ID or "advanced micro devices" in vendor or re.search(r"\bamd\b", vendor):
+        if wavefront_width in (32, 64):
+            return int(wavefront_width), "AMD wavefront, as the driver reports it"
+        return 64, "AMD wavefront (GCN/CDNA)"
+    if vendor_id == INTEL_VENDOR_ID or "intel" in vendor:
+        sizes = sorted(int(s) for s in (sub_group_sizes or ()) if int(s) > 0)
+        if sizes and 16 not in sizes:
+            return sizes[0], "Intel GPU: its smallest sub-group size"
+        return 16, "Intel GPU: SIMD16, the width its compiler gives most kernels"
+    return 32, "a GPU of another vendor: 32 assumed"
+
+
+def device_warp_width(device):
+    """(W, why) for a pyopencl device: see choose_warp_width."""
+    # A real GPU never has the CPU bit; Oclgrind's simulator has both.
+    is_gpu = bool(device.type & cl.device_type.GPU) and not device.type & cl.device_type.CPU
+    vendor = device.vendor.strip()
+    vendor_id = device.vendor_id
+    wavefront = sub_groups = None
+    extensions = device.extensions
+    if is_gpu and "cl_amd_device_attribute_query" in extensions:
+        try:
+            wavefront = device.wavefront_width_amd
+        except (cl.Error, AttributeError):
+            pass
+    if is_gpu and "cl_intel_required_subgroup_size" in extensions:
+        try:
+            sub_groups = device.sub_group_sizes_intel
+        except (cl.Error, AttributeError):
+            pass
+    return choose_warp_width(is_gpu, vendor, vendor_id, wavefront, sub_groups or ())
+
+
+def resolve_warp_width(warp_width, device):
+    """(W, why): `warp_width` as given, or (None) the device's default (device_warp_width)."""
+    if warp_width is not None:
+        return warp_width, "given"
+    return device_warp_width(device)
+
+
 def has_gpu():
     return any(e[3].type & cl.device_type.GPU for e in list_devices())
 
@@ -334,6 +396,8 @@ def report():
         lines.append(f"       type: {cl.device_type.to_string(c.device.type)}, compute units: "
                      f"{c.device.max_compute_units}, max work-group: {c.device.max_work_group_size}, "
                      f"global memory: {c.device.global_mem_size / 2**30:.1f} GiB")
+        width, why = device_warp_width(c.device)
+        lines.append(f"       SIMD counters: warps of {width} ({why}; --warp-width overrides)")
     lines.append("Ranking of usable devices: " + " > ".join(RANKING))
     try:
         _, device = pick_device()
@@ -350,5 +414,5 @@ def report():
         lines.append(f"(OCL_ICD_VENDORS={os.environ['OCL_ICD_VENDORS']} is set: the toolkit registers no runtime)")
     if not has_gpu():
         lines.append("No GPU found: kernels run on the CPU, where idle SIMD lanes cost less than "
-                     "on a GPU; the SIMD-efficiency counters still model a GPU warp.")
+                     "on a GPU; the SIMD-efficiency counters still model a GPU warp (of 32).")
     return "\n".join(lines)

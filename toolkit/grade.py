@@ -362,7 +362,7 @@ def _with_reference_scan(student):
     toolkit's defined first, under its name. The student's lines keep their numbers (#line)."""
     from .program import cl_dir
     toolkit = (cl_dir() / "compact.h").read_text()
-    start = toolkit.index("inline int compact_group_scan(")
+    start = toolkit.rindex("\n", 0, toolkit.index(" int compact_group_scan(")) + 1   # its line: static inline ...
     end = toolkit.index("\n}\n", start) + 3
     renamed, found = _SCAN_DEFINITION.subn(r"student_compact_group_scan\1", student, count=1)
     if not found:

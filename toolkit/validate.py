@@ -203,12 +203,12 @@ def local_size(value, where="local_size"):
     return value
 
 
-def render_args(spp, seed, width, height, warp_width=32):
-    """The numeric arguments of a render (CLI and toolkit.render alike)."""
+def render_args(spp, seed, width, height, warp_width=None):
+    """The numeric arguments of a render (CLI and toolkit.render alike); warp_width None: the device's."""
     spp, seed = whole_number("spp", spp), whole_number("seed", seed)
     width = whole_number("camera.width", width, "resolution width")
     height = whole_number("camera.height", height, "resolution height")
-    if warp_width not in (1, 2, 4, 8, 16, 32, 64, 128):
+    if warp_width is not None and warp_width not in (1, 2, 4, 8, 16, 32, 64, 128):
         raise InputError(f"warp width must be a power of two up to 128, got {warp_width!r}")
     need, have = memory_bytes(width, height, spp), physical_memory()
     if need > LIMITS["memory.fraction"][1] * have:

@@ -26,10 +26,13 @@ class Technique:
     # the autograder (toolkit/grade.py) points it at a folder holding a student's file.
     source_dir = None
 
-    def __init__(self, queue, device_scene, warp_width=32, count_simd=True, extra_defines=None,
+    def __init__(self, queue, device_scene, warp_width=None, count_simd=True, extra_defines=None,
                  local_size=program.LOCAL_SIZE):
+        """`warp_width`: W of the SIMD counters; None: the device's (toolkit.device.device_warp_width)."""
+        from ..device import resolve_warp_width
         self.queue = queue
         self.scene = device_scene
+        warp_width, self.warp_width_source = resolve_warp_width(warp_width, queue.device)
         self.warp_width = warp_width
         self.count_simd = count_simd
         # The work-group size: the program is built for it (LOCAL_SIZE) and every launch uses it.

@@ -23,7 +23,7 @@
  * Returns the sum of `value` over the work-items with a smaller local id, and stores the sum
  * over the whole group in *total (the same in every work-item). Use scratch[0 .. LOCAL_SIZE-1].
  * The caller may call it again right after it returns (with the same scratch). */
-inline int compact_group_scan(int value, __local int* scratch, int* total)
+static inline __attribute__((always_inline)) int compact_group_scan(int value, __local int* scratch, int* total)
 {
     int lid = get_local_id(0);
     /* TODO: store value in scratch[lid]; scan scratch in log2(LOCAL_SIZE) steps (Hillis &
@@ -46,7 +46,7 @@ inline int compact_group_scan(int value, __local int* scratch, int* total)
  * Returns the output slot of this work-item, or -1 if it is not alive. `counter` is zero
  * before the launch and holds the number of survivors after it. Use scratch[LOCAL_SIZE] to
  * share the group's base with the other work-items. */
-inline int immediate_compact_slot(bool alive, __local int* scratch, volatile __global int* counter)
+static inline __attribute__((always_inline)) int immediate_compact_slot(bool alive, __local int* scratch, volatile __global int* counter)
 {
     /* TODO: scan the labels with compact_group_scan; local id 0 does the group's atomic_add
      * and stores the base in scratch[LOCAL_SIZE]; every work-item reads it (barriers!) and

@@ -35,7 +35,7 @@ typedef struct {
     float pt_rev, ptm_rev, qs_rev, qsm_rev;   /* recomputed reverse densities at the connection */
 } ConnectionPdfs;
 
-inline float mis_weight(__global const BdptVertex* eye, __global const BdptVertex* light,
+static inline float mis_weight(__global const BdptVertex* eye, __global const BdptVertex* light,
                         int s, int t, const ConnectionPdfs* c) {
     /* TODO: the sums of the ratios along both subpaths; then the balance or power heuristic. */
     (void)eye; (void)light; (void)s; (void)t; (void)c;

@@ -28,7 +28,7 @@ __kernel void bdpt_parallel_connect_count(const int pool, __global const BdptSlo
 
 /* Step 3. The last index i in [0, n) with firsts[i] <= g (firsts is non-decreasing, firsts[0] = 0).
  * O(log n) reads of firsts. */
-inline int find_sample(__global const int* firsts, int n, int g) {
+static inline int find_sample(__global const int* firsts, int n, int g) {
     /* TODO: binary search */
     (void)firsts; (void)n; (void)g;
     return 0;
