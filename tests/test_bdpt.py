@@ -27,17 +27,7 @@ def test_mis_weights_of_all_strategies_sum_to_one(queue, scene_name, request):
     strategy's MIS weight with the renderers' own connect_strategy(); they must sum to 1."""
     scene = request.getfixturevalue(scene_name)
     tech, _ = run(queue, scene, BdptParallelConnect, spp=1, res=(64, 64))
-    eye, eye_count, _, _ = tech.read_vertices()
-    paths = []
-    for slot in range(len(eye_count)):
-        for k in range(1, eye_count[slot]):
-            v = eye[slot, k]
-            if v["light"] >= 0 and np.dot(v["normal"][:3], v["wo"][:3]) > 0:
-                path = eye[slot, :k + 1][::-1].copy()   # light -> eye order; path[-1] is the camera
-                paths.append(path)
-                break
-        if len(paths) >= 200:
-            break
+    paths = tech.eye_paths_to_lights(200)
     assert len(paths) >= 50, "too few eye paths reached a light to test"
     sums, lengths = [], []
     for w in split_weights(queue, tech, scene, paths):

@@ -686,17 +686,7 @@ def _real_paths(c, scene_name):
     from .techniques import BdptParallelConnect
     tech = c.technique(BdptParallelConnect, student=False, scene=scene_name)
     tech.render(64, 64, 1, seed=0)
-    eye, eye_count, _, _ = tech.read_vertices()
-    paths = []
-    for slot in range(len(eye_count)):
-        for k in range(1, eye_count[slot]):
-            v = eye[slot, k]
-            if v["light"] >= 0 and np.dot(v["normal"][:3], v["wo"][:3]) > 0:
-                paths.append(eye[slot, :k + 1][::-1].copy())
-                break
-        if len(paths) >= _PATHS:
-            break
-    return tech, paths
+    return tech, tech.eye_paths_to_lights(_PATHS)
 
 
 def _split_weights(c, tech, scene_name, paths, student=True, power=False):
