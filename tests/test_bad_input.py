@@ -8,7 +8,6 @@ every technique means the same by every setting, scenes at the scale limits rend
 unscaled box, and scenes/FORMAT.md states every limit the loader enforces.
 """
 import json
-import math
 import os
 import re
 import shutil

@@ -8,7 +8,7 @@ from toolkit import program
 from toolkit.device_scene import DeviceScene
 from toolkit.embree_ref import EmbreeIntersector
 from toolkit.layout import BDPT_VERTEX, VertexFlag
-from toolkit.techniques import BdptNaiveConnect, BdptParallelConnect
+from toolkit.techniques import BdptParallelConnect
 
 VERTEX_DELTA = VertexFlag.DELTA   # flags of BdptVertex (toolkit/layout.py, emitted into layout.h)
 VERTEX_LIGHT = VertexFlag.LIGHT

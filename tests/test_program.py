@@ -272,7 +272,6 @@ def test_compiler_warnings_are_shown_and_fail_the_suite(implementation, tmp_path
     file and line (not pyopencl's CompilerWarning for any non-empty log, which Intel's progress
     remarks would trigger on every build), and with -Werror (the suite's setting) it fails."""
     import warnings
-    from toolkit.device import _queue_for_device
     # A source never built before: a cached binary comes without its build log (and warnings).
     write(tmp_path, "warns.cl", WARNING_CL + f"/* {tmp_path} {time.time()} */\n")
     context = context_of(implementation)

@@ -7,7 +7,7 @@ import pytest
 
 import toolkit
 from toolkit.reference import reference_at, relative_mean_error, z_test
-from toolkit.scene import Camera, Scene, drop_degenerate
+from toolkit.scene import Camera, Scene
 
 from conftest import spp_for, film_error_techniques
 

@@ -3,7 +3,6 @@ import argparse
 import json
 import sys
 import warnings
-from pathlib import Path
 
 import numpy as np
 
@@ -246,7 +245,7 @@ def cmd_bench(args):
         return cmd_bench_peer(args)
     if args.equal_time is not None:
         finite_number("bench.equal_time", args.equal_time, "--equal-time")
-        from .compare import equal_time
+        from .bench import equal_time
         scene = args.scene or "scenes/cornell_spheres"
         report = equal_time(scene, _technique_list(args.techniques or ",".join(DEFAULT)), args.equal_time,
                             resolution=args.resolution or (32, 32), device=args.device, bvh=args.bvh)

@@ -37,7 +37,7 @@ class Record:
 
     def c_struct(self):
         lines = [f"/* {self.doc} */"] if self.doc else []
-        lines.append(f"typedef struct {{")
+        lines.append("typedef struct {")
         lines += [f"    {t} {f};" for f, t in self.fields]
         lines.append(f"}} {self.name};")
         return "\n".join(lines)
@@ -53,9 +53,9 @@ class Record:
                  "typedef struct {"]
         lines += [f"    __global {t}* {f};" for f, t in fields]
         lines.append(f"}} {self.name}SoA;")
-        lines.append(f"/* The fields of `capacity` records (a multiple of 4) stored one after another in `memory`. */")
+        lines.append("/* The fields of `capacity` records (a multiple of 4) stored one after another in `memory`. */")
         lines.append(f"static inline {self.name}SoA {lower}_soa(__global void* memory, int capacity) {{")
-        lines.append(f"    __global uchar* m = (__global uchar*)memory;")
+        lines.append("    __global uchar* m = (__global uchar*)memory;")
         lines.append(f"    {self.name}SoA s;")
         for f, t in fields:
             lines.append(f"    s.{f} = (__global {t}*)m;")

@@ -258,7 +258,7 @@ def _load_scene(path):
         for e in emission[emission > 0]:   # 0 turns a channel off; others must survive float32 products
             in_range("shape.emission", float(e), f"{swhere}.emission component")
         try:
-            mesh = regular_file_inside(path.parent / shape["mesh"], path.parent, "mesh", "mesh.bytes")
+            regular_file_inside(path.parent / shape["mesh"], path.parent, "mesh", "mesh.bytes")
             v, t = read_obj(path.parent / shape["mesh"])   # checked above; named as written
         except (ObjError, InputError) as error:
             raise SceneError(f"{swhere}: {error}") from None

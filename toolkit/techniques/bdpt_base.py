@@ -17,7 +17,7 @@ import numpy as np
 import pyopencl as cl
 
 from ..compaction import Compactor
-from ..layout import BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, SUBPATH, SlotState, WalkCounter
+from ..layout import BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, SUBPATH, WalkCounter
 from ..simd import PhaseCounter
 from .base import Technique
 
