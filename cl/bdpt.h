@@ -32,9 +32,8 @@
 
 /* VERTEX_DELTA, VERTEX_CAMERA, VERTEX_LIGHT (y_0, the point sampled on a light): VertexFlag in toolkit/layout.py. */
 
-#ifndef MAX_VERTICES
-#define MAX_VERTICES 64  /* per subpath; set by the host (toolkit/techniques/bdpt_base.py) */
-#endif
+/* MAX_VERTICES and vertex_index: where the random walk keeps its vertices. */
+#include "vertex_memory.h"
 
 static inline bool is_delta(const BdptVertex* v) { return (v->flags & VERTEX_DELTA) != 0; }
 static inline bool is_camera(const BdptVertex* v) { return (v->flags & VERTEX_CAMERA) != 0; }

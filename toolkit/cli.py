@@ -203,6 +203,9 @@ def cmd_render(args):
              f"{stats['nonfinite']}, dropped samples {stats['nonfinite_samples']}",
              f"  SIMD efficiency (W={stats['warp_width']}, {stats['warp_width_source']}): "
              + ", ".join(f"{k} {v:.1%}" for k, v in simd.items())]
+    for option in ("stream_size", "pool_size"):
+        if option in stats:
+            lines.append(f"  in flight: {option} {stats[option]:,} ({stats['work_sizes_source']})")
     if "rmse" in stats:
         lines.append(f"  RMSE against the reference {stats['rmse']:.5f}")
     elif problem:

@@ -48,6 +48,10 @@ LIMITS = {
     # Technique options, stated in FORMAT.md's second table.
     "technique.local_size": (32, 256, "work-items per work-group, a power of two (toolkit.render's local_size); "
                                       "the image does not depend on it"),
+    "technique.stream_size": (1, 1 << 24, "paths in flight in pt_inplace_regen and pt_compact_regen; "
+                                          "default from the device (`python -m toolkit devices`)"),
+    "technique.pool_size": (1, 1 << 22, "samples in flight in the BDPT techniques and mlt; "
+                                        "default from the device"),
     "mlt.chains": (1, 1 << 18, "independent Metropolis chains; each stores two vectors of max_dims floats"),
     "mlt.large_step": (1e-3, 1.0, "probability of a large step; b comes from the large steps"),
     "mlt.candidates": (1, 1024, "large steps per chain for start = resample"),

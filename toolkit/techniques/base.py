@@ -52,6 +52,25 @@ class Technique:
         self.simd = PhaseCounter(warp_width)
         self.traversal = PhaseCounter(warp_width)
 
+    def in_flight(self, option, given, max_vertices=64):
+        """The work a stream technique keeps in flight (option "stream_size" or "pool_size"):
+        `given` (checked: the device must hold its buffers, toolkit.work_sizes.check_fits), else
+        a size the class sets (the grader's variants do), else the device's choice
+        (toolkit.work_sizes.choose_work_sizes: a GPU's resident work-items, a CPU's own sizes).
+        The pass grows with it (target_batch), so every slot still runs several samples a pass."""
+        from ..work_sizes import CPU_POOL_SIZE, CPU_STREAM_SIZE, check_fits, device_work_sizes
+        if given is not None:
+            size, why = check_fits(self.queue.device, option, given, max_vertices), "given"
+        elif getattr(type(self), option) is not None:
+            size, why = getattr(type(self), option), f"set by {type(self).__name__}"
+        else:
+            chosen = device_work_sizes(self.queue.device, max_vertices)
+            size, why = getattr(chosen, option), chosen.why
+        reference = CPU_STREAM_SIZE if option == "stream_size" else CPU_POOL_SIZE
+        self.target_batch = type(self).target_batch * max(1, -(-size // reference))
+        self.work_sizes = {option: size, "work_sizes_source": why}
+        return size
+
     def kernel(self, name):
         """The kernel object, retrieved once (each retrieval makes a new cl.Kernel)."""
         return program.kernel(self.program, name)
@@ -165,8 +184,8 @@ class Technique:
             self.traversal.add_warp_loops("shadow", lanes["shadow_steps"])
 
     def extra_stats(self):
-        """Technique-specific figures added to the render stats."""
-        return {}
+        """Technique-specific figures added to the render stats (the work in flight, if chosen)."""
+        return dict(getattr(self, "work_sizes", {}))
 
     def simd_efficiency(self):
         return self.simd.efficiency() if self.count_simd else {}

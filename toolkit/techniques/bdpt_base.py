@@ -66,7 +66,7 @@ class PassState:
 
 class BdptTechnique(Technique):
     family = "bdpt"
-    pool_size = 1 << 12         # samples in flight (each has MAX_VERTICES eye + light vertices stored)
+    pool_size = None            # samples in flight (each stores MAX_VERTICES eye + light vertices); None: the device's
     target_batch = 1 << 14      # samples per pass: many passes give the standard error
     max_vertices = 64           # per subpath when the depth is unbounded; paths this long carry ~1e-10 of the energy at albedo 0.7
 
@@ -83,7 +83,7 @@ class BdptTechnique(Technique):
             raise ValueError("regenerate_fraction must be in (0, 1]")
         self.regenerate_fraction = regenerate_fraction
         self.coalesced_scatter = coalesced_scatter
-        self.pool_size = pool_size or self.pool_size
+        self.pool_size = self.in_flight("pool_size", pool_size, self.max_vertices)
         self.compactor = Compactor(queue, local_size=self.local_size)
         self.uncompacted = PhaseCounter(self.warp_width)   # the walk as it would be without compaction
 

@@ -43,7 +43,7 @@ Options (keyword arguments of toolkit.render(..., options=...)):
 
 | option | default | meaning |
 | --- | --- | --- |
-| `chains` | 4096 (the BDPT pool size) | independent chains; 1 .. 2^20 (`mlt.chains`), at most the mutations of the render |
+| `chains` | the BDPT pool size (4096 on a CPU; `devices` shows it) | independent chains; 1 .. 2^18 (`mlt.chains`), at most the mutations of the render |
 | `large_step` | 0.3 | probability of a large step (every dimension fresh) |
 | `start` | `naive` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of `candidates` large steps, chosen in proportion to f |
 | `candidates` | 16 | large steps per chain for `start = resample` (`mlt.candidates`) |
@@ -62,7 +62,7 @@ import pyopencl as cl
 
 from ..film import Film
 from ..layout import BDPT_SLOT, LUMINANCE_WEIGHTS, MLT_CHAIN, MLT_ITERATION, MltMode
-from ..validate import InputError, finite_number, whole_number
+from ..validate import LIMITS, InputError, finite_number, whole_number
 from .bdpt_base import per_pixel_sums
 from .bdpt_parallel_connect import BdptParallelConnect
 
@@ -109,8 +109,7 @@ class Mlt(BdptParallelConnect):
 
     def __init__(self, queue, device_scene, chains=None, large_step=0.3, start="naive", candidates=16,
                  max_dims=128, **kwargs):
-        self.chain_count = whole_number("mlt.chains", chains if chains is not None else BdptParallelConnect.pool_size,
-                                        "chains")
+        self.chain_count = whole_number("mlt.chains", chains, "chains") if chains is not None else None
         self.large_step = finite_number("mlt.large_step", large_step, "large_step")
         if start not in STARTS:
             raise InputError(f"start must be one of {', '.join(STARTS)}, got {start!r}")
@@ -120,6 +119,8 @@ class Mlt(BdptParallelConnect):
         defines = {"MLT": True, "MLT_MAX_DIMS": self.max_dims}
         defines.update(kwargs.pop("extra_defines", None) or {})
         super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
+        if self.chain_count is None:   # one chain per slot of the BDPT pool, within the chains' limit
+            self.chain_count = min(self.pool_size, LIMITS["mlt.chains"][1])
 
     # --- the render: start the chains, then iterate ------------------------------------------
 

@@ -20,10 +20,11 @@ class PtCompactRegen(Technique):
     name = "pt_compact_regen"
     family = "pt"
     source = "pt_compact_regen.cl"
-    stream_size = 1 << 15
+    stream_size = None   # paths in the stream; None: the device's (toolkit/work_sizes.py)
 
-    def __init__(self, *args, compaction="immediate", **kwargs):
+    def __init__(self, *args, compaction="immediate", stream_size=None, **kwargs):
         super().__init__(*args, **kwargs)
+        self.stream_size = self.in_flight("stream_size", stream_size)
         if compaction not in ("immediate", "multipass"):
             raise ValueError(f"compaction must be 'immediate' or 'multipass', not {compaction!r}")
         self.compaction = compaction

@@ -17,7 +17,11 @@ class PtInplaceRegen(Technique):
     name = "pt_inplace_regen"
     family = "pt"
     source = "pt_inplace_regen.cl"
-    stream_size = 1 << 15   # slots (work-items) that stay resident
+    stream_size = None   # slots (work-items) that stay resident; None: the device's (toolkit/work_sizes.py)
+
+    def __init__(self, *args, stream_size=None, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.stream_size = self.in_flight("stream_size", stream_size)
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         budget = camera["width"] * camera["height"] * spp
