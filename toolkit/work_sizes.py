@@ -147,8 +147,8 @@ def buffer_plan(stream_size=0, pool_size=0, max_vertices=64):
     """[(buffer, bytes, largest element index a kernel forms in it)] for a PT stream of
     `stream_size` and a BDPT pool of `pool_size` (0: not used). The indices are those of the
     kernels' 32-bit int arithmetic: a vertex is vertex_index(slot, k) = slot * MAX_VERTICES + k
-    (cl/bdpt_walk.h, whose word offset within the vertex memory is formed in size_t), naive
-    connect's records pool * MAX_VERTICES + slot (cl/bdpt_naive_connect.cl), and a parallel
+    (cl/vertex_memory.h, whose word offset within the vertex memory is formed in size_t), naive
+    connect's records below pool x (MAX_VERTICES + 1) (cl/bdpt_naive_connect.cl), and a parallel
     connect may list every strategy of every sample: (MAX_VERTICES + 1) x MAX_VERTICES - 1 per
     sample (connection_count, cl/bdpt.h) in an int scan."""
     b = _record_bytes()
