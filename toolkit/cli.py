@@ -123,6 +123,13 @@ def build_parser():
     p.add_argument("--json", action="store_true")
     bvh_option(p)
 
+    p = sub.add_parser("gpucheck", help="check and measure the toolkit on a device (a GPU if there is one): "
+                                        "same-image tests, Embree cross-check, bench, compare; one report")
+    device_option(p)
+    p.add_argument("--fast", action="store_true", help="tiny renders (what the test suite runs)")
+    p.add_argument("--out", default="out/gpucheck.txt",
+                   help="the report (text); its JSON goes beside it as .json (default out/gpucheck.txt)")
+
     from .grade import ASSIGNMENTS, TIME_LIMIT
     p = sub.add_parser("grade", help="grade a course assignment (tutorials/assignments/): score /100 per check")
     device_option(p)
@@ -163,6 +170,8 @@ def main(argv=None):
             return cmd_bench(args)
         if args.command == "crosscheck":
             return cmd_crosscheck(args)
+        if args.command == "gpucheck":
+            return cmd_gpucheck(args)
         if args.command == "grade":
             from .grade import cmd_grade
             return cmd_grade(args)
@@ -300,3 +309,13 @@ def cmd_crosscheck(args):
     if args.json:
         print(json.dumps(figures, default=lambda x: x.item() if hasattr(x, "item") else str(x)))
     return 0 if figures.get("unexplained", 0) == 0 else 1
+
+
+def cmd_gpucheck(args):
+    from . import gpucheck
+    out = gpucheck.report_path(args.out)      # before the run: a bad --out must not cost its time
+    report = gpucheck.run(device=args.device, fast=args.fast, out_dir=str(out.parent / (out.stem + "_compare")))
+    text, data = gpucheck.write_report(report, out)
+    print(gpucheck.format_report(report))
+    print(f"wrote {text} and {data}")
+    return 0 if report["passed"] else 1
