@@ -124,7 +124,11 @@ def build_parser():
     bvh_option(p)
 
     p = sub.add_parser("gpucheck", help="check and measure the toolkit on a device (a GPU if there is one): "
-                                        "same-image tests, Embree cross-check, bench, compare; one report")
+                                        "same-image tests, Embree cross-check, bench, compare; one report",
+                       description="On the chosen device: the same-image checks, the Embree cross-check, bench of "
+                                   "every technique (stream vs in-place ratios against the talk's) and compare with "
+                                   "SIMD figures, GPU against CPU where both exist. Writes one report (text and "
+                                   "JSON); exit code 1 when a correctness check fails.")
     device_option(p)
     p.add_argument("--fast", action="store_true", help="tiny renders (what the test suite runs)")
     p.add_argument("--out", default="out/gpucheck.txt",

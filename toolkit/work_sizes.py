@@ -182,6 +182,11 @@ def problems(plan, max_alloc=None, global_memory=None):
     return found
 
 
+def checked_size(option, size):
+    """`size` of option "stream_size" or "pool_size" if None or a whole number in its LIMITS range."""
+    return size if size is None else whole_number(f"technique.{option}", size, option)
+
+
 def check_fits(device, option, size, max_vertices=64):
     """`size` for option "stream_size" or "pool_size", checked: a whole number in its LIMITS range
     whose buffers the device can allocate and whose indices fit an int; else an InputError."""

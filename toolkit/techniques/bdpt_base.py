@@ -10,6 +10,8 @@ One pass, read like the talk's slides:
 Light-tracing (t = 1) contributions land on other pixels: every connection writes a record
 (pixel, value) and the host adds the records up per pixel in float64 (no float atomics on
 the device). So a pass is an image, and the standard error comes from independent passes.
+Option `pool_size`: the samples in flight (default: the device's, toolkit/work_sizes.py: 4,096
+on a CPU); each stores MAX_VERTICES eye and light vertices.
 """
 from dataclasses import dataclass
 
@@ -19,6 +21,7 @@ import pyopencl as cl
 from ..compaction import Compactor
 from ..layout import BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, SUBPATH, WalkCounter
 from ..simd import PhaseCounter
+from ..work_sizes import checked_size
 from .base import Technique
 
 
@@ -78,6 +81,7 @@ class BdptTechnique(Technique):
         defines = {"MAX_VERTICES": self.max_vertices, "COALESCED_SCATTER": bool(coalesced_scatter),
                    "BDPT_RR_DEPTH": (scene.rr_depth + 1) // 2}   # subpath roulette: see cl/bdpt_walk.h
         defines.update(kwargs.pop("extra_defines", None) or {})
+        checked_size("pool_size", pool_size)         # its range now, before the build; the device's memory after
         super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
         if not 0.0 < regenerate_fraction <= 1.0:
             raise ValueError("regenerate_fraction must be in (0, 1]")

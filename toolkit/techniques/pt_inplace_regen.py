@@ -5,11 +5,14 @@ Kernel: cl/pt_inplace_regen.cl. Each work-item owns a slot. One iteration:
     regenerate - every slot whose path ended starts the next sample of the budget in place.
 Extension stays busy, but regeneration runs with only the terminated lanes active: the talk
 measures ~30% active threads per warp in that step.
+
+Option `stream_size`: the slots (default: the device's, toolkit/work_sizes.py: 32,768 on a CPU).
 """
 import numpy as np
 import pyopencl as cl
 
 from ..layout import PATH_STATE
+from ..work_sizes import checked_size
 from .base import Technique
 
 
@@ -22,6 +25,7 @@ class PtInplaceRegen(Technique):
     reads_every = 4      # iterations per blocking read of the "any path alive" flag (counters off)
 
     def __init__(self, *args, stream_size=None, **kwargs):
+        checked_size("stream_size", stream_size)     # its range now, before the build; the device's memory after
         super().__init__(*args, **kwargs)
         self.stream_size = self.in_flight("stream_size", stream_size)
 
