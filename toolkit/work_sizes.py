@@ -171,13 +171,13 @@ def problems(plan, max_alloc=None, global_memory=None):
     found = []
     for name, size, index in plan:
         if index > INT_MAX:
-            found.append(f"the {name} needs index {index:,}, above the 32-bit int kernels' 2^31 - 1")
+            found.append(f"{name}: index {index:,}, above the 32-bit int kernels' 2^31 - 1")
         if max_alloc and size > max_alloc:
-            found.append(f"the {name} needs {size / 2**20:,.0f} MiB, above the device's largest buffer "
+            found.append(f"{name}: {size / 2**20:,.0f} MiB, above the device's largest buffer "
                          f"(CL_DEVICE_MAX_MEM_ALLOC_SIZE {max_alloc / 2**20:,.0f} MiB)")
     total = sum(size for _, size, _ in plan) * 2    # two of each stream (compaction), two vertex memories
     if global_memory and total > global_memory // MEMORY_SHARE:
-        found.append(f"its streams need about {total / 2**20:,.0f} MiB, above a quarter of the device's "
+        found.append(f"all its buffers: about {total / 2**20:,.0f} MiB, above a quarter of the device's "
                      f"{global_memory / 2**30:.1f} GiB")
     return found
 
