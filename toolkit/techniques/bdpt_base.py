@@ -18,6 +18,7 @@ import pyopencl as cl
 
 from ..compaction import Compactor
 from ..layout import BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, SUBPATH, WalkCounter
+from ..scene import NO_LIMIT
 from ..simd import PhaseCounter
 from .base import Technique
 
@@ -75,8 +76,11 @@ class BdptTechnique(Technique):
         scene = device_scene.scene
         # At least 2: the walk stores its first hit (vertex 1) before it checks the depth.
         self.max_vertices = max(2, min(self.max_vertices, scene.max_depth + 1)) if scene.max_depth >= 0 else self.max_vertices
+        # Subpath roulette from half the scene's rr_depth (cl/bdpt_walk.h); never without one (a
+        # general kernel has the roulette compiled in for every scene: Scene.features).
+        rr_depth = (scene.rr_depth + 1) // 2 if scene.rr_depth >= 0 else NO_LIMIT
         defines = {"MAX_VERTICES": self.max_vertices, "COALESCED_SCATTER": bool(coalesced_scatter),
-                   "BDPT_RR_DEPTH": (scene.rr_depth + 1) // 2}   # subpath roulette: see cl/bdpt_walk.h
+                   "BDPT_RR_DEPTH": rr_depth}
         defines.update(kwargs.pop("extra_defines", None) or {})
         super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
         if not 0.0 < regenerate_fraction <= 1.0:
