@@ -75,6 +75,13 @@ def build_parser():
     p.add_argument("--out", help="output .exr (an sRGB .png is written beside it) or .png alone; default out/<scene>_<technique>.exr")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line of stdout")
     p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--strategies", metavar="DIR",
+                   help="bdpt_* only, instead of one image: an image per connection strategy (s, t), with and "
+                        "without its MIS weight (Veach's figure 10.3), into DIR with strategies.json and a table "
+                        "of each strategy's share of the image and of the variance")
+    p.add_argument("--strategy-edges", type=_positive, default=5, metavar="K",
+                   help="with --strategies: strategies of paths up to K edges get images, longer paths one "
+                        "summed image (default 5)")
     bvh_option(p)
     general_option(p)
 
@@ -192,6 +199,8 @@ def main(argv=None):
 
 
 def cmd_render(args):
+    if args.strategies:
+        return cmd_render_strategies(args)
     from .api import as_scene, render
     from .images import write_image
     from .reference import reference_at, reference_problem, rmse
@@ -225,6 +234,26 @@ def cmd_render(args):
     print("\n".join(lines))
     if args.json:
         print(json.dumps(stats))
+    return 0
+
+
+def cmd_render_strategies(args):
+    from .api import as_scene
+    from .strategies import format_strategies, render_strategies, write_strategies
+    from .validate import check_output
+    scene = as_scene(args.scene)
+    check_output(f"{args.strategies}/full.exr")     # before the render: a bad folder must not cost its time
+    if args.general:
+        raise ValueError("--strategies builds its own kernels; --general does not apply")
+    image, result = render_strategies(scene, args.technique, spp=args.spp, seed=args.seed,
+                                      resolution=args.resolution, device=args.device, max_edges=args.strategy_edges,
+                                      bvh=args.bvh, progress=not args.no_progress)
+    report = write_strategies(args.strategies, image, result, scene.name, args.technique)
+    print(format_strategies(report))
+    print(f"  wrote {len(report['strategies'])} x 2 strategy images, longer_weighted.exr, full.exr and "
+          f"strategies.json to {args.strategies}")
+    if args.json:
+        print(json.dumps(report))
     return 0
 
 

@@ -7,6 +7,7 @@ import numpy as np
 import pyopencl as cl
 
 from ..simd import PhaseCounter
+from ..strategies import strategy_count, strategy_index
 from .bdpt_base import BdptTechnique
 
 
@@ -30,6 +31,8 @@ class BdptNaiveConnect(BdptTechnique):
             return np.zeros((npix, 3))
         pool = p.pool.size
         n = pool * (self.max_vertices + 1)
+        if self.strategy_max_edges:   # and a record per eye-path strategy of the short paths (cl/bdpt_naive_connect.cl)
+            n += pool * strategy_count(self.strategy_max_edges)
         values, pixels = self.reused(("records", n), lambda: (
             cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * n), self.int_buffer(n)))
         cl.enqueue_fill_buffer(self.queue, pixels, np.int32(-1), 0, 4 * n)   # records a slot may leave unwritten
@@ -37,7 +40,19 @@ class BdptNaiveConnect(BdptTechnique):
                     np.int32(pool), p.pool.slots, p.pool.eye.vertices, p.pool.light.vertices, values, pixels,
                     p.pool.lane_counts)
         self.count_connect(p)
-        return self.reduce_records(*self.read_records(values, pixels, n), npix)
+        values, pixels = self.read_records(values, pixels, n)
+        if self.strategy_max_edges:
+            values = self.keep_strategies(values, pixels, self.record_strategies(pool))
+        return self.reduce_records(values, pixels, npix)
+
+    def record_strategies(self, pool):
+        """The strategy index (toolkit/strategies.py) of each record, from where the kernel put it:
+        t = 1 splats of s = 1 .. MAX_VERTICES, one sum of the longer paths per slot, then one
+        record per short eye-path strategy, numbered as the images are."""
+        count = strategy_count(self.strategy_max_edges)
+        splat_s = np.tile(np.arange(1, self.max_vertices + 1), pool)
+        return np.concatenate([strategy_index(splat_s, 1, self.strategy_max_edges),
+                               np.full(pool, count), np.tile(np.arange(count), pool)])
 
     def count_connect(self, p):
         if not self.count_simd:
