@@ -12,8 +12,9 @@ and technique, what each costs on this device:
   keyed by the source and the options. Each build here gets a define no source reads
   (-DUNCACHED_BUILD=<nonce>), which changes both keys and nothing else, into a temporary
   pyopencl cache folder that is deleted afterwards (so the user's cache is not filled);
-- warm-up seconds: the first render after the build. PoCL compiles each kernel's work-group
-  function at its first launch, so on a CPU part of the compile cost lands here;
+- warm-up seconds: the first render after the build, of the timed size. PoCL compiles each
+  kernel's work-group function at its first launch, so on a CPU part of the compile cost lands
+  here (and the first render of a size allocates its buffers);
 - binary bytes: the program binary's size (CL_PROGRAM_BINARY_SIZES): LLVM bitcode on PoCL,
   device code on most GPU drivers.
 """
@@ -106,7 +107,7 @@ def measure_specialization(scenes=None, techniques=DEFAULT_TECHNIQUES, resolutio
                     progress(f"{scene.name} {name} {kernels}: uncached build and warm-up")
                 techs[kernels], entry[kernels] = _build(queue, device_scene, name, kernels == "general")
                 start = time.perf_counter()
-                techs[kernels].render(width, height, 1, seed=10**6)
+                techs[kernels].render(width, height, n, seed=10**6)
                 entry[kernels]["warmup_seconds"] = time.perf_counter() - start
                 entry[kernels]["runs"] = []
             for r in range(repeats):

@@ -87,6 +87,8 @@ class BdptTechnique(Technique):
         self.strategy_max_edges = strategy_max_edges
         self.strategy_images = None     # strategies.StrategyImages of the passes so far, when built for them
         if strategy_max_edges:
+            if self.family != "bdpt":   # mlt keeps its records with its chains: no strategies there
+                raise ValueError(f"{self.name} has no per-strategy images")
             defines.update(STRATEGY_IMAGES=True, STRATEGY_MAX_EDGES=strategy_max_edges,
                            STRATEGY_COUNT=strategy_count(strategy_max_edges))
         defines.update(kwargs.pop("extra_defines", None) or {})
