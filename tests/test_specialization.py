@@ -1,5 +1,6 @@
 """Specialized kernels (only what the scene uses) against the general kernel (everything
 compiled in, general=True): the same image, and the general one really carries every path."""
+import json
 from dataclasses import replace
 
 import numpy as np
@@ -85,3 +86,19 @@ def test_general_kernel_renders_a_glossy_scene(queue):
         images = [toolkit.render(glossy, technique=technique, spp=spp_for(technique, 4), resolution=(8, 8),
                                  count_simd=False, general=general).image for general in (False, True)]
         _same_to_rounding(*images)
+
+
+def test_bench_specialization_measures_both_kernels(capsys):
+    """`bench --specialization`: both kernels built afresh (not answered by a cache) and measured;
+    the general kernel carries more code, so its program binary is larger."""
+    from toolkit.cli import main
+    assert main(["bench", "--specialization", str(scene_dirs()[0].parent / "cornell_box"), "--techniques",
+                 "pt_naive", "--resolution", "8x8", "--spp", "1", "--repeats", "1", "--json"]) == 0
+    out = capsys.readouterr().out
+    report = json.loads(out.strip().splitlines()[-1])
+    entry = report["scenes"]["cornell_box"]["pt_naive"]
+    spec, general = entry["specialized"], entry["general"]
+    assert general["binary_bytes"] > spec["binary_bytes"] > 0
+    assert spec["build_seconds"] > 0 and general["build_seconds"] > 0
+    assert entry["speedup"] == pytest.approx(spec["samples_per_second"] / general["samples_per_second"])
+    assert "speed-up" in out and "cornell_box:" in out

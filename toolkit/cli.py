@@ -241,10 +241,10 @@ def cmd_render_strategies(args):
     from .api import as_scene
     from .strategies import format_strategies, render_strategies, write_strategies
     from .validate import check_output
-    scene = as_scene(args.scene)
-    check_output(f"{args.strategies}/full.exr")     # before the render: a bad folder must not cost its time
     if args.general:
         raise ValueError("--strategies builds its own kernels; --general does not apply")
+    scene = as_scene(args.scene)
+    check_output(f"{args.strategies}/full.exr")     # before the render: a bad folder must not cost its time
     image, result = render_strategies(scene, args.technique, spp=args.spp, seed=args.seed,
                                       resolution=args.resolution, device=args.device, max_edges=args.strategy_edges,
                                       bvh=args.bvh, progress=not args.no_progress)

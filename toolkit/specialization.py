@@ -28,9 +28,10 @@ from pathlib import Path
 
 import pyopencl as cl
 
+from .api import as_scene
 from .device import describe, get_queue
 from .device_scene import DeviceScene
-from .scene import bundled_scene_dir, load_scene
+from .scene import Scene, bundled_scene_dir
 from .techniques import get_technique
 
 DEFAULT_TECHNIQUES = ("pt_naive", "pt_compact_regen", "bdpt_parallel_connect")
@@ -78,7 +79,7 @@ def measure_specialization(scenes=None, techniques=DEFAULT_TECHNIQUES, resolutio
                            repeats=3, device=None, bvh="wide", progress=None):
     """Specialized against general kernels, per scene and technique.
 
-    `scenes`: a scene folder, a list of them, or None for every bundled scene. `spp` is for the
+    `scenes`: a scene (a Scene or a folder), a list of them, or None for every bundled scene. `spp` is for the
     path tracers; bidirectional techniques (and mlt) get an eighth, as in `bench`, since a
     sample of theirs costs ~10x more. `progress`: None, or a function called with a line of
     text before each measurement. Returns
@@ -89,14 +90,14 @@ def measure_specialization(scenes=None, techniques=DEFAULT_TECHNIQUES, resolutio
     """
     if scenes is None:
         scenes = bundled_scenes()
-    elif isinstance(scenes, (str, Path)):
+    elif isinstance(scenes, (str, Path, Scene)):
         scenes = [scenes]
     queue = get_queue(device)
     width, height = resolution
     report = {"device": describe(queue.device), "resolution": [width, height], "spp": spp,
               "repeats": repeats, "bvh": bvh, "scenes": {}}
-    for folder in scenes:
-        scene = load_scene(folder)
+    for given in scenes:
+        scene = as_scene(given)
         device_scene = DeviceScene(queue, scene, bvh=bvh)
         per_scene = report["scenes"][scene.name] = {}
         for name in techniques:
