@@ -63,12 +63,15 @@ class StrategyImages:
         ok = np.isfinite(values).all(1) & np.isfinite(weighted).all(1)    # as reduce_records drops them
         values, weighted, pixels, index = values[ok], weighted[ok].astype(np.float64), pixels[ok], index[ok]
         unweighted = values[:, :3].astype(np.float64)
-        at = index * self.weighted.shape[1] + pixels
-        size = self.weighted.shape[0] * self.weighted.shape[1]
+        shape = self.luminance_sq.shape                 # (strategies, pixels)
+        at = index * shape[1] + pixels                  # one bin per (strategy, pixel)
+
+        def per_bin(values):
+            return np.bincount(at, values, shape[0] * shape[1]).reshape(shape)
         for c in range(3):
-            self.weighted[..., c].flat += np.bincount(at, weighted[:, c], size)
-            self.unweighted[..., c].flat += np.bincount(at, unweighted[:, c], size)
-        self.luminance_sq.flat += np.bincount(at, (weighted @ np.array(LUMINANCE_WEIGHTS)) ** 2, size)
+            self.weighted[:, :, c] += per_bin(weighted[:, c])
+            self.unweighted[:, :, c] += per_bin(unweighted[:, c])
+        self.luminance_sq += per_bin((weighted @ np.array(LUMINANCE_WEIGHTS)) ** 2)
 
     def images(self):
         """{(s, t): (weighted, unweighted)} as (H, W, 3) images, and the weighted image of longer paths."""
