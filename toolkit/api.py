@@ -45,6 +45,7 @@ def _options(cls, options):
              for name, p in inspect.signature(c.__init__).parameters.items()
              if p.kind == p.KEYWORD_ONLY or (p.kind == p.POSITIONAL_OR_KEYWORD and p.default is not p.empty)}
     known -= {"warp_width", "count_simd", "extra_defines", "local_size", "general"}   # render's own arguments
+    known -= {"strategy_max_edges"}   # per-strategy images: toolkit.strategies.render_strategies
     for key in options:
         if key not in known:
             raise InputError(f"unknown option {key!r} for {cls.name} (known: {', '.join(sorted(known)) or 'none'})")
