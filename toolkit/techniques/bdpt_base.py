@@ -19,8 +19,8 @@ import pyopencl as cl
 from ..compaction import Compactor
 from ..layout import BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, SUBPATH, WalkCounter
 from ..scene import NO_LIMIT
-from ..strategies import StrategyImages, strategy_count
 from ..simd import PhaseCounter
+from ..strategies import StrategyImages, strategy_count
 from .base import Technique
 
 
