@@ -27,7 +27,9 @@ __kernel void bdpt_naive_connect_splats(const int pool, __global const BdptSlot*
 
 /* Records: slot k's t = 1 splats at firsts[k] + (s - 1) (firsts: the scan of the splat counts,
  * `splats` records in all), then the sum of its eye-path strategies at splats + k (pixel -1:
- * nothing; the host pre-fills). */
+ * nothing; the host pre-fills). Built for per-strategy images (STRATEGY_IMAGES), the eye-path
+ * strategies of paths up to STRATEGY_MAX_EDGES edges get a record each, at splats + pool
+ * + k * STRATEGY_COUNT + strategy_index(s, t) (cl/bdpt.h), and the sum holds only the longer ones. */
 __kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool, const int splats,
                                  __global const int* firsts, __global const BdptSlot* slots,
                                  __global const BdptVertex* eye_vertices, __global const BdptVertex* light_vertices,
@@ -53,13 +55,23 @@ __kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool,
             Connection c = connect_strategy(&s, &cam, eye, light, s_len, t_len, own_pixel, &steps);
             if (c.pixel < 0) continue;
             if (t_len == 1) {
-                record_value[firsts[gid] + s_len - 1] = (float4)(c.value, c.weight);
+                record_value[firsts[gid] + s_len - 1] = connection_record(&c);
                 record_pixel[firsts[gid] + s_len - 1] = c.pixel;
-            } else {
-                sum += c.value;
+                continue;
             }
+#if STRATEGY_IMAGES
+            int strategy = strategy_index(s_len, t_len);
+            if (strategy < STRATEGY_COUNT) {
+                int at = splats + pool + gid * STRATEGY_COUNT + strategy;
+                record_value[at] = connection_record(&c);
+                record_pixel[at] = own_pixel;
+                continue;
+            }
+#endif
+            sum += c.value;
         }
-        record_value[splats + gid] = (float4)(sum, 0.0f);
+        /* .w: the weight by which the host multiplies .xyz; 1 for a sum of weighted values */
+        record_value[splats + gid] = (float4)(sum, STRATEGY_IMAGES ? 1.0f : 0.0f);
         record_pixel[splats + gid] = own_pixel;
     }
 #if COUNT_SIMD

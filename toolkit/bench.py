@@ -19,10 +19,11 @@ DEFAULT = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "pt_compact_regen
 
 
 def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats=3, seed=0, device=None,
-          bvh="wide"):
+          bvh="wide", general=False):
     scene = as_scene(scene)
     for name in techniques:   # warm-up: kernel builds and BVH outside the timings
-        render(scene, technique=name, spp=1, resolution=(16, 16), device=device, count_simd=False, bvh=bvh)
+        render(scene, technique=name, spp=1, resolution=(16, 16), device=device, count_simd=False, bvh=bvh,
+               general=general)
     rates = {name: [] for name in techniques}
     device_name = None
     for r in range(repeats):
@@ -31,12 +32,12 @@ def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats
             # the budget keeps the runs comparable in length.
             n = max(1, spp // 8) if family(name) in ("bdpt", "mlt") else spp
             result = render(scene, technique=name, spp=n, seed=seed + r, resolution=resolution,
-                            device=device, count_simd=False, bvh=bvh)
+                            device=device, count_simd=False, bvh=bvh, general=general)
             rates[name].append(result.stats["samples_per_second"])
             device_name = result.stats["device"]
     median = {name: statistics.median(v) for name, v in rates.items()}
     base = techniques[0]
-    return {"scene": scene.name, "device": device_name, "gpu": has_gpu(), "spp": spp, "bvh": bvh,
+    return {"scene": scene.name, "device": device_name, "gpu": has_gpu(), "spp": spp, "bvh": bvh, "general": general,
             "resolution": list(resolution), "repeats": repeats,
             "techniques": {name: {"samples_per_second": median[name], "runs": rates[name],
                                   f"ratio_to_{base}": median[name] / median[base]} for name in techniques}}

@@ -54,6 +54,12 @@ def build_parser():
                        help="wide: 4 children per node tested with float4 operations (SIMD inside one ray); "
                             "binary: the SAH BVH it is collapsed from (default wide)")
 
+    def general_option(p):
+        p.add_argument("--general", action="store_true",
+                       help="build the general kernel (every material and feature compiled in) instead of "
+                            "the one specialized to the scene; the same image (bench --specialization "
+                            "measures the difference)")
+
     def device_option(p):
         # Also accepted after the command; SUPPRESS keeps a value given before it.
         p.add_argument("--device", default=argparse.SUPPRESS,
@@ -69,7 +75,15 @@ def build_parser():
     p.add_argument("--out", help="output .exr (an sRGB .png is written beside it) or .png alone; default out/<scene>_<technique>.exr")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line of stdout")
     p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--strategies", metavar="DIR",
+                   help="bdpt_* only, instead of one image: an image per connection strategy (s, t), with and "
+                        "without its MIS weight (Veach's figure 10.3), into DIR with strategies.json and a table "
+                        "of each strategy's share of the image and of the variance")
+    p.add_argument("--strategy-edges", type=_positive, default=5, metavar="K",
+                   help="with --strategies: strategies of paths up to K edges get images, longer paths one "
+                        "summed image (default 5)")
     bvh_option(p)
+    general_option(p)
 
     sub.add_parser("devices", help="list OpenCL platforms and devices, and which one the toolkit picks")
 
@@ -101,6 +115,7 @@ def build_parser():
     p.add_argument("--out", default="out/compare", help="folder for images and plots (default out/compare)")
     p.add_argument("--no-progress", action="store_true")
     bvh_option(p)
+    general_option(p)
 
     p = sub.add_parser("bench", help="samples/s of each technique and their ratios, measured in one run")
     device_option(p)
@@ -120,8 +135,13 @@ def build_parser():
                         "time to 5%% RMSE); needs pip install \".[peers]\"")
     p.add_argument("--equal-time", type=_number, metavar="SECONDS",
                    help="instead: render each technique for about SECONDS and compare RMSE against the reference")
+    p.add_argument("--specialization", action="store_true",
+                   help="instead: the kernels specialized to the scene against the general kernel, on SCENE or "
+                        "every bundled scene: samples/s, uncached build time, binary size (default techniques "
+                        "pt_naive,pt_compact_regen,bdpt_parallel_connect; resolution 64x64)")
     p.add_argument("--json", action="store_true")
     bvh_option(p)
+    general_option(p)
 
     p = sub.add_parser("gpucheck", help="check and measure the toolkit on a device (a GPU if there is one): "
                                         "same-image tests, Embree cross-check, bench, compare; one report",
@@ -192,6 +212,8 @@ def main(argv=None):
 
 
 def cmd_render(args):
+    if args.strategies:
+        return cmd_render_strategies(args)
     from .api import as_scene, render
     from .images import write_image
     from .reference import reference_at, reference_problem, rmse
@@ -202,7 +224,8 @@ def cmd_render(args):
     width, height = args.resolution or (scene.camera.width, scene.camera.height)
     out = check_output(args.out or f"out/{scene.name}_{args.technique}.exr")
     result = render(scene, technique=args.technique, spp=args.spp, seed=args.seed,
-                    resolution=(width, height), device=args.device, progress=not args.no_progress, bvh=args.bvh)
+                    resolution=(width, height), device=args.device, progress=not args.no_progress, bvh=args.bvh,
+                    general=args.general)
     written = write_image(out, result.image.astype(np.float32))
     stats = dict(result.stats, out=str(out))
     ref, _ = reference_at(scene, width, height)
@@ -230,6 +253,26 @@ def cmd_render(args):
     return 0
 
 
+def cmd_render_strategies(args):
+    from .api import as_scene
+    from .strategies import format_strategies, render_strategies, write_strategies
+    from .validate import check_output
+    if args.general:
+        raise ValueError("--strategies builds its own kernels; --general does not apply")
+    scene = as_scene(args.scene)
+    check_output(f"{args.strategies}/full.exr")     # before the render: a bad folder must not cost its time
+    image, result = render_strategies(scene, args.technique, spp=args.spp, seed=args.seed,
+                                      resolution=args.resolution, device=args.device, max_edges=args.strategy_edges,
+                                      bvh=args.bvh, progress=not args.no_progress)
+    report = write_strategies(args.strategies, image, result, scene.name, args.technique)
+    print(format_strategies(report))
+    print(f"  wrote {len(report['strategies'])} x 2 strategy images, longer_weighted.exr, full.exr and "
+          f"strategies.json to {args.strategies}")
+    if args.json:
+        print(json.dumps(report))
+    return 0
+
+
 def _technique_list(text):
     from .techniques import get_technique
     names = [t.strip() for t in text.split(",") if t.strip()]
@@ -244,7 +287,7 @@ def cmd_compare(args):
     from .compare import compare, format_table
     table = compare(args.scene, _technique_list(args.techniques), args.spp, resolution=args.resolution,
                     seed=args.seed, warp_width=args.warp_width, out_dir=args.out, device=args.device,
-                    progress=not args.no_progress, bvh=args.bvh)
+                    progress=not args.no_progress, bvh=args.bvh, general=args.general)
     print(format_table(table))
     first = next(iter(table.values()))
     print("plots: " + ", ".join(first.get("plots", {}).values()))
@@ -259,6 +302,8 @@ def cmd_bench(args):
     whole_number("bench.repeats", args.repeats, "--repeats")
     if args.peer:
         return cmd_bench_peer(args)
+    if args.specialization:
+        return cmd_bench_specialization(args)
     if args.equal_time is not None:
         finite_number("bench.equal_time", args.equal_time, "--equal-time")
         from .bench import equal_time
@@ -270,8 +315,21 @@ def cmd_bench(args):
             print(json.dumps(report))
         return 0
     report = bench(args.scene, tuple(_technique_list(args.techniques or ",".join(DEFAULT))), spp=args.spp,
-                   resolution=args.resolution or (128, 128), repeats=args.repeats, device=args.device, bvh=args.bvh)
+                   resolution=args.resolution or (128, 128), repeats=args.repeats, device=args.device, bvh=args.bvh,
+                   general=args.general)
     print(format_bench(report))
+    if args.json:
+        print(json.dumps(report))
+    return 0
+
+
+def cmd_bench_specialization(args):
+    from .specialization import DEFAULT_TECHNIQUES, format_specialization, measure_specialization
+    techniques = _technique_list(args.techniques or ",".join(DEFAULT_TECHNIQUES))
+    report = measure_specialization(args.scene, techniques, resolution=args.resolution or (64, 64), spp=args.spp,
+                                    repeats=args.repeats, device=args.device, bvh=args.bvh,
+                                    progress=lambda line: print(line, file=sys.stderr, flush=True))
+    print(format_specialization(report))
     if args.json:
         print(json.dumps(report))
     return 0

@@ -17,9 +17,10 @@ PHASES = ["generate", "extend", "walk", "shadow", "compact", "connect"]
 
 
 def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, out_dir="out/compare",
-            device=None, progress=False, plots=True, bvh="wide"):
+            device=None, progress=False, plots=True, bvh="wide", general=False):
     """Render `scene` with each technique; returns {technique: figures} and writes images/plots.
-    `warp_width` None: the device's (toolkit.device.choose_warp_width); each row says which."""
+    `warp_width` None: the device's (toolkit.device.choose_warp_width); each row says which.
+    `general`: the general kernels instead of the scene's specialized ones (toolkit.render)."""
     scene = as_scene(scene)
     width, height = resolution or (scene.camera.width, scene.camera.height)
     out_dir = Path(out_dir)
@@ -28,7 +29,7 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, ou
     results, table = {}, {}
     for name in techniques:
         result = render(scene, technique=name, spp=spp, seed=seed, resolution=(width, height),
-                        device=device, warp_width=warp_width, progress=progress, bvh=bvh)
+                        device=device, warp_width=warp_width, progress=progress, bvh=bvh, general=general)
         path = out_dir / f"{scene.name}_{name.replace('/', '_')}.exr"
         write_image(path, result.image.astype(np.float32))
         results[name] = result

@@ -24,6 +24,9 @@ TOP_KEYS = {"format", "camera", "materials", "shapes", "integrator"}
 CAMERA_KEYS = {"origin", "target", "up", "fov_deg", "fov_axis", "width", "height"}
 SHAPE_KEYS = {"mesh", "material", "emission"}
 INTEGRATOR_KEYS = {"max_depth", "rr_depth"}
+# A depth the general kernel (features(general=True)) compares with where the scene sets no
+# limit: far beyond HARD_MAX_BOUNCES (cl/common.h), so the test is compiled in but never fires.
+NO_LIMIT = 1 << 30
 
 
 class SceneError(InputError):
@@ -76,17 +79,23 @@ class Scene:
         lo, hi = self.vertices.min(0), self.vertices.max(0)
         return float(np.linalg.norm(hi - lo))
 
-    def features(self):
-        """Compile-time defines: only what this scene uses is built into the kernels."""
+    def features(self, general=False):
+        """Compile-time defines: only what this scene uses is built into the kernels.
+
+        `general=True`: the general kernel instead, as a renderer that does not specialize
+        would build it: every material and the specular paths compiled in, the depth limit and
+        Russian roulette tests always there. The limits stay numbers in the build (the scene's
+        own; NO_LIMIT where it has none, a test that never fires), so both kernels compute the
+        same image (tests/test_specialization.py) and differ only in the code they carry."""
         used = {self.materials[i]["type"] for i in np.unique(self.material_of)}
         defines = {}
         for name in MATERIAL_TYPES:
-            defines[f"HAS_{name.upper()}"] = name in used
-        defines["HAS_SPECULAR"] = bool(used & {"mirror", "dielectric"})
-        defines["MAX_DEPTH"] = self.max_depth
-        defines["USE_MAX_DEPTH"] = self.max_depth >= 0
-        defines["RR_DEPTH"] = self.rr_depth
-        defines["USE_RUSSIAN_ROULETTE"] = self.rr_depth >= 0 and self.max_depth != 0
+            defines[f"HAS_{name.upper()}"] = general or name in used
+        defines["HAS_SPECULAR"] = general or bool(used & {"mirror", "dielectric"})
+        defines["MAX_DEPTH"] = self.max_depth if self.max_depth >= 0 or not general else NO_LIMIT
+        defines["USE_MAX_DEPTH"] = general or self.max_depth >= 0
+        defines["RR_DEPTH"] = self.rr_depth if self.rr_depth >= 0 or not general else NO_LIMIT
+        defines["USE_RUSSIAN_ROULETTE"] = general or (self.rr_depth >= 0 and self.max_depth != 0)
         return defines
 
     def transformed(self, scale=1.0, translate=(0.0, 0.0, 0.0)):

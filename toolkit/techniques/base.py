@@ -27,8 +27,10 @@ class Technique:
     source_dir = None
 
     def __init__(self, queue, device_scene, warp_width=None, count_simd=True, extra_defines=None,
-                 local_size=program.LOCAL_SIZE):
-        """`warp_width`: W of the SIMD counters; None: the device's (toolkit.device.device_warp_width)."""
+                 local_size=program.LOCAL_SIZE, general=False):
+        """`warp_width`: W of the SIMD counters; None: the device's (toolkit.device.device_warp_width).
+        `general`: build the general kernel (every material and feature compiled in, Scene.features)
+        instead of the one specialized to the scene; both compute the same image."""
         from ..device import resolve_warp_width
         self.queue = queue
         self.scene = device_scene
@@ -41,7 +43,8 @@ class Technique:
         if self.local_size > queue.device.max_work_group_size:
             raise InputError(f"local_size {self.local_size} exceeds the device's maximum work-group size "
                              f"{queue.device.max_work_group_size}")
-        defines = dict(device_scene.features())
+        self.general = bool(general)
+        defines = dict(device_scene.features(self.general))
         defines["COUNT_SIMD"] = bool(count_simd)
         defines.update(extra_defines or {})
         defines["LOCAL_SIZE"] = self.local_size
