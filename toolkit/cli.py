@@ -163,7 +163,7 @@ def build_parser():
                         "own OpenCL device; needs pip install \".[cluster]\"")
     p.add_argument("--out", default="out/study", help="folder for study.json and the plots (default out/study)")
     p.add_argument("--json", action="store_true", help="print the report as JSON as the last line of stdout")
-    p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (calibration, then the renders)")
     bvh_option(p)
 
     from .grade import ASSIGNMENTS, TIME_LIMIT

@@ -21,13 +21,17 @@ per pixel j (its three channels averaged), e_rj = I_rj - ref_j:
 
 The last two terms of bias2 remove, in expectation, the noise of the mean over repetitions and
 the reference's own noise, so bias2 is unbiased (and may come out slightly below 0 when it is
-~0). Each figure is the mean over pixels. Standard errors (`se_method` "pixels": each pixel's samples
-are independent of the other pixels' in the path tracers; BDPT's light-tracing splats tie pixels
-together a little): for variance and mse, each pixel's delete-one jackknife over the repetitions,
-added over the pixels (R >= 3); for bias2, the spread of bias2_j over the pixels / sqrt(pixels),
-exact under "no bias" (every bias2_j has mean 0 then, the reference's noise included), so
-bias2 / se is a z statistic. mlt's chains splat over the whole image, so its errors are the
-jackknife of the whole-image figures over the repetitions (`repetitions`).
+~0). Each figure is the mean over pixels. Standard errors need R >= 3. In the path tracers each
+pixel's samples are independent of the other pixels' (`se_method` "pixels"): each pixel's
+delete-one jackknife over the repetitions, added over the pixels, plus the reference's noise
+for bias2 and mse. bias2 / se is the z of the
+test "no bias"; the jackknife of this quadratic figure errs on the safe side (simulated without
+bias, with a few pixels 300x noisier than the rest as in the Cornell box: z has a standard
+deviation of ~0.7, not 1; tests/test_study.py). The spread of bias2_j over the pixels would be
+exact without bias but hides a bias that only a few pixels have (a clamped light). BDPT's
+light-tracing splats and mlt's chains tie pixels together (a light path lands on several), so
+there the errors are the jackknife of the whole-image figures over the repetitions
+(`repetitions`), and bias2 / se follows Student's t with R - 1 degrees of freedom (`bias2_dof`).
 
     efficiency     = 1 / (mse * time)          (time: the median wall time of the repetitions)
     slope          = d log(RMSE) / d log(time), a weighted least-squares line through the budgets
@@ -37,6 +41,9 @@ jackknife of the whole-image figures over the repetitions (`repetitions`).
                      `target` (default 5%): interpolated between the budgets that bracket it
                      ("measured"), else along the fitted slope ("extrapolated"), or None when a
                      significant bias alone exceeds it ("unreachable")
+    pixel_test     = the reference z-test (toolkit/reference.py) of the mean of the repetitions,
+                     pixel by pixel with each render's own standard error: "no bias", tested far
+                     more strongly than by bias2's z, which the noisiest pixels dominate
     hard           = the same over the 10% hardest pixels (bench.hard_pixels), relative to
                      their own mean.
 """
@@ -118,9 +125,11 @@ def _render(job, spp, seed):
 
 
 def run_repetition(job):
-    """Render one repetition: {"image" (H, W, 3) float64, "seconds" (render only), "device"}."""
+    """Render one repetition: {"image" (H, W, 3) float64, "stderr" (its own standard error, from its
+    samples or passes), "dof" (None: from samples), "seconds" (render only), "device"}."""
     result = _render(job, job.spp, job.seed)
-    return {"image": result.image, "seconds": result.stats["seconds"], "device": result.stats["device"]}
+    return {"image": result.image, "stderr": result.stderr, "dof": result.stats["degrees_of_freedom"],
+            "seconds": result.stats["seconds"], "device": result.stats["device"]}
 
 
 def calibrate(job, seconds):
@@ -217,6 +226,13 @@ def error_figures(images, ref, ref_err, se_method="pixels"):
         loo = np.array([split(np.delete(err, i, 0)) for i in range(reps)], dtype=float)
         if se_method == "pixels":      # independent pixels: the pixels' jackknife variances add up
             var = (reps - 1) / reps * ((loo - loo.mean(0)) ** 2).sum(0)
+            # The reference's own error is the same in every repetition, so the jackknife cannot see
+            # it: its share of bias2_j's variance for normal errors, 2 s^4 + 4 bias^2 s^2, is added.
+            m = err.mean(0)
+            bias2_c = np.maximum(m ** 2 - err.var(0, ddof=1) / reps - ref_err ** 2, 0.0)
+            ref_var = (2 * ref_err ** 4 + 4 * bias2_c * ref_err ** 2).sum(-1) / 9     # of a mean of 3 channels
+            var[0] += ref_var
+            var[1] += ref_var
             se = np.sqrt(var.sum(-1)) / n
         else:                          # pixels tied together: the jackknife of the whole-image means
             whole = loo.mean(-1)
@@ -227,18 +243,41 @@ def error_figures(images, ref, ref_err, se_method="pixels"):
         for name, x in zip(names, per_pixel):
             if x is not None:
                 out[name + "_se"] = float(x.std(ddof=1) / math.sqrt(n))
-    if se_method == "pixels" and out["bias2"] is not None and n > 1:
-        # Without bias every pixel's bias2_j has mean 0 (the reference's noise included), so their
-        # spread is bias2's exact standard error under "no bias": bias2 / se is a z statistic.
-        out["bias2_se"] = float(per_pixel[1].std(ddof=1) / math.sqrt(n))
     if out["bias2"] is not None and out["bias2_se"]:
         out["bias2_z"] = out["bias2"] / out["bias2_se"]
+        # A jackknife over R whole images: Student's t with R - 1 degrees of freedom; per pixel: normal.
+        out["bias2_dof"] = reps - 1 if se_method == "repetitions" else None
     return out
 
 
-def point_figures(images, seconds, ref, ref_err, mask, se_method):
+MIN_PIXEL_TEST_SAMPLES = 1024  # per pixel over the repetitions: with fewer, a pixel that the light covers in part
+#                                may show no spread at all, and its mean is far from normal
+
+
+def pixel_test(images, stderrs, dofs, ref, ref_err, samples, alpha=0.01):
+    """The z-test of toolkit.reference.z_test on the mean of the repetitions, pixel by pixel, with
+    each render's own standard error (its samples, or its passes: Student's t), Bonferroni-
+    corrected over the pixels: a far stronger test of "no bias" than bias2's z, which the noisiest
+    pixels dominate. None where the renders carry too few passes for a t-test (or no error: mlt),
+    or too few samples (`samples` per pixel over the repetitions) for a normal mean."""
+    from .reference import MIN_DEGREES_OF_FREEDOM, z_test
+    reps = len(images)
+    dof = None if any(d is None for d in dofs) else int(sum(dofs))
+    if (dof is not None and dof < MIN_DEGREES_OF_FREEDOM) or not np.any(stderrs) \
+            or (dof is None and samples < MIN_PIXEL_TEST_SAMPLES):
+        return None
+    stderr = np.sqrt((np.asarray(stderrs) ** 2).sum(0)) / reps
+    test = z_test(np.mean(images, 0), stderr, ref, ref_err, alpha=alpha, dof=dof)
+    return {"passed": test.passed, "alpha": alpha, "min_p": test.min_p, "threshold_p": test.threshold_p,
+            "worst_z": test.worst_z, "mean_abs_z": test.mean_abs_z, "dof": dof}
+
+
+def point_figures(images, seconds, ref, ref_err, mask, se_method, stderrs=None, dofs=None, spp=None):
     """Every figure of one budget, over the pixels of `mask` (H, W bool)."""
     fig = error_figures(np.asarray(images)[:, mask], ref[mask], ref_err[mask], se_method)
+    if stderrs is not None:
+        fig["pixel_test"] = pixel_test(np.asarray(images)[:, mask], np.asarray(stderrs)[:, mask], dofs,
+                                       ref[mask], ref_err[mask], samples=spp * len(images))
     mean = float(ref[mask].mean())
     seconds = np.asarray(seconds, np.float64)
     t = float(np.median(seconds))
@@ -465,9 +504,11 @@ def study(scene=None, techniques=DEFAULT_TECHNIQUES, budgets=DEFAULT_BUDGETS, re
     items = [(r, k, run) for r in range(repeats) for k in range(len(budget_list)) for run in runs]
     results = _map(run_repetition, [(job(run, plans[run.label][k], seed + k * repeats + r),)
                                     for r, k, run in items], scheduler, progress, "study")
-    images, seconds, device_name = {}, {}, None
+    images, stderrs, dofs, seconds, device_name = {}, {}, {}, {}, None
     for (r, k, run), res in zip(items, results):
         images.setdefault((run.label, k), []).append(res["image"])
+        stderrs.setdefault((run.label, k), []).append(res["stderr"])
+        dofs.setdefault((run.label, k), []).append(res["dof"])
         seconds.setdefault((run.label, k), []).append(res["seconds"])
         device_name = res["device"]
 
@@ -483,13 +524,17 @@ def study(scene=None, techniques=DEFAULT_TECHNIQUES, budgets=DEFAULT_BUDGETS, re
         ref, ref_err = reference_at(scene, width, height)
         hard = hard_pixels(ref, ref_err)
         whole = np.ones(ref.shape[:2], bool)
-        se_method = "repetitions" if family(run.technique) == "mlt" and repeats >= 3 else "pixels"
+        # Pixels are independent in the path tracers; BDPT's light-tracing splats and mlt's chains tie
+        # them together, so there the jackknife works on whole images (see the module docstring).
+        se_method = "pixels" if family(run.technique) == "pt" else "repetitions"
         points, hard_points = [], []
         for k, budget in enumerate(budget_list):
             imgs, secs = images[(run.label, k)], seconds[(run.label, k)]
             head = {"budget": budget, "spp": plans[run.label][k], "seconds": secs,
                     "seeds": [seed + k * repeats + r for r in range(repeats)]}
-            points.append({**head, **point_figures(imgs, secs, ref, ref_err, whole, se_method)})
+            points.append({**head, **point_figures(imgs, secs, ref, ref_err, whole, se_method,
+                                                   stderrs[(run.label, k)], dofs[(run.label, k)],
+                                                   plans[run.label][k])})
             hard_points.append({**head, **point_figures(imgs, secs, ref, ref_err, hard, se_method)})
         fit, hard_fit = fit_slope(points), fit_slope(hard_points)
         report["runs"][run.label] = {
