@@ -285,6 +285,7 @@ def test_time_budgets_become_a_plan_by_calibration(tmp_path, capsys):
     (["--knob", "max_depth"], "--knob must be NAME=V1,V2"),
     (["--knob", "max_depth=99"], "outside -1 .. 63"),
     (["--knob", "clamp=0"], "integrator.clamp"),
+    (["--knob", "rr_depth=-1"], "needs Russian roulette"),
     (["--knob", "colour=1,2"], "unknown option 'colour'"),
     (["--spp-budgets", "4,x"], "--spp-budgets must be comma-separated numbers"),
     (["--resolution", "7x7"], "no reference to compare with at 7x7"),

@@ -429,6 +429,8 @@ def _check_run(scene, run):
             if key in ("max_depth", "rr_depth") and (isinstance(value, bool) or not isinstance(value, int)):
                 raise InputError(f"knob {key} must be a whole number, got {value!r}")
         check_scene(changed, f"{scene.name} with {run.label}")
+        if changed.max_depth < 0 and changed.rr_depth < 0:
+            raise InputError(f"{run.label}: max_depth -1 (unbounded) needs Russian roulette (rr_depth >= 0)")
     width, height = run.resolution
     if reference_at(scene, width, height)[0] is None:
         raise InputError(f"{scene.name}: no reference to compare with at {width}x{height}: "
@@ -699,7 +701,7 @@ def save_plots(report, images, scene, out_dir):
         for a in axes[:, i]:
             a.set_xticks([])
             a.set_yticks([])
-    fig.colorbar(im, ax=axes[1, :].tolist(), label="absolute error (linear radiance, mean of RGB)", shrink=0.8)
+    fig.colorbar(im, ax=axes[1, :].tolist(), label="|error| (radiance, mean of RGB)", shrink=0.8)
     fig.suptitle(f"{name}: equal time, the largest budget, first repetition", fontsize=9)
     paths["image_strip"] = _save(fig, out_dir / f"{name}_study_image_strip.png", write_atomically)
     return paths
