@@ -4,8 +4,8 @@ chains / start / large_step), against the scene's reference.
 
 How a time budget becomes work (so that a study can be reproduced). A short calibration per
 run (technique and knob value) measures its speed: a warm-up render (kernel build and first
-launches, reported apart as `warmup_seconds`), then three timed renders (1 spp, and about a
-sixteenth and a quarter of the largest budget) fit `seconds = fixed + seconds_per_spp * spp`. Each budget then becomes a sample count, the `plan`
+launches, reported apart as `warmup_seconds`), then timed renders of about an eighth and half
+the largest budget fit `seconds = fixed + seconds_per_spp * spp` near the budgets. Each budget then becomes a sample count, the `plan`
 written into the report. Repetition r of budget k renders that many samples with its own seed,
 `seed + k * repeats + r`, so every image of a study is independent, and the same plan with the
 same seeds gives the same images on any machine or cluster (`scheduler`). The wall time of each
@@ -69,7 +69,7 @@ DEFAULT_REPEATS = 3
 DEFAULT_RESOLUTION = (32, 32)                  # every bundled reference averages down to it
 DEFAULT_TARGET = 0.05
 INTEGRATOR_KNOBS = ("max_depth", "rr_depth", "clamp")   # scene integrator settings (FORMAT.md)
-CALIBRATION_SECONDS = (0.05, 1.0)              # the longest probe: a quarter of the largest budget, within these
+CALIBRATION_SECONDS = (0.05, 2.0)              # the longest probe: half the largest budget, within these
 
 
 @dataclass(frozen=True)
@@ -133,27 +133,30 @@ def run_repetition(job):
 
 
 def calibrate(job, seconds):
-    """A run's speed: a warm-up (build and first launches, timed apart), then renders of 1 spp,
-    of about seconds / 4 and of about `seconds`, fit by least squares as
-    seconds = fixed + seconds_per_spp * spp."""
+    """A run's speed near the budgets: a warm-up (build and first launches, timed apart), a render
+    of 1 spp for a first guess, then renders of about seconds / 4 and `seconds` (`seconds` is half
+    the largest budget), each twice, the faster counted. The line through the last two, seconds = fixed + seconds_per_spp * spp,
+    is the cost model: near the budgets, where it is used (a short render costs more per sample:
+    a BDPT pass ends with a drain of its longest paths, mlt starts its chains)."""
     start = time.perf_counter()
     _render(job, 1, job.seed)                 # also warms up, the first time in this process
     warmup = time.perf_counter() - start
     probes = [(1, _render(job, 1, job.seed).stats["seconds"])]
     for share in (0.25, 1.0):
-        fixed, per_spp = _fit_cost(probes)
-        spp = int(min(max(2, (share * seconds - fixed) / per_spp), LIMITS["spp"][1]))
-        probes.append((spp, _render(job, spp, job.seed).stats["seconds"]))
-    fixed, per_spp = _fit_cost(probes)
+        fixed, per_spp = _fit_cost(probes[-2:])
+        spp = int(min(max(probes[-1][0] + 1, (share * seconds - fixed) / per_spp), LIMITS["spp"][1]))
+        # The faster of two: a busy moment of the machine only ever adds time.
+        probes.append((spp, min(_render(job, spp, job.seed).stats["seconds"] for _ in range(2))))
+    fixed, per_spp = _fit_cost(probes[-2:])
     pixels = job.run.resolution[0] * job.run.resolution[1]
     return {"warmup_seconds": warmup, "probes": [list(p) for p in probes], "fixed_seconds": fixed,
             "seconds_per_spp": per_spp, "samples_per_second": pixels / per_spp}
 
 
 def _fit_cost(probes):
-    """(fixed, per_spp) of seconds = fixed + per_spp * spp through the probes (least squares; a
-    noisy fit that would make the fixed cost negative or the cost per spp not positive is
-    replaced by a line through the origin and the largest probe)."""
+    """(fixed, per_spp) of the line seconds = fixed + per_spp * spp through the probes (least
+    squares; a noisy fit that would make the fixed cost negative or the cost per spp not positive
+    is replaced by a line through the origin and the largest probe)."""
     spp, t = (np.array(c, dtype=float) for c in zip(*probes))
     if len(probes) >= 2 and np.ptp(spp) > 0:
         per_spp, fixed = np.polyfit(spp, t, 1)
@@ -496,7 +499,7 @@ def study(scene=None, techniques=DEFAULT_TECHNIQUES, budgets=DEFAULT_BUDGETS, re
 
     calibration = {}
     if unit == "seconds":
-        probe = min(max(max(budget_list) / 4, CALIBRATION_SECONDS[0]), CALIBRATION_SECONDS[1])
+        probe = min(max(max(budget_list) / 2, CALIBRATION_SECONDS[0]), CALIBRATION_SECONDS[1])
         cal_seed = (seed + (1 << 31)) % (1 << 32)       # apart from the study's seeds
         results = _map(calibrate, [(job(run, 1, cal_seed), probe) for run in runs], scheduler, progress,
                        "calibration")
