@@ -52,7 +52,7 @@ import json
 import math
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -609,8 +609,8 @@ def format_study(report):
         cal = run["calibration"] or {}
         rate = f"{cal['samples_per_second']:,.0f}" if cal else "-"
         warm = f"{cal['warmup_seconds']:.2f}" if cal else "-"
-        lines.append(f"{label:<34}{_slope(run['slope']):>14}{_ttt(run['time_to_target']):>26}"
-                     f"{_slope(run['hard']['slope']):>20}{_ttt(run['hard']['time_to_target']):>26}{rate:>12}{warm:>10}")
+        lines.append(f"{label:<34}{_slope(run['slope']):>14} {_ttt(run['time_to_target']):>25}"
+                     f"{_slope(run['hard']['slope']):>20} {_ttt(run['hard']['time_to_target']):>25}{rate:>12}{warm:>10}")
     if report.get("plots"):
         lines.append("plots: " + ", ".join(report["plots"].values()))
     return "\n".join(lines)
