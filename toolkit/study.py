@@ -5,29 +5,31 @@ chains / start / large_step), against the scene's reference.
 How a time budget becomes work (so that a study can be reproduced). A short calibration per
 run (technique and knob value) measures its speed: a warm-up render (kernel build and first
 launches, reported apart as `warmup_seconds`), then timed renders of about an eighth and half
-the largest budget fit `seconds = fixed + seconds_per_spp * spp` near the budgets. Each budget then becomes a sample count, the `plan`
-written into the report. Repetition r of budget k renders that many samples with its own seed,
-`seed + k * repeats + r`, so every image of a study is independent, and the same plan with the
-same seeds gives the same images on any machine or cluster (`scheduler`). The wall time of each
-repetition (render only: build excluded) is measured and is the time of every figure.
-`spp_budgets` skips the calibration: fixed sample counts (tests, or a plan from an earlier study).
+the largest budget fit `seconds = fixed + seconds_per_spp * spp` near the budgets. Each budget
+then becomes a sample count, the `plan` written into the report. Repetition r of budget k
+renders that many samples with its own seed, `seed + k * repeats + r`, so every image of a
+study is independent, and the same plan with the same seeds gives the same images on any
+machine or cluster (`scheduler`). The wall time of each repetition (render only: build
+excluded) is measured and is the time of every figure. `spp_budgets` skips the calibration:
+fixed sample counts (tests, or the plan of an earlier study).
 
 The figures of R repetitions of one budget (images I_r, reference ref with standard error s),
 per pixel j (its three channels averaged), e_rj = I_rj - ref_j:
 
     variance_j = sample variance of e_rj over r                   (one repetition's noise)
-    bias2_j    = mean_r(e_rj)^2 - variance_j / R - s_j^2           (Eq. in toolkit/mlt_bias.py)
+    bias2_j    = mean_r(e_rj)^2 - variance_j / R - s_j^2           (as in toolkit/mlt_bias.py)
     mse_j      = bias2_j + variance_j                               (of one repetition)
 
 The last two terms of bias2 remove, in expectation, the noise of the mean over repetitions and
 the reference's own noise, so bias2 is unbiased (and may come out slightly below 0 when it is
-~0). Each figure is the mean over pixels. Standard errors need R >= 3. In the path tracers each
-pixel's samples are independent of the other pixels' (`se_method` "pixels"): each pixel's
-delete-one jackknife over the repetitions, added over the pixels, plus the reference's noise
-for bias2 and mse. bias2 / se is the z of the
+~0). Each figure is the mean over pixels.
+
+Standard errors need R >= 3. In the path tracers each pixel's samples are independent of the
+other pixels' (`se_method` "pixels"): each pixel's delete-one jackknife over the repetitions,
+added over the pixels, plus the reference's noise for bias2 and mse. bias2 / se is the z of the
 test "no bias"; the jackknife of this quadratic figure errs on the safe side (simulated without
-bias, with a few pixels 300x noisier than the rest as in the Cornell box: z has a standard
-deviation of ~0.7, not 1; tests/test_study.py). The spread of bias2_j over the pixels would be
+bias, with a few pixels 300x noisier than the rest as in the Cornell box, z has a standard
+deviation of ~0.7, not 1: tests/test_study.py). The spread of bias2_j over the pixels would be
 exact without bias but hides a bias that only a few pixels have (a clamped light). BDPT's
 light-tracing splats and mlt's chains tie pixels together (a light path lands on several), so
 there the errors are the jackknife of the whole-image figures over the repetitions
@@ -43,9 +45,13 @@ there the errors are the jackknife of the whole-image figures over the repetitio
                      significant bias alone exceeds it ("unreachable")
     pixel_test     = the reference z-test (toolkit/reference.py) of the mean of the repetitions,
                      pixel by pixel with each render's own standard error: "no bias", tested far
-                     more strongly than by bias2's z, which the noisiest pixels dominate
+                     more strongly than by bias2's z, which the noisiest pixels dominate (where
+                     the renders hold 1024 samples per pixel, or 10 degrees of freedom from passes)
     hard           = the same over the 10% hardest pixels (bench.hard_pixels), relative to
                      their own mean.
+
+`import toolkit` makes `toolkit.study` the function study() below; import the helpers by name
+(`from toolkit.study import format_study`).
 """
 import dataclasses
 import json
