@@ -132,6 +132,18 @@ static inline float remap0(float f) { return f != 0.0f ? f : 1.0f; }
 
 /* ---- one connection ------------------------------------------------------------------- */
 
+/* Firefly clamping (scene integrator.clamp, scenes/FORMAT.md): a connection's MIS-weighted
+ * contribution whose largest RGB component m exceeds CLAMP is scaled by CLAMP / m (its colour
+ * kept, as pbrt-v4's maxcomponentvalue). Per connection, not per sample: a sample's strategies
+ * land in different pixels, and so both connect phases clamp the same values. Biased. */
+static inline float3 clamp_contribution(float3 value) {
+#ifdef CLAMP
+    float m = fmax(value.x, fmax(value.y, value.z));
+    if (m > CLAMP) value *= CLAMP / m;
+#endif
+    return value;
+}
+
 typedef struct {
     float3 value;   /* contribution to the pixel (already MIS-weighted) */
     int pixel;      /* target pixel: the sample's own (t >= 2) or the splat's (t = 1); -1: none */
@@ -222,7 +234,7 @@ static inline Connection connect_strategy(const SceneView* s, const Camera* cam,
         if (s_len > 1) c.qsm_rev = vertex_pdf(s, cam, &pt, &qs, &qsm);
     }
     out.weight = mis_weight(eye, light, s_len, t_len, &c);
-    out.value = value * out.weight;
+    out.value = clamp_contribution(value * out.weight);
     out.pixel = pixel;
 #if STRATEGY_IMAGES
     out.unweighted = value;

@@ -154,6 +154,49 @@ def build_parser():
     p.add_argument("--out", default="out/gpucheck.txt",
                    help="the report (text); its JSON goes beside it as .json (default out/gpucheck.txt)")
 
+    from .study import DEFAULT_BUDGETS, DEFAULT_REPEATS, DEFAULT_TARGET, DEFAULT_TECHNIQUES
+    p = sub.add_parser(
+        "study", help="the speed-accuracy study: error (bias^2, variance) against time per technique or knob value",
+        description="Error against time for each technique, or for each value of an accuracy knob, against the "
+                    "scene's reference: MSE split into bias^2 and variance over independent repetitions, "
+                    "efficiency 1/(MSE x time), the log-log slope of RMSE against time, the time to a relative "
+                    "RMSE target, the same over the 10% hardest pixels, each with its standard error. Time budgets "
+                    "are turned into sample counts by a short calibration of each run (the plan is in the JSON), "
+                    "and each repetition has its own seed, so a study is reproducible. Prints a table; writes "
+                    "study.json and plots to --out.")
+    device_option(p)
+    p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
+    p.add_argument("--techniques", default=",".join(DEFAULT_TECHNIQUES),
+                   help=f"comma-separated, from: {names} (default {','.join(DEFAULT_TECHNIQUES)})")
+    p.add_argument("--budgets", default=",".join(f"{b:g}" for b in DEFAULT_BUDGETS), metavar="SECONDS,...",
+                   help="seconds of rendering per repetition (default %(default)s); each becomes a sample count "
+                        "per run by calibration (build and warm-up excluded and reported apart), so runs are "
+                        "reproducible")
+    p.add_argument("--spp-budgets", metavar="SPP,...",
+                   help="instead of --budgets: fixed samples per pixel for every run, no calibration (to "
+                        "reproduce a study's plan, or for tests)")
+    p.add_argument("--repeats", type=_positive, default=DEFAULT_REPEATS,
+                   help="independent repetitions per budget, each with its own seed (default %(default)s; "
+                        "at least 2 to split bias^2 from variance, 3 for standard errors)")
+    p.add_argument("--resolution", type=_resolution, default=(32, 32),
+                   help="WxH (default 32x32, which every bundled reference averages to)")
+    p.add_argument("--seed", type=_whole, default=0,
+                   help="base seed: repetition r of budget k uses seed + k x repeats + r")
+    p.add_argument("--knob", metavar="NAME=V1,V2,...",
+                   help="sweep an accuracy knob for each technique: max_depth, rr_depth, clamp (scene integrator "
+                        "settings; clamp=none,10), pass_spp, resolution (8x8,16x16), or a technique option such "
+                        "as mlt's chains, start, large_step")
+    p.add_argument("--target", type=_number, default=DEFAULT_TARGET,
+                   help="relative RMSE target for the time-to-target figures (default %(default)s: 5%% of the "
+                        "reference's mean)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the repetitions on an existing Dask cluster (tcp://host:8786); each worker uses its "
+                        "own OpenCL device; needs pip install \".[cluster]\"")
+    p.add_argument("--out", default="out/study", help="folder for study.json and the plots (default out/study)")
+    p.add_argument("--json", action="store_true", help="print the report as JSON as the last line of stdout")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (calibration, then the renders)")
+    bvh_option(p)
+
     from .grade import ASSIGNMENTS, TIME_LIMIT
     p = sub.add_parser("grade", help="grade a course assignment (tutorials/assignments/): score /100 per check")
     device_option(p)
@@ -196,6 +239,8 @@ def main(argv=None):
             return cmd_crosscheck(args)
         if args.command == "gpucheck":
             return cmd_gpucheck(args)
+        if args.command == "study":
+            return cmd_study(args)
         if args.command == "grade":
             from .grade import cmd_grade
             return cmd_grade(args)
@@ -381,3 +426,28 @@ def cmd_gpucheck(args):
     print(gpucheck.format_report(report))
     print(f"wrote {text} and {data}")
     return 0 if report["passed"] else 1
+
+
+def _numbers(text, kind, option):
+    try:
+        values = [kind(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"{option} must be comma-separated numbers, got {text!r}") from None
+    if not values:
+        raise ValueError(f"{option}: no value given")
+    return values
+
+
+def cmd_study(args):
+    from .study import format_study, study
+    spp_budgets = _numbers(args.spp_budgets, int, "--spp-budgets") if args.spp_budgets else None
+    budgets = _numbers(args.budgets, float, "--budgets")
+    report = study(args.scene, _technique_list(args.techniques), budgets=budgets, repeats=args.repeats,
+                   resolution=args.resolution, seed=args.seed, spp_budgets=spp_budgets, knob=args.knob,
+                   target=args.target, scheduler=args.scheduler, device=args.device, bvh=args.bvh,
+                   out_dir=args.out, progress=not args.no_progress)
+    print(format_study(report))
+    print(f"report: {args.out}/study.json")
+    if args.json:
+        print(json.dumps(report, default=str))
+    return 0

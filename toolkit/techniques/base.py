@@ -6,10 +6,10 @@ import numpy as np
 import pyopencl as cl
 
 from .. import program
-from ..film import Film
+from ..film import Film, clamp_radiance
 from ..layout import LANE_COUNTS
 from ..simd import PhaseCounter
-from ..validate import InputError, local_size as checked_local_size
+from ..validate import InputError, local_size as checked_local_size, whole_number
 
 
 class Technique:
@@ -27,10 +27,15 @@ class Technique:
     source_dir = None
 
     def __init__(self, queue, device_scene, warp_width=None, count_simd=True, extra_defines=None,
-                 local_size=program.LOCAL_SIZE, general=False):
+                 local_size=program.LOCAL_SIZE, general=False, pass_spp=None):
         """`warp_width`: W of the SIMD counters; None: the device's (toolkit.device.device_warp_width).
         `general`: build the general kernel (every material and feature compiled in, Scene.features)
-        instead of the one specialized to the scene; both compute the same image."""
+        instead of the one specialized to the scene; both compute the same image.
+        `pass_spp` (an option of every technique): samples per pixel in one pass instead of what
+        fills `target_batch`; a cost knob of the speed-accuracy study (toolkit/study.py)."""
+        self.pass_spp = None if pass_spp is None else whole_number("technique.pass_spp", pass_spp, "pass_spp")
+        # Firefly clamping (scene integrator.clamp): applied where samples reach the film.
+        self.clamp = device_scene.scene.clamp
         from ..device import resolve_warp_width
         self.queue = queue
         self.scene = device_scene
@@ -103,6 +108,8 @@ class Technique:
 
     def passes(self, width, height, spp):
         """Samples per pixel in one pass (one launch batch)."""
+        if self.pass_spp is not None:
+            return min(spp, self.pass_spp)
         return max(1, min(spp, self.target_batch // (width * height)))
 
     def run_pass(self, film, camera, seed, sample_base, spp):
@@ -125,7 +132,7 @@ class Technique:
         missing = int(np.count_nonzero(result[:, 3] < 0))
         if missing:
             raise RuntimeError(f"{self.name}: {missing} of {n} samples were never written (sample accounting bug)")
-        film.add_pixel_major(result)
+        film.add_pixel_major(clamp_radiance(result, self.clamp))
 
     def reused(self, key, make):
         """Device memory that keeps its size from pass to pass (streams, vertex memory) is made

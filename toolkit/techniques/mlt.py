@@ -116,6 +116,12 @@ class Mlt(BdptParallelConnect):
         self.start = start
         self.candidates = whole_number("mlt.candidates", candidates, "candidates")
         self.max_dims = whole_number("mlt.max_dims", max_dims, "max_dims")
+        if device_scene.scene.clamp is not None:
+            raise InputError("mlt does not clamp (scene integrator.clamp is set): every Metropolis splat already has "
+                             "the same brightness b / M, so there are no fireflies to cap, and a capped f would only "
+                             "change the distribution the chains sample; remove integrator.clamp for mlt")
+        if kwargs.get("pass_spp") is not None:
+            raise InputError("mlt renders in one pass of chains (see `chains`); pass_spp does not apply to it")
         defines = {"MLT": True, "MLT_MAX_DIMS": self.max_dims}
         defines.update(kwargs.pop("extra_defines", None) or {})
         super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
