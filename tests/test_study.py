@@ -276,6 +276,21 @@ def test_study_command_end_to_end(tmp_path, capsys):
     assert not list(out.glob(".*"))          # no temporary file left behind
 
 
+def test_study_reports_what_specialization_buys(tmp_path, capsys):
+    """Issue 11 check 4: the study reports the specialized / general samples/s ratio for its
+    scene and techniques (the images' equality is tests/test_specialization.py's)."""
+    from toolkit.cli import main
+    rc = main(["study", "--techniques", "pt_naive", "--spp-budgets", "2", "--repeats", "2",
+               "--resolution", "8x8", "--out", str(tmp_path), "--json", "--no-progress", "--specialization"])
+    printed = capsys.readouterr().out
+    assert rc == 0 and "general kernel" in printed
+    entry = json.loads(printed.strip().splitlines()[-1])["specialization"]["scenes"]["cornell_box"]["pt_naive"]
+    for kernels in ("specialized", "general"):
+        assert entry[kernels]["samples_per_second"] > 0 and entry[kernels]["binary_bytes"] > 0
+    assert entry["speedup"] == pytest.approx(entry["specialized"]["samples_per_second"]
+                                             / entry["general"]["samples_per_second"])
+
+
 def test_time_budgets_become_a_plan_by_calibration(tmp_path, capsys):
     """Seconds in, a plan of sample counts out (in the JSON), growing with the budget; the
     warm-up is reported apart; a knob sweep runs through the same command."""

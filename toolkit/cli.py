@@ -195,6 +195,10 @@ def build_parser():
     p.add_argument("--out", default="out/study", help="folder for study.json and the plots (default out/study)")
     p.add_argument("--json", action="store_true", help="print the report as JSON as the last line of stdout")
     p.add_argument("--no-progress", action="store_true", help="no progress bar (calibration, then the renders)")
+    p.add_argument("--specialization", action="store_true",
+                   help="also measure the kernels specialized to the scene against the general kernel (every "
+                        "material and feature compiled in) for the study's techniques: samples/s ratio, uncached "
+                        "build time, binary size (bench --specialization does every bundled scene)")
     bvh_option(p)
 
     from .grade import ASSIGNMENTS, TIME_LIMIT
@@ -445,7 +449,7 @@ def cmd_study(args):
     report = study(args.scene, _technique_list(args.techniques), budgets=budgets, repeats=args.repeats,
                    resolution=args.resolution, seed=args.seed, spp_budgets=spp_budgets, knob=args.knob,
                    target=args.target, scheduler=args.scheduler, device=args.device, bvh=args.bvh,
-                   out_dir=args.out, progress=not args.no_progress)
+                   out_dir=args.out, progress=not args.no_progress, specialization=args.specialization)
     print(format_study(report))
     print(f"report: {args.out}/study.json")
     if args.json:

@@ -448,7 +448,7 @@ def _check_run(scene, run):
 
 def study(scene=None, techniques=DEFAULT_TECHNIQUES, budgets=DEFAULT_BUDGETS, repeats=DEFAULT_REPEATS,
           resolution=DEFAULT_RESOLUTION, seed=0, spp_budgets=None, knob=None, target=DEFAULT_TARGET,
-          scheduler=None, device=None, bvh="wide", out_dir=None, progress=False):
+          scheduler=None, device=None, bvh="wide", out_dir=None, progress=False, specialization=False):
     """Error against time for each technique (and knob value) on `scene`; returns the report
     (a dict that json.dumps writes) and, with `out_dir`, writes study.json and the plots there.
 
@@ -461,7 +461,10 @@ def study(scene=None, techniques=DEFAULT_TECHNIQUES, budgets=DEFAULT_BUDGETS, re
     technique option (pass_spp; mlt's chains, start, large_step, ...). `target`: the relative
     RMSE for the time-to-target figures. `scheduler`: the address of a Dask cluster
     (dask.distributed, `pip install ".[cluster]"`) that renders the repetitions; each worker uses
-    its own OpenCL device. Returns {"runs": {label: {...}}, ...}: see format_study."""
+    its own OpenCL device. `specialization`: also measure, on this machine, the kernels specialized
+    to the scene against the general kernel for the study's techniques (samples/s ratio, uncached
+    build time, binary size: toolkit.specialization), under the report's "specialization".
+    Returns {"runs": {label: {...}}, ...}: see format_study."""
     started = time.perf_counter()
     given = scene
     scene = as_scene(scene)
@@ -558,6 +561,11 @@ def study(scene=None, techniques=DEFAULT_TECHNIQUES, budgets=DEFAULT_BUDGETS, re
             "hard": {"points": hard_points, "slope": hard_fit,
                      "time_to_target": time_to_target(hard_points, hard_fit, target)},
         }
+    if specialization:   # on this machine, not on the cluster: a ratio of two local measurements
+        from .specialization import measure_specialization
+        names = list(dict.fromkeys(run.technique for run in runs))
+        report["specialization"] = measure_specialization(scene, names, resolution=tuple(resolution),
+                                                          device=device, bvh=bvh)
     report["study_seconds"] = time.perf_counter() - started
     if out_dir is not None:
         report["plots"] = save_plots(report, images, scene, Path(out_dir))
@@ -617,6 +625,9 @@ def format_study(report):
         warm = f"{cal['warmup_seconds']:.2f}" if cal else "-"
         lines.append(f"{label:<34}{_slope(run['slope']):>14} {_ttt(run['time_to_target']):>25}"
                      f"{_slope(run['hard']['slope']):>20} {_ttt(run['hard']['time_to_target']):>25}{rate:>12}{warm:>10}")
+    if report.get("specialization"):
+        from .specialization import format_specialization
+        lines += ["", format_specialization(report["specialization"])]
     if report.get("plots"):
         lines.append("plots: " + ", ".join(report["plots"].values()))
     return "\n".join(lines)
