@@ -114,4 +114,22 @@ __kernel void mlt_accept(const MltIteration it, __global float* current, __globa
     chains[c] = chain;
 }
 
+/* start = pool: chain c starts at a large step that chain src_chain[c] evaluated in iteration
+ * src_iteration[c] (the host picked it from all chains' candidates in proportion to f). A large
+ * step's dimensions were all fresh, so its vector is the mutation's random numbers of that
+ * (chain, iteration), drawn again here for the dimensions its path used. */
+__kernel void mlt_start_from(const MltIteration it, __global float* current, __global MltChain* chains,
+                             __global const int* src_chain, __global const int* src_iteration,
+                             __global const float* f, __global const int* dims)
+{
+    int c = get_global_id(0);
+    if (c >= it.active) return;
+    Sampler m = mlt_mutation_sampler(it.seed, src_chain[c], src_iteration[c]);
+    int used = min(dims[c], MLT_MAX_DIMS);
+    for (int d = 0; d < used; ++d)
+        current[(size_t)d * (size_t)it.chains + (size_t)c] = mlt_fresh(&m, (uint)d);
+    chains[c].f_current = f[c];
+    chains[c].dims_current = dims[c];
+}
+
 #endif

@@ -66,22 +66,12 @@ def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=N
         start = time.perf_counter()
         if family(name) == "mlt":
             # One render for the whole time: independent chunks would restart every chain (and
-            # pay its startup bias) ten times. A first render at a quarter of the time, sized from
-            # the probe (whose start dominates it), gives the rate; the second, the counted one, fills the time.
-            guess = max(1, min(int(seconds / 4 / (probe.stats["seconds"] / 8)), LIMITS["spp"][1]))
-            trial = render(scene, technique=name, spp=guess, seed=seed + 997, resolution=resolution, device=device,
-                           count_simd=False)
-            # time = start + per_spp * spp, fitted through the probe and the trial (the start is a fixed cost)
-            per_spp = (trial.stats["seconds"] - probe.stats["seconds"]) / max(guess - 8, 1)
-            if per_spp > 0:
-                fixed = max(0.0, probe.stats["seconds"] - 8 * per_spp)
-                spp = int((seconds - fixed) / per_spp)
-            else:
-                spp = int(guess * seconds / trial.stats["seconds"])
-            spp = max(1, min(spp, LIMITS["spp"][1]))
+            # pay its startup bias) ten times. It stops itself when the time is spent (time_limit).
             start = time.perf_counter()
-            total = render(scene, technique=name, spp=spp, seed=seed, resolution=resolution, device=device,
-                           count_simd=False).image * spp
+            result = render(scene, technique=name, spp=LIMITS["spp"][1], seed=seed, resolution=resolution,
+                            device=device, count_simd=False, bvh=bvh, options={"time_limit": seconds})
+            spp = result.stats["mlt"]["mutations"] / (width * height)
+            total = result.image * spp
         while family(name) != "mlt" and time.perf_counter() - start < seconds:
             result = render(scene, technique=name, spp=chunk, seed=seed + k, resolution=resolution,
                             device=device, count_simd=False, bvh=bvh)
@@ -112,7 +102,7 @@ def format_equal_time(report, seconds):
     lines = [f"equal time (~{seconds:g} s each): RMSE against the reference, over the whole image and over "
              f"the 10% pixels hardest for a path tracer (largest relative error in the reference: caustics)"]
     for name, row in report.items():
-        lines.append(f"  {name:<30}{row['spp']:>7} spp {row['seconds']:>7.2f} s   RMSE {row['rmse']:.5f}"
+        lines.append(f"  {name:<30}{row['spp']:>7g} spp {row['seconds']:>7.2f} s   RMSE {row['rmse']:.5f}"
                      f"   hard pixels {row['rmse_hard_pixels']:.5f}")
     for key, label in (("rmse", "whole image"), ("rmse_hard_pixels", "hard pixels")):
         pt = [r[key] for n, r in report.items() if family(n) == "pt"]
