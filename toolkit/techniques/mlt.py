@@ -69,13 +69,12 @@ Options (keyword arguments of toolkit.render(..., options=...)):
 | --- | --- | --- |
 | `chains` | 4096 (the BDPT pool size) | independent chains; 1 .. 2^20 (`mlt.chains`), at most the mutations of the render |
 | `large_step` | 0.3 | probability of a large step (every dimension fresh) |
-| `start` | `pool` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of its own `candidates` large steps, chosen in proportion to f, and weighted. `pool`: at one of all chains' candidates, chosen in proportion to f. `pool` is the default because at equal time (10 s, 32x32) it was as good as `naive` on covered_lamp and better on cornell_box (RMSE 0.013 against 0.016) and cornell_spheres (0.016 against 0.048, where naive chains are still biased), and better than `resample` on all three |
+| `start` | `pool` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of its own `candidates` large steps, chosen in proportion to f, and weighted. `pool`: at one of all chains' candidates, chosen in proportion to f. `pool` is the default: at equal time (32x32, two-core CPU) its RMSE was 0.0065 against naive's 0.0087 (30 s) on covered_lamp and 0.0093 against 0.021 on cornell_spheres, where naive chains are still biased; on cornell_box, where they are not, naive was ahead (0.0069 against 0.0077), and resample was behind pool on covered_lamp and cornell_spheres |
 | `candidates` | 16 | large steps per chain for `start = resample` or `pool` (`mlt.candidates`) |
 | `max_dims` | 128 | primary-sample dimensions a chain stores: 8 + 8 per vertex of the longer subpath, so 128 holds subpaths of 16 vertices (`mlt.max_dims`). A path that reads more gets fresh random numbers for the extra dimensions at every iteration (cl/rng.h): still correct, and counted (`overflow_proposals`) |
 | `combine` | true | Kelemen's combination: the large steps also splat as BDPT samples, joined with the Metropolis states by the balance heuristic (above) |
 | `time_limit` | none | seconds: stop after the iteration that passes it (the image holds the mutations made so far; `bench --equal-time` uses it) |
-| `pool_size` | chains / 4 (at least 256) | slots of the BDPT pool that evaluates the proposals: each iteration's proposals pass through it like a BDPT pass (four pool-fulls), which made mutations 1.3x faster than a pool as large as the chains (covered_lamp 64x64, PoCL on 2 cores) |
-| BDPT options | | `regenerate_fraction`, `coalesced_scatter` as for bdpt_parallel_connect |
+| BDPT options | | `pool_size` (4096: an iteration of 4096 chains is one pool-full; a quarter of that, which lets the pool regenerate like a BDPT pass does, measured no faster on covered_lamp 64x64), `regenerate_fraction`, `coalesced_scatter` as for bdpt_parallel_connect |
 
 spp means mutations: a render of spp samples per pixel makes spp x pixels mutations in all
 (iterations of `chains` mutations; the last may use fewer chains), fewer if `time_limit` stops it. The start's samples come
@@ -150,10 +149,6 @@ class Mlt(BdptParallelConnect):
             raise InputError(f"combine must be true or false, got {combine!r}")
         self.combine = bool(combine)
         self.time_limit = None if time_limit is None else finite_number("mlt.time_limit", time_limit, "time_limit")
-        # An iteration evaluates `chains` proposals through a pool of a quarter as many slots, so
-        # the pool regenerates three times before the streams drain, as a BDPT pass does (16,384
-        # samples through 4,096 slots): one draining tail per four pool-fulls instead of per one.
-        kwargs.setdefault("pool_size", max(256, self.chain_count // 4))
         defines = {"MLT": True, "MLT_MAX_DIMS": self.max_dims}
         defines.update(kwargs.pop("extra_defines", None) or {})
         super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
