@@ -32,8 +32,10 @@
 
 /* VERTEX_DELTA, VERTEX_CAMERA, VERTEX_LIGHT (y_0, the point sampled on a light): VertexFlag in toolkit/layout.py. */
 
-#ifndef MAX_VERTICES
-#define MAX_VERTICES 64  /* per subpath; set by the host (toolkit/techniques/bdpt_base.py) */
+/* MAX_VERTICES and vertex_index: where the random walk keeps its vertices. */
+#include "vertex_memory.h"
+#ifndef STRATEGY_IMAGES
+#define STRATEGY_IMAGES 0  /* 1: connect kernels keep each strategy apart (render --strategies) */
 #endif
 
 static inline bool is_delta(const BdptVertex* v) { return (v->flags & VERTEX_DELTA) != 0; }
@@ -130,10 +132,25 @@ static inline float remap0(float f) { return f != 0.0f ? f : 1.0f; }
 
 /* ---- one connection ------------------------------------------------------------------- */
 
+/* Firefly clamping (scene integrator.clamp, scenes/FORMAT.md): a connection's MIS-weighted
+ * contribution whose largest RGB component m exceeds CLAMP is scaled by CLAMP / m (its colour
+ * kept, as pbrt-v4's maxcomponentvalue). Per connection, not per sample: a sample's strategies
+ * land in different pixels, and so both connect phases clamp the same values. Biased. */
+static inline float3 clamp_contribution(float3 value) {
+#ifdef CLAMP
+    float m = fmax(value.x, fmax(value.y, value.z));
+    if (m > CLAMP) value *= CLAMP / m;
+#endif
+    return value;
+}
+
 typedef struct {
     float3 value;   /* contribution to the pixel (already MIS-weighted) */
     int pixel;      /* target pixel: the sample's own (t >= 2) or the splat's (t = 1); -1: none */
     float weight;   /* the MIS weight alone (for tests and per-strategy images) */
+#if STRATEGY_IMAGES
+    float3 unweighted;   /* the contribution before its MIS weight (render --strategies) */
+#endif
 } Connection;
 
 static inline bool visible(const SceneView* s, const BdptVertex* a, const BdptVertex* b, int* steps) {
@@ -217,10 +234,34 @@ static inline Connection connect_strategy(const SceneView* s, const Camera* cam,
         if (s_len > 1) c.qsm_rev = vertex_pdf(s, cam, &pt, &qs, &qsm);
     }
     out.weight = mis_weight(eye, light, s_len, t_len, &c);
-    out.value = value * out.weight;
+    out.value = clamp_contribution(value * out.weight);
     out.pixel = pixel;
+#if STRATEGY_IMAGES
+    out.unweighted = value;
+#endif
     return out;
 }
+
+/* What a connect kernel stores of a connection, (value, MIS weight). Built for per-strategy
+ * images (STRATEGY_IMAGES, toolkit/strategies.py), the value is the unweighted one: the host
+ * weighs it (float32 value * weight, as above) for the image and keeps both for the strategies. */
+static inline float4 connection_record(const Connection* c) {
+#if STRATEGY_IMAGES
+    return (float4)(c->unweighted, c->weight);
+#else
+    return (float4)(c->value, c->weight);
+#endif
+}
+
+#if STRATEGY_IMAGES
+/* The per-strategy images' index of strategy (s, t): the strategies of paths with k = s + t - 1
+ * edges (k = 1 .. STRATEGY_MAX_EDGES) in order of k, then of s (s = 0 .. k); STRATEGY_COUNT
+ * (toolkit/strategies.py: strategy_index, the same numbering) for longer paths. */
+static inline int strategy_index(int s_len, int t_len) {
+    int k = s_len + t_len - 1;
+    return k <= STRATEGY_MAX_EDGES ? (k - 1) * (k + 2) / 2 + s_len : STRATEGY_COUNT;
+}
+#endif
 
 /* Strategies of a sample with n_light light and n_eye eye vertices: every (s, t) with
  * 0 <= s <= n_light, 1 <= t <= n_eye, except (0, 1), which would need the eye path to hit

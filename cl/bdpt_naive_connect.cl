@@ -9,12 +9,29 @@
  *   bdpt_extend            cl/bdpt_walk.h   one random-walk step of the eye or the light stream
  *   bdpt_mark_terminated   cl/bdpt_walk.h   flag the slots that wait for their connections
  *   the compaction         toolkit/compaction.py (cl/compact.cl): list the flagged slots
- *   bdpt_naive_connect     here             every (s, t) strategy of a terminated sample, in its slot's work-item */
+ *   bdpt_naive_connect_splats  here         how many light-tracing (t = 1) records each slot writes
+ *   the exclusive scan     toolkit/compaction.py (cl/compact.cl): where each slot's records start
+ *   bdpt_naive_connect     here             every (s, t) strategy of a terminated sample, in its slot's work-item
+ * The scan only packs the records, so that the host reads back the records written and not
+ * MAX_VERTICES places per slot; the connections themselves are evaluated the plain way. */
 #include "bdpt_walk.h"
 
-/* Records: for pool slot k, the t = 1 splats at k * MAX_VERTICES + (s - 1), and the sum of
- * its eye-path strategies at pool * MAX_VERTICES + k (pixel -1: nothing; the host pre-fills). */
-__kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool, __global const BdptSlot* slots,
+/* Light-tracing records of each slot: one per s = 1 .. n_light (t = 1) if its sample terminated. */
+__kernel void bdpt_naive_connect_splats(const int pool, __global const BdptSlot* slots, __global int* counts)
+{
+    int gid = get_global_id(0);
+    if (gid >= pool) return;
+    BdptSlot sample = slots[gid];
+    counts[gid] = sample.live == SLOT_TERMINATED ? sample.light_vertices : 0;
+}
+
+/* Records: slot k's t = 1 splats at firsts[k] + (s - 1) (firsts: the scan of the splat counts,
+ * `splats` records in all), then the sum of its eye-path strategies at splats + k (pixel -1:
+ * nothing; the host pre-fills). Built for per-strategy images (STRATEGY_IMAGES), the eye-path
+ * strategies of paths up to STRATEGY_MAX_EDGES edges get a record each, at splats + pool
+ * + k * STRATEGY_COUNT + strategy_index(s, t) (cl/bdpt.h), and the sum holds only the longer ones. */
+__kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool, const int splats,
+                                 __global const int* firsts, __global const BdptSlot* slots,
                                  __global const BdptVertex* eye_vertices, __global const BdptVertex* light_vertices,
                                  __global float4* record_value, __global int* record_pixel,
                                  __global LaneCounts* lane_counts)
@@ -38,14 +55,24 @@ __kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool,
             Connection c = connect_strategy(&s, &cam, eye, light, s_len, t_len, own_pixel, &steps);
             if (c.pixel < 0) continue;
             if (t_len == 1) {
-                record_value[gid * MAX_VERTICES + s_len - 1] = (float4)(c.value, c.weight);
-                record_pixel[gid * MAX_VERTICES + s_len - 1] = c.pixel;
-            } else {
-                sum += c.value;
+                record_value[firsts[gid] + s_len - 1] = connection_record(&c);
+                record_pixel[firsts[gid] + s_len - 1] = c.pixel;
+                continue;
             }
+#if STRATEGY_IMAGES
+            int strategy = strategy_index(s_len, t_len);
+            if (strategy < STRATEGY_COUNT) {
+                int at = splats + pool + gid * STRATEGY_COUNT + strategy;
+                record_value[at] = connection_record(&c);
+                record_pixel[at] = own_pixel;
+                continue;
+            }
+#endif
+            sum += c.value;
         }
-        record_value[pool * MAX_VERTICES + gid] = (float4)(sum, 0.0f);
-        record_pixel[pool * MAX_VERTICES + gid] = own_pixel;
+        /* .w: the weight by which the host multiplies .xyz; 1 for a sum of weighted values */
+        record_value[splats + gid] = (float4)(sum, STRATEGY_IMAGES ? 1.0f : 0.0f);
+        record_pixel[splats + gid] = own_pixel;
     }
 #if COUNT_SIMD
     LaneCounts lane = {.work = connections, .shadow_rays = 0, .shadow_steps = steps};

@@ -57,7 +57,7 @@ __kernel void bdpt_parallel_connect(SCENE_PARAMS, const Camera cam, const int to
     Connection c = connect_strategy(&s, &cam, eye_vertices + vertex_index(slot, 0),
                                     light_vertices + vertex_index(slot, 0), s_len, t_len,
                                     sample.pixel, &steps);
-    record_value[gid] = (float4)(c.value, c.weight);
+    record_value[gid] = connection_record(&c);
     record_pixel[gid] = c.pixel;
 #if COUNT_SIMD
     LaneCounts lane = {.work = 1, .shadow_rays = 0, .shadow_steps = steps};

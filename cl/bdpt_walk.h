@@ -9,13 +9,8 @@
 #include "bdpt.h"
 #include "compact.h"
 
-#define VERTEX_WORDS ((int)(sizeof(BdptVertex) / sizeof(uint)))
-
-/* Vertex k of the subpath of pool slot `slot`. */
-static inline int vertex_index(int slot, int k) { return slot * MAX_VERTICES + k; }
-
 /* Store one vertex per work-item at memory[index] (index < 0: nothing to store).
- * Direct: each work-item writes its own 80 bytes, far from its neighbours' (uncoalesced).
+ * Direct: each work-item writes its own vertex (96 bytes), far from its neighbours' (uncoalesced).
  * Coalesced (the talk's "Coalesced Vertex Scatter", like a matrix transpose): the group
  * stages its vertices in local memory, then work-item j writes word j, j + LOCAL_SIZE, ...
  * of the staged block, so consecutive work-items write consecutive words of one vertex.
@@ -33,7 +28,7 @@ static inline __attribute__((always_inline)) void store_vertex(__global BdptVert
     __global uint* out = (__global uint*)memory;
     for (int k = lid; k < LOCAL_SIZE * VERTEX_WORDS; k += LOCAL_SIZE) {
         int target = dest[k / VERTEX_WORDS];
-        if (target >= 0) out[target * VERTEX_WORDS + k % VERTEX_WORDS] = stage[k];
+        if (target >= 0) out[vertex_word(target, k % VERTEX_WORDS)] = stage[k];
     }
     barrier(CLK_LOCAL_MEM_FENCE);
 #else

@@ -21,7 +21,9 @@ __kernel void pt_inplace_regen_regenerate(const Camera cam, const uint seed, con
     int gid = get_global_id(0);
     if (gid >= slots) return;
     int started = 0;
-    if (!alive[gid]) {
+    /* The counter is read before it is raised: once the budget is spent it stays put, so it
+     * never passes budget + slots, however many iterations the pass takes (no int overflow). */
+    if (!alive[gid] && *next_sample < budget) {
         int id = atomic_inc(next_sample);
         if (id < budget) {
             PathState p;

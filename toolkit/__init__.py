@@ -3,6 +3,7 @@
 from . import runtimes  # first: registers pip's OpenCL runtimes before any OpenCL call
 from .api import RenderResult, render
 from .scene import Scene, SceneError, load_scene
+from .study import study
 
-__all__ = ["render", "RenderResult", "load_scene", "Scene", "SceneError"]
+__all__ = ["render", "RenderResult", "load_scene", "Scene", "SceneError", "study"]
 __version__ = "0.1.0"

@@ -44,7 +44,8 @@ def _options(cls, options):
     known = {name for c in cls.__mro__ if "__init__" in vars(c)
              for name, p in inspect.signature(c.__init__).parameters.items()
              if p.kind == p.KEYWORD_ONLY or (p.kind == p.POSITIONAL_OR_KEYWORD and p.default is not p.empty)}
-    known -= {"warp_width", "count_simd", "extra_defines", "local_size"}   # render's own arguments
+    known -= {"warp_width", "count_simd", "extra_defines", "local_size", "general"}   # render's own arguments
+    known -= {"strategy_max_edges"}   # per-strategy images: toolkit.strategies.render_strategies
     for key in options:
         if key not in known:
             raise InputError(f"unknown option {key!r} for {cls.name} (known: {', '.join(sorted(known)) or 'none'})")
@@ -52,7 +53,8 @@ def _options(cls, options):
 
 
 def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, device=None,
-           warp_width=None, count_simd=True, progress=False, options=None, bvh="wide", local_size=64):
+           warp_width=None, count_simd=True, progress=False, options=None, bvh="wide", local_size=64,
+           general=False):
     """Render a scene (a Scene, a folder, a scene.json or None for the bundled Cornell box).
 
     `resolution` (width, height) keeps the scene's camera and field of view. `technique` is a
@@ -65,7 +67,9 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     sample, not by work-item, so the image does not depend on it (tests/test_strategies.py).
     `warp_width` is the W of the SIMD-efficiency counters; None takes the device's
     (toolkit.device.choose_warp_width: 32 on NVIDIA and on a CPU, 64 on AMD, 16 on Intel GPUs);
-    stats["warp_width"] and ["warp_width_source"] say which.
+    stats["warp_width"] and ["warp_width_source"] say which. `general=True` builds the general
+    kernel (every material and feature compiled in) instead of the one specialized to the scene
+    (Scene.features; toolkit/specialization.py measures what that costs): the same image.
     """
     # Every argument is checked before any work (kernel builds, BVH) starts.
     if not isinstance(technique, str):
@@ -86,7 +90,7 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     queue = get_queue(device)
     device_scene = DeviceScene(queue, scene, bvh=bvh)
     tech = cls(queue, device_scene, warp_width=warp_width, count_simd=count_simd, local_size=local_size,
-               **{**variant_options, **options})
+               general=bool(general), **{**variant_options, **options})
     bar = None
     if progress:
         from tqdm.auto import tqdm
@@ -119,6 +123,7 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
         "traversal_steps_per_sample": ({phase: steps / film.samples for phase, steps in tech.traversal.active.items()}
                                        if count_simd and film.samples else {}),
         "build_seconds": tech.build_seconds,
+        "kernels": "general" if tech.general else "specialized",
         "bvh": device_scene.bvh_stats(),
         "triangles": int(len(scene.triangles)),
         "degrees_of_freedom": film.degrees_of_freedom,

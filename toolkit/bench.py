@@ -3,15 +3,12 @@ in one run with interleaved repetitions (technique A, B, C, A, B, C, ...) and th
 so a slow moment of the machine does not favour one technique. SIMD counters are off here.
 """
 import statistics
-import time
 
 import numpy as np
 
 from .api import as_scene, render
 from .device import has_gpu
-from .reference import reference_at, rmse
 from .techniques import get_technique
-from .validate import LIMITS
 
 
 DEFAULT = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "pt_compact_regen/multipass",
@@ -19,10 +16,11 @@ DEFAULT = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "pt_compact_regen
 
 
 def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats=3, seed=0, device=None,
-          bvh="wide"):
+          bvh="wide", general=False):
     scene = as_scene(scene)
     for name in techniques:   # warm-up: kernel builds and BVH outside the timings
-        render(scene, technique=name, spp=1, resolution=(16, 16), device=device, count_simd=False, bvh=bvh)
+        render(scene, technique=name, spp=1, resolution=(16, 16), device=device, count_simd=False, bvh=bvh,
+               general=general)
     rates = {name: [] for name in techniques}
     device_name = None
     for r in range(repeats):
@@ -31,56 +29,32 @@ def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats
             # the budget keeps the runs comparable in length.
             n = max(1, spp // 8) if family(name) in ("bdpt", "mlt") else spp
             result = render(scene, technique=name, spp=n, seed=seed + r, resolution=resolution,
-                            device=device, count_simd=False, bvh=bvh)
+                            device=device, count_simd=False, bvh=bvh, general=general)
             rates[name].append(result.stats["samples_per_second"])
             device_name = result.stats["device"]
     median = {name: statistics.median(v) for name, v in rates.items()}
     base = techniques[0]
-    return {"scene": scene.name, "device": device_name, "gpu": has_gpu(), "spp": spp, "bvh": bvh,
+    return {"scene": scene.name, "device": device_name, "gpu": has_gpu(), "spp": spp, "bvh": bvh, "general": general,
             "resolution": list(resolution), "repeats": repeats,
             "techniques": {name: {"samples_per_second": median[name], "runs": rates[name],
                                   f"ratio_to_{base}": median[name] / median[base]} for name in techniques}}
 
 
-def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=None, bvh="wide"):
-    """Each technique renders for `seconds` of wall time: chunks of samples (independent seeds)
-    until the time is spent, so every technique gets the same time whatever its speed.
-    Returns {technique: {"spp", "seconds", "rmse"}} against the scene's reference."""
-    scene = as_scene(scene)
-    width, height = resolution
-    ref, ref_err = reference_at(scene, width, height)
-    if ref is None:
-        from .reference import reference_problem
-        raise ValueError(f"{scene.name}: no reference to compare with at {width}x{height}: "
-                         f"{reference_problem(scene, width, height) or 'the scene has none'}")
-    hard = hard_pixels(ref, ref_err)
+def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=None, bvh="wide", repeats=1):
+    """Each technique renders for about `seconds` of wall time, whatever its speed: the speed-accuracy
+    study (toolkit/study.py) with one time budget. Its calibration turns the time into a sample
+    count per technique (mlt renders it as one run of its chains, paying its start once).
+    Returns {technique: {"spp", "seconds", "rmse", "rmse_hard_pixels"}} against the scene's
+    reference: the first repetition's RMSE (over the 10% hardest pixels for the last)."""
+    from .study import study
+    report = study(scene, list(techniques), budgets=[seconds], repeats=repeats, resolution=resolution, seed=seed,
+                   device=device, bvh=bvh)
     out = {}
     for name in techniques:
-        # Warm-up (kernel builds, PoCL's first-launch compile) and a probe to size the chunks.
-        render(scene, technique=name, spp=1, seed=seed + 999, resolution=resolution, device=device, count_simd=False,
-               bvh=bvh)
-        probe = render(scene, technique=name, spp=8, seed=seed + 998, resolution=resolution, device=device,
-                       count_simd=False, bvh=bvh)
-        chunk = max(1, min(int(seconds / 10 / (probe.stats["seconds"] / 8)), LIMITS["spp"][1]))
-        total, spp, k = np.zeros((height, width, 3)), 0, 0
-        start = time.perf_counter()
-        if family(name) == "mlt":
-            # One render for the whole time: independent chunks would restart every chain (and
-            # pay its startup bias) ten times. It stops itself when the time is spent (time_limit).
-            start = time.perf_counter()
-            result = render(scene, technique=name, spp=LIMITS["spp"][1], seed=seed, resolution=resolution,
-                            device=device, count_simd=False, bvh=bvh, options={"time_limit": seconds})
-            spp = result.stats["mlt"]["mutations"] / (width * height)
-            total = result.image * spp
-        while family(name) != "mlt" and time.perf_counter() - start < seconds:
-            result = render(scene, technique=name, spp=chunk, seed=seed + k, resolution=resolution,
-                            device=device, count_simd=False, bvh=bvh)
-            total += result.image * chunk
-            spp += chunk
-            k += 1
-        image = total / spp
-        out[name] = {"spp": spp, "seconds": time.perf_counter() - start, "rmse": rmse(image, ref),
-                     "rmse_hard_pixels": rmse(image[hard], ref[hard])}
+        run = report["runs"][name]
+        point, hard = run["points"][0], run["hard"]["points"][0]
+        out[name] = {"spp": point["spp"], "seconds": point["seconds"][0], "rmse": point["rmse_each"][0],
+                     "rmse_hard_pixels": hard["rmse_each"][0]}
     return out
 
 
@@ -102,7 +76,7 @@ def format_equal_time(report, seconds):
     lines = [f"equal time (~{seconds:g} s each): RMSE against the reference, over the whole image and over "
              f"the 10% pixels hardest for a path tracer (largest relative error in the reference: caustics)"]
     for name, row in report.items():
-        lines.append(f"  {name:<30}{row['spp']:>7g} spp {row['seconds']:>7.2f} s   RMSE {row['rmse']:.5f}"
+        lines.append(f"  {name:<30}{row['spp']:>7} spp {row['seconds']:>7.2f} s   RMSE {row['rmse']:.5f}"
                      f"   hard pixels {row['rmse_hard_pixels']:.5f}")
     for key, label in (("rmse", "whole image"), ("rmse_hard_pixels", "hard pixels")):
         pt = [r[key] for n, r in report.items() if family(n) == "pt"]

@@ -54,6 +54,12 @@ def build_parser():
                        help="wide: 4 children per node tested with float4 operations (SIMD inside one ray); "
                             "binary: the SAH BVH it is collapsed from (default wide)")
 
+    def general_option(p):
+        p.add_argument("--general", action="store_true",
+                       help="build the general kernel (every material and feature compiled in) instead of "
+                            "the one specialized to the scene; the same image (bench --specialization "
+                            "measures the difference)")
+
     def device_option(p):
         # Also accepted after the command; SUPPRESS keeps a value given before it.
         p.add_argument("--device", default=argparse.SUPPRESS,
@@ -69,7 +75,15 @@ def build_parser():
     p.add_argument("--out", help="output .exr (an sRGB .png is written beside it) or .png alone; default out/<scene>_<technique>.exr")
     p.add_argument("--json", action="store_true", help="print a JSON summary as the last line of stdout")
     p.add_argument("--no-progress", action="store_true")
+    p.add_argument("--strategies", metavar="DIR",
+                   help="bdpt_* only, instead of one image: an image per connection strategy (s, t), with and "
+                        "without its MIS weight (Veach's figure 10.3), into DIR with strategies.json and a table "
+                        "of each strategy's share of the image and of the variance")
+    p.add_argument("--strategy-edges", type=_positive, default=5, metavar="K",
+                   help="with --strategies: strategies of paths up to K edges get images, longer paths one "
+                        "summed image (default 5)")
     bvh_option(p)
+    general_option(p)
 
     sub.add_parser("devices", help="list OpenCL platforms and devices, and which one the toolkit picks")
 
@@ -101,6 +115,7 @@ def build_parser():
     p.add_argument("--out", default="out/compare", help="folder for images and plots (default out/compare)")
     p.add_argument("--no-progress", action="store_true")
     bvh_option(p)
+    general_option(p)
 
     p = sub.add_parser("bench", help="samples/s of each technique and their ratios, measured in one run")
     device_option(p)
@@ -120,7 +135,70 @@ def build_parser():
                         "time to 5%% RMSE); needs pip install \".[peers]\"")
     p.add_argument("--equal-time", type=_number, metavar="SECONDS",
                    help="instead: render each technique for about SECONDS and compare RMSE against the reference")
+    p.add_argument("--specialization", action="store_true",
+                   help="instead: the kernels specialized to the scene against the general kernel, on SCENE or "
+                        "every bundled scene: samples/s, uncached build time, binary size (default techniques "
+                        "pt_naive,pt_compact_regen,bdpt_parallel_connect; resolution 64x64)")
     p.add_argument("--json", action="store_true")
+    bvh_option(p)
+    general_option(p)
+
+    p = sub.add_parser("gpucheck", help="check and measure the toolkit on a device (a GPU if there is one): "
+                                        "same-image tests, Embree cross-check, bench, compare; one report",
+                       description="On the chosen device: the same-image checks, the Embree cross-check, bench of "
+                                   "every technique (stream vs in-place ratios against the talk's) and compare with "
+                                   "SIMD figures, GPU against CPU where both exist. Writes one report (text and "
+                                   "JSON); exit code 1 when a correctness check fails.")
+    device_option(p)
+    p.add_argument("--fast", action="store_true", help="tiny renders (what the test suite runs)")
+    p.add_argument("--out", default="out/gpucheck.txt",
+                   help="the report (text); its JSON goes beside it as .json (default out/gpucheck.txt)")
+
+    from .study import DEFAULT_BUDGETS, DEFAULT_REPEATS, DEFAULT_TARGET, DEFAULT_TECHNIQUES
+    p = sub.add_parser(
+        "study", help="the speed-accuracy study: error (bias^2, variance) against time per technique or knob value",
+        description="Error against time for each technique, or for each value of an accuracy knob, against the "
+                    "scene's reference: MSE split into bias^2 and variance over independent repetitions, "
+                    "efficiency 1/(MSE x time), the log-log slope of RMSE against time, the time to a relative "
+                    "RMSE target, the same over the 10% hardest pixels, each with its standard error. Time budgets "
+                    "are turned into sample counts by a short calibration of each run (the plan is in the JSON), "
+                    "and each repetition has its own seed, so a study is reproducible. Prints a table; writes "
+                    "study.json and plots to --out.")
+    device_option(p)
+    p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
+    p.add_argument("--techniques", default=",".join(DEFAULT_TECHNIQUES),
+                   help=f"comma-separated, from: {names} (default {','.join(DEFAULT_TECHNIQUES)})")
+    p.add_argument("--budgets", default=",".join(f"{b:g}" for b in DEFAULT_BUDGETS), metavar="SECONDS,...",
+                   help="seconds of rendering per repetition (default %(default)s); each becomes a sample count "
+                        "per run by calibration (build and warm-up excluded and reported apart), so runs are "
+                        "reproducible")
+    p.add_argument("--spp-budgets", metavar="SPP,...",
+                   help="instead of --budgets: fixed samples per pixel for every run, no calibration (to "
+                        "reproduce a study's plan, or for tests)")
+    p.add_argument("--repeats", type=_positive, default=DEFAULT_REPEATS,
+                   help="independent repetitions per budget, each with its own seed (default %(default)s; "
+                        "at least 2 to split bias^2 from variance, 3 for standard errors)")
+    p.add_argument("--resolution", type=_resolution, default=(32, 32),
+                   help="WxH (default 32x32, which every bundled reference averages to)")
+    p.add_argument("--seed", type=_whole, default=0,
+                   help="base seed: repetition r of budget k uses seed + k x repeats + r")
+    p.add_argument("--knob", metavar="NAME=V1,V2,...",
+                   help="sweep an accuracy knob for each technique: max_depth, rr_depth, clamp (scene integrator "
+                        "settings; clamp=none,10), pass_spp, resolution (8x8,16x16), or a technique option such "
+                        "as mlt's chains, start, large_step")
+    p.add_argument("--target", type=_number, default=DEFAULT_TARGET,
+                   help="relative RMSE target for the time-to-target figures (default %(default)s: 5%% of the "
+                        "reference's mean)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="run the repetitions on an existing Dask cluster (tcp://host:8786); each worker uses its "
+                        "own OpenCL device; needs pip install \".[cluster]\"")
+    p.add_argument("--out", default="out/study", help="folder for study.json and the plots (default out/study)")
+    p.add_argument("--json", action="store_true", help="print the report as JSON as the last line of stdout")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar (calibration, then the renders)")
+    p.add_argument("--specialization", action="store_true",
+                   help="also measure the kernels specialized to the scene against the general kernel (every "
+                        "material and feature compiled in) for the study's techniques: samples/s ratio, uncached "
+                        "build time, binary size (bench --specialization does every bundled scene)")
     bvh_option(p)
 
     from .grade import ASSIGNMENTS, TIME_LIMIT
@@ -163,6 +241,10 @@ def main(argv=None):
             return cmd_bench(args)
         if args.command == "crosscheck":
             return cmd_crosscheck(args)
+        if args.command == "gpucheck":
+            return cmd_gpucheck(args)
+        if args.command == "study":
+            return cmd_study(args)
         if args.command == "grade":
             from .grade import cmd_grade
             return cmd_grade(args)
@@ -179,6 +261,8 @@ def main(argv=None):
 
 
 def cmd_render(args):
+    if args.strategies:
+        return cmd_render_strategies(args)
     from .api import as_scene, render
     from .images import write_image
     from .reference import reference_at, reference_problem, rmse
@@ -189,7 +273,8 @@ def cmd_render(args):
     width, height = args.resolution or (scene.camera.width, scene.camera.height)
     out = check_output(args.out or f"out/{scene.name}_{args.technique}.exr")
     result = render(scene, technique=args.technique, spp=args.spp, seed=args.seed,
-                    resolution=(width, height), device=args.device, progress=not args.no_progress, bvh=args.bvh)
+                    resolution=(width, height), device=args.device, progress=not args.no_progress, bvh=args.bvh,
+                    general=args.general)
     written = write_image(out, result.image.astype(np.float32))
     stats = dict(result.stats, out=str(out))
     ref, _ = reference_at(scene, width, height)
@@ -203,6 +288,9 @@ def cmd_render(args):
              f"{stats['nonfinite']}, dropped samples {stats['nonfinite_samples']}",
              f"  SIMD efficiency (W={stats['warp_width']}, {stats['warp_width_source']}): "
              + ", ".join(f"{k} {v:.1%}" for k, v in simd.items())]
+    for option in ("stream_size", "pool_size"):
+        if option in stats:
+            lines.append(f"  in flight: {option} {stats[option]:,} ({stats['work_sizes_source']})")
     if "rmse" in stats:
         lines.append(f"  RMSE against the reference {stats['rmse']:.5f}")
     elif problem:
@@ -211,6 +299,26 @@ def cmd_render(args):
     print("\n".join(lines))
     if args.json:
         print(json.dumps(stats))
+    return 0
+
+
+def cmd_render_strategies(args):
+    from .api import as_scene
+    from .strategies import format_strategies, render_strategies, write_strategies
+    from .validate import check_output
+    if args.general:
+        raise ValueError("--strategies builds its own kernels; --general does not apply")
+    scene = as_scene(args.scene)
+    check_output(f"{args.strategies}/full.exr")     # before the render: a bad folder must not cost its time
+    image, result = render_strategies(scene, args.technique, spp=args.spp, seed=args.seed,
+                                      resolution=args.resolution, device=args.device, max_edges=args.strategy_edges,
+                                      bvh=args.bvh, progress=not args.no_progress)
+    report = write_strategies(args.strategies, image, result, scene.name, args.technique)
+    print(format_strategies(report))
+    print(f"  wrote {len(report['strategies'])} x 2 strategy images, longer_weighted.exr, full.exr and "
+          f"strategies.json to {args.strategies}")
+    if args.json:
+        print(json.dumps(report))
     return 0
 
 
@@ -228,7 +336,7 @@ def cmd_compare(args):
     from .compare import compare, format_table
     table = compare(args.scene, _technique_list(args.techniques), args.spp, resolution=args.resolution,
                     seed=args.seed, warp_width=args.warp_width, out_dir=args.out, device=args.device,
-                    progress=not args.no_progress, bvh=args.bvh)
+                    progress=not args.no_progress, bvh=args.bvh, general=args.general)
     print(format_table(table))
     first = next(iter(table.values()))
     print("plots: " + ", ".join(first.get("plots", {}).values()))
@@ -243,6 +351,8 @@ def cmd_bench(args):
     whole_number("bench.repeats", args.repeats, "--repeats")
     if args.peer:
         return cmd_bench_peer(args)
+    if args.specialization:
+        return cmd_bench_specialization(args)
     if args.equal_time is not None:
         finite_number("bench.equal_time", args.equal_time, "--equal-time")
         from .bench import equal_time
@@ -254,8 +364,21 @@ def cmd_bench(args):
             print(json.dumps(report))
         return 0
     report = bench(args.scene, tuple(_technique_list(args.techniques or ",".join(DEFAULT))), spp=args.spp,
-                   resolution=args.resolution or (128, 128), repeats=args.repeats, device=args.device, bvh=args.bvh)
+                   resolution=args.resolution or (128, 128), repeats=args.repeats, device=args.device, bvh=args.bvh,
+                   general=args.general)
     print(format_bench(report))
+    if args.json:
+        print(json.dumps(report))
+    return 0
+
+
+def cmd_bench_specialization(args):
+    from .specialization import DEFAULT_TECHNIQUES, format_specialization, measure_specialization
+    techniques = _technique_list(args.techniques or ",".join(DEFAULT_TECHNIQUES))
+    report = measure_specialization(args.scene, techniques, resolution=args.resolution or (64, 64), spp=args.spp,
+                                    repeats=args.repeats, device=args.device, bvh=args.bvh,
+                                    progress=lambda line: print(line, file=sys.stderr, flush=True))
+    print(format_specialization(report))
     if args.json:
         print(json.dumps(report))
     return 0
@@ -297,3 +420,38 @@ def cmd_crosscheck(args):
     if args.json:
         print(json.dumps(figures, default=lambda x: x.item() if hasattr(x, "item") else str(x)))
     return 0 if figures.get("unexplained", 0) == 0 else 1
+
+
+def cmd_gpucheck(args):
+    from . import gpucheck
+    out = gpucheck.report_path(args.out)      # before the run: a bad --out must not cost its time
+    report = gpucheck.run(device=args.device, fast=args.fast, out_dir=str(out.parent / (out.stem + "_compare")))
+    text, data = gpucheck.write_report(report, out)
+    print(gpucheck.format_report(report))
+    print(f"wrote {text} and {data}")
+    return 0 if report["passed"] else 1
+
+
+def _numbers(text, kind, option):
+    try:
+        values = [kind(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"{option} must be comma-separated numbers, got {text!r}") from None
+    if not values:
+        raise ValueError(f"{option}: no value given")
+    return values
+
+
+def cmd_study(args):
+    from .study import format_study, study
+    spp_budgets = _numbers(args.spp_budgets, int, "--spp-budgets") if args.spp_budgets else None
+    budgets = _numbers(args.budgets, float, "--budgets")
+    report = study(args.scene, _technique_list(args.techniques), budgets=budgets, repeats=args.repeats,
+                   resolution=args.resolution, seed=args.seed, spp_budgets=spp_budgets, knob=args.knob,
+                   target=args.target, scheduler=args.scheduler, device=args.device, bvh=args.bvh,
+                   out_dir=args.out, progress=not args.no_progress, specialization=args.specialization)
+    print(format_study(report))
+    print(f"report: {args.out}/study.json")
+    if args.json:
+        print(json.dumps(report, default=str))
+    return 0

@@ -17,9 +17,10 @@ PHASES = ["generate", "extend", "walk", "shadow", "compact", "connect"]
 
 
 def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, out_dir="out/compare",
-            device=None, progress=False, plots=True, bvh="wide"):
+            device=None, progress=False, plots=True, bvh="wide", general=False):
     """Render `scene` with each technique; returns {technique: figures} and writes images/plots.
-    `warp_width` None: the device's (toolkit.device.choose_warp_width); each row says which."""
+    `warp_width` None: the device's (toolkit.device.choose_warp_width); each row says which.
+    `general`: the general kernels instead of the scene's specialized ones (toolkit.render)."""
     scene = as_scene(scene)
     width, height = resolution or (scene.camera.width, scene.camera.height)
     out_dir = Path(out_dir)
@@ -28,7 +29,7 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, ou
     results, table = {}, {}
     for name in techniques:
         result = render(scene, technique=name, spp=spp, seed=seed, resolution=(width, height),
-                        device=device, warp_width=warp_width, progress=progress, bvh=bvh)
+                        device=device, warp_width=warp_width, progress=progress, bvh=bvh, general=general)
         path = out_dir / f"{scene.name}_{name.replace('/', '_')}.exr"
         write_image(path, result.image.astype(np.float32))
         results[name] = result
@@ -41,6 +42,7 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, ou
             "bvh": bvh,
             "warp_width": result.stats["warp_width"],
             "warp_width_source": result.stats["warp_width_source"],
+            **{k: result.stats[k] for k in ("stream_size", "pool_size", "work_sizes_source") if k in result.stats},
             "rmse": rmse(result.image, ref) if ref is not None else None,
             "nonfinite": result.stats["nonfinite"],
             "out": str(path),
@@ -67,6 +69,7 @@ def format_table(table, warp_width=None):
              "BVH trav = traversal steps per lane / the warp's longest traversal (divergence inside intersection);",
              f"steps = BVH nodes visited by closest-hit rays per sample ({first['bvh']} BVH, --bvh)",
              *([f"W = {warp_width}: {why} (--warp-width overrides)"] if why and why != "given" else []),
+             *in_flight_lines(table),
              head, "-" * len(head)]
     for name, row in table.items():
         eff = row["simd_efficiency"]
@@ -80,6 +83,16 @@ def format_table(table, warp_width=None):
         lines.append("RMSE between techniques: " + ", ".join(
             f"{a} vs {b} {table[a]['rmse_vs'][b]:.5f}" for i, a in enumerate(names) for b in names[i + 1:]))
     return "\n".join(lines)
+
+
+def in_flight_lines(table):
+    """One line per stream or pool size the rows ran with, and why (toolkit/work_sizes.py)."""
+    seen = {}
+    for name, row in table.items():
+        for option in ("stream_size", "pool_size"):
+            if option in row:
+                seen.setdefault((option, row[option], row.get("work_sizes_source")), []).append(name)
+    return [f"{option} = {size:,}: {why} ({', '.join(names)})" for (option, size, why), names in seen.items()]
 
 
 DRAIN_NOTE = ("Shaded, from the dashed line on: the final drain of a pass. Every sample of the budget has started, "

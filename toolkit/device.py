@@ -398,6 +398,8 @@ def report():
                      f"global memory: {c.device.global_mem_size / 2**30:.1f} GiB")
         width, why = device_warp_width(c.device)
         lines.append(f"       SIMD counters: warps of {width} ({why}; --warp-width overrides)")
+        from .work_sizes import device_work_sizes
+        lines.append(f"       in flight: {device_work_sizes(c.device).text()}; options stream_size / pool_size override")
     lines.append("Ranking of usable devices: " + " > ".join(RANKING))
     try:
         _, device = pick_device()

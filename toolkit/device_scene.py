@@ -93,9 +93,10 @@ class DeviceScene:
         self.triangles["light"][slot_of[light_tris]] = np.arange(len(light_tris))
         self.triangles["light_pdf"][slot_of[light_tris]] = prob / area
 
-    def features(self):
-        """The scene's compile-time defines (Scene.features) and the BVH traversal to build."""
-        return dict(self.scene.features(), BVH_WIDE=self.bvh_kind == "wide")
+    def features(self, general=False):
+        """The scene's compile-time defines (Scene.features; `general`: every code path) and the
+        BVH traversal to build (the one this scene was uploaded for: a layout, not a feature)."""
+        return dict(self.scene.features(general), BVH_WIDE=self.bvh_kind == "wide")
 
     def bvh_stats(self):
         """Sizes of the BVH the kernels traverse (for render stats and compare)."""

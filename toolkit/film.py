@@ -7,6 +7,22 @@ an independent estimate of its pixel, so the standard error is sqrt(sample varia
 import numpy as np
 
 
+def clamp_radiance(values, limit):
+    """Firefly clamping (scene integrator.clamp, scenes/FORMAT.md): each RGB row of `values`
+    whose largest component m exceeds `limit` is scaled by limit / m, so its colour is kept
+    (pbrt-v4's maxcomponentvalue). `limit` None: unchanged. Non-finite rows stay as they are,
+    so the film still counts and drops them. Biased: it removes energy, to remove variance."""
+    if limit is None:
+        return values
+    rgb = values[..., :3]
+    m = rgb.max(-1, keepdims=True)
+    over = np.isfinite(m) & (m > limit)
+    if over.any():
+        values = values.copy()
+        values[..., :3] = np.where(over, rgb * (limit / np.where(over, m, 1.0)), rgb)
+    return values
+
+
 class Film:
     def __init__(self, width, height):
         self.width, self.height = width, height

@@ -98,3 +98,28 @@ def to_srgb8(image):
     x = np.clip(np.nan_to_num(image, nan=0.0, posinf=1.0), 0.0, 1.0)
     srgb = np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
     return (srgb * 255 + 0.5).astype(np.uint8)
+
+
+def write_atomically(path, write):
+    """Write a file that is never seen half-written: `write(tmp)` writes a temporary file beside
+    `path`, which is then synced and renamed over `path`. A failed write raises OSError naming the
+    file and leaves any old file intact (as write_image does for images). Returns `path`."""
+    path = Path(path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=path.suffix)
+    except OSError as error:
+        raise OSError(f"{path}: cannot write there: {error.strerror or error}") from None
+    os.close(fd)
+    try:
+        os.chmod(tmp, 0o666 & ~_umask())
+        write(tmp)
+        with open(tmp, "rb") as f:
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except OSError as error:
+        raise OSError(f"{path}: cannot write the file: {error.strerror or error}") from None
+    finally:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+    return path

@@ -152,6 +152,9 @@ def to_mitsuba(scene, folder, width=None, height=None, spp=16):
     rr_depth, one-sided area lights, geometric normals. Meshes are written as PLY files to
     `folder`, one per (material, emission) group of triangles."""
     width, height = width or scene.camera.width, height or scene.camera.height
+    if scene.clamp is not None:
+        raise ValueError(f"{scene.name}: integrator.clamp has no counterpart in Mitsuba's path integrator; "
+                         "compare without it")
     cam = scene.camera
     rr_depth = scene.rr_depth if scene.rr_depth >= 0 else 1 << 30          # -1: no roulette
     out = {

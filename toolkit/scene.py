@@ -23,7 +23,10 @@ MATERIAL_PARAMS = {"diffuse": {"reflectance"}, "mirror": {"reflectance"},
 TOP_KEYS = {"format", "camera", "materials", "shapes", "integrator"}
 CAMERA_KEYS = {"origin", "target", "up", "fov_deg", "fov_axis", "width", "height"}
 SHAPE_KEYS = {"mesh", "material", "emission"}
-INTEGRATOR_KEYS = {"max_depth", "rr_depth"}
+INTEGRATOR_KEYS = {"max_depth", "rr_depth", "clamp"}
+# A depth the general kernel (features(general=True)) compares with where the scene sets no
+# limit: far beyond HARD_MAX_BOUNCES (cl/common.h), so the test is compiled in but never fires.
+NO_LIMIT = 1 << 30
 
 
 class SceneError(InputError):
@@ -64,6 +67,7 @@ class Scene:
     materials: list                 # [{"name", "type", "reflectance", "ior", "alpha"}]
     max_depth: int = -1
     rr_depth: int = 5
+    clamp: float = None             # firefly clamping (FORMAT.md): None = off, unbiased
     path: Path = None
     reference: np.ndarray = None    # (H, W, 3) float32 or None
     reference_stderr: np.ndarray = None
@@ -76,17 +80,28 @@ class Scene:
         lo, hi = self.vertices.min(0), self.vertices.max(0)
         return float(np.linalg.norm(hi - lo))
 
-    def features(self):
-        """Compile-time defines: only what this scene uses is built into the kernels."""
+    def features(self, general=False):
+        """Compile-time defines: only what this scene uses is built into the kernels.
+
+        `general=True`: the general kernel instead, as a renderer that does not specialize
+        would build it: every material and the specular paths compiled in, the depth limit and
+        Russian roulette tests always there. The limits stay numbers in the build (the scene's
+        own; NO_LIMIT where it has none, a test that never fires), so both kernels compute the
+        same image (tests/test_specialization.py) and differ only in the code they carry."""
         used = {self.materials[i]["type"] for i in np.unique(self.material_of)}
         defines = {}
         for name in MATERIAL_TYPES:
-            defines[f"HAS_{name.upper()}"] = name in used
-        defines["HAS_SPECULAR"] = bool(used & {"mirror", "dielectric"})
-        defines["MAX_DEPTH"] = self.max_depth
-        defines["USE_MAX_DEPTH"] = self.max_depth >= 0
-        defines["RR_DEPTH"] = self.rr_depth
-        defines["USE_RUSSIAN_ROULETTE"] = self.rr_depth >= 0 and self.max_depth != 0
+            defines[f"HAS_{name.upper()}"] = general or name in used
+        defines["HAS_SPECULAR"] = general or bool(used & {"mirror", "dielectric"})
+        defines["MAX_DEPTH"] = self.max_depth if self.max_depth >= 0 or not general else NO_LIMIT
+        defines["USE_MAX_DEPTH"] = general or self.max_depth >= 0
+        defines["RR_DEPTH"] = self.rr_depth if self.rr_depth >= 0 or not general else NO_LIMIT
+        defines["USE_RUSSIAN_ROULETTE"] = general or (self.rr_depth >= 0 and self.max_depth != 0)
+        # Firefly clamping: BDPT caps each connection on the device (cl/bdpt.h), so both connect
+        # phases clamp the same values; the path tracers clamp a whole sample on the host
+        # (toolkit/film.py clamp_radiance). Defined only when set: other scenes build unchanged.
+        if self.clamp is not None:
+            defines["CLAMP"] = float(self.clamp)
         return defines
 
     def transformed(self, scale=1.0, translate=(0.0, 0.0, 0.0)):
@@ -270,6 +285,9 @@ def _load_scene(path):
     integrator = _object(where, data.get("integrator", {}), "'integrator'", INTEGRATOR_KEYS)
     max_depth = whole_number("integrator.max_depth", integrator.get("max_depth", -1), f"{where}: integrator.max_depth")
     rr_depth = whole_number("integrator.rr_depth", integrator.get("rr_depth", 5), f"{where}: integrator.rr_depth")
+    clamp = integrator.get("clamp")     # absent or null: no clamping
+    if clamp is not None:
+        clamp = _number(f"{where}: integrator.clamp", clamp, "integrator.clamp")
     if max_depth < 0 and rr_depth < 0:
         _fail(where, "integrator: max_depth -1 (unbounded) needs Russian roulette (rr_depth >= 0); "
                      "without either, paths only end at each technique's own hard cap")
@@ -278,7 +296,7 @@ def _load_scene(path):
         vertices=np.concatenate(vertices), triangles=np.concatenate(triangles),
         material_of=np.concatenate(material_of), emission_of=np.concatenate(emission_of),
         materials=materials,
-        max_depth=max_depth, rr_depth=rr_depth,
+        max_depth=max_depth, rr_depth=rr_depth, clamp=clamp,
         path=path, info={"notes": data.get("notes", "")})
     scene = drop_degenerate(scene, where)
     check_scene(scene, where)
@@ -308,6 +326,8 @@ def check_scene(scene, where=None):
                  f"{where}: camera distance from the scene's centre, in extents,")
         in_range("integrator.max_depth", scene.max_depth, f"{where}: integrator.max_depth")
         in_range("integrator.rr_depth", scene.rr_depth, f"{where}: integrator.rr_depth")
+        if scene.clamp is not None:
+            finite_number("integrator.clamp", scene.clamp, f"{where}: integrator.clamp")
     except SceneError:
         raise
     except InputError as error:

@@ -28,6 +28,8 @@ LIMITS = {
                                     "areas and densities must stay inside float32"),
     "integrator.max_depth": (-1, 63, "-1: unbounded. BDPT stores at most 64 vertices per subpath"),
     "integrator.rr_depth": (-1, 63, "-1: no Russian roulette (then max_depth must be set)"),
+    "integrator.clamp": (1e-6, 1e10, "largest RGB component of one sample's contribution; absent or null: no "
+                                     "clamping (unbiased)"),
     # Measured: the Cornell box renders the same at scales 1e-12 .. 1e12; the margin leaves room
     # for extreme emission, whose products with areas and densities also live in float32.
     "scene.extent": (1e-6, 1e6, "bounding-box diagonal"),
@@ -44,10 +46,19 @@ LIMITS = {
     "memory.fraction": (0.0, 0.5, "film and device buffers, as a share of this machine's memory"),
     "bench.equal_time": (0.01, 86400.0, "seconds per technique"),
     "bench.repeats": (1, 1000, "interleaved repetitions"),
+    "study.repeats": (1, 1000, "independent repetitions per budget"),
+    "study.budget": (1e-3, 86400.0, "seconds of rendering per repetition"),
+    "study.target": (1e-6, 10.0, "relative RMSE target (a fraction of the reference image's mean)"),
     "crosscheck.rays": (1, 1 << 26, "random rays"),
     # Technique options, stated in FORMAT.md's second table.
     "technique.local_size": (32, 256, "work-items per work-group, a power of two (toolkit.render's local_size); "
                                       "the image does not depend on it"),
+    "technique.stream_size": (1, 1 << 24, "paths in flight in pt_inplace_regen and pt_compact_regen; "
+                                          "default from the device (`python -m toolkit devices`)"),
+    "technique.pool_size": (1, 1 << 22, "samples in flight in the BDPT techniques and mlt; "
+                                        "default from the device"),
+    "technique.pass_spp": (1, 1 << 24, "samples per pixel in one pass (default: the technique's batch size); "
+                                       "cost only, the image does not depend on it"),
     "mlt.chains": (1, 1 << 18, "independent Metropolis chains; each stores two vectors of max_dims floats"),
     "mlt.large_step": (1e-3, 1.0, "probability of a large step; b comes from the large steps"),
     "mlt.candidates": (1, 1024, "large steps per chain for start = resample"),

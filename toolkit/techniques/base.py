@@ -6,10 +6,10 @@ import numpy as np
 import pyopencl as cl
 
 from .. import program
-from ..film import Film
+from ..film import Film, clamp_radiance
 from ..layout import LANE_COUNTS
 from ..simd import PhaseCounter
-from ..validate import InputError, local_size as checked_local_size
+from ..validate import InputError, local_size as checked_local_size, whole_number
 
 
 class Technique:
@@ -27,8 +27,15 @@ class Technique:
     source_dir = None
 
     def __init__(self, queue, device_scene, warp_width=None, count_simd=True, extra_defines=None,
-                 local_size=program.LOCAL_SIZE):
-        """`warp_width`: W of the SIMD counters; None: the device's (toolkit.device.device_warp_width)."""
+                 local_size=program.LOCAL_SIZE, general=False, pass_spp=None):
+        """`warp_width`: W of the SIMD counters; None: the device's (toolkit.device.device_warp_width).
+        `general`: build the general kernel (every material and feature compiled in, Scene.features)
+        instead of the one specialized to the scene; both compute the same image.
+        `pass_spp` (an option of every technique): samples per pixel in one pass instead of what
+        fills `target_batch`; a cost knob of the speed-accuracy study (toolkit/study.py)."""
+        self.pass_spp = None if pass_spp is None else whole_number("technique.pass_spp", pass_spp, "pass_spp")
+        # Firefly clamping (scene integrator.clamp): applied where samples reach the film.
+        self.clamp = device_scene.scene.clamp
         from ..device import resolve_warp_width
         self.queue = queue
         self.scene = device_scene
@@ -41,7 +48,8 @@ class Technique:
         if self.local_size > queue.device.max_work_group_size:
             raise InputError(f"local_size {self.local_size} exceeds the device's maximum work-group size "
                              f"{queue.device.max_work_group_size}")
-        defines = dict(device_scene.features())
+        self.general = bool(general)
+        defines = dict(device_scene.features(self.general))
         defines["COUNT_SIMD"] = bool(count_simd)
         defines.update(extra_defines or {})
         defines["LOCAL_SIZE"] = self.local_size
@@ -51,6 +59,25 @@ class Technique:
         self.build_seconds = time.perf_counter() - start
         self.simd = PhaseCounter(warp_width)
         self.traversal = PhaseCounter(warp_width)
+
+    def in_flight(self, option, given, max_vertices=64):
+        """The work a stream technique keeps in flight (option "stream_size" or "pool_size"):
+        `given` (checked: the device must hold its buffers, toolkit.work_sizes.check_fits), else
+        a size the class sets (the grader's variants do), else the device's choice
+        (toolkit.work_sizes.choose_work_sizes: a GPU's resident work-items, a CPU's own sizes).
+        The pass grows with it (target_batch), so every slot still runs several samples a pass."""
+        from ..work_sizes import CPU_POOL_SIZE, CPU_STREAM_SIZE, check_fits, device_work_sizes
+        if given is not None:
+            size, why = check_fits(self.queue.device, option, given, max_vertices), "given"
+        elif getattr(type(self), option) is not None:
+            size, why = getattr(type(self), option), f"set by {type(self).__name__}"
+        else:
+            chosen = device_work_sizes(self.queue.device, max_vertices)
+            size, why = getattr(chosen, option), chosen.why
+        reference = CPU_STREAM_SIZE if option == "stream_size" else CPU_POOL_SIZE
+        self.target_batch = type(self).target_batch * max(1, -(-size // reference))
+        self.work_sizes = {option: size, "work_sizes_source": why}
+        return size
 
     def kernel(self, name):
         """The kernel object, retrieved once (each retrieval makes a new cl.Kernel)."""
@@ -81,6 +108,8 @@ class Technique:
 
     def passes(self, width, height, spp):
         """Samples per pixel in one pass (one launch batch)."""
+        if self.pass_spp is not None:
+            return min(spp, self.pass_spp)
         return max(1, min(spp, self.target_batch // (width * height)))
 
     def run_pass(self, film, camera, seed, sample_base, spp):
@@ -103,7 +132,7 @@ class Technique:
         missing = int(np.count_nonzero(result[:, 3] < 0))
         if missing:
             raise RuntimeError(f"{self.name}: {missing} of {n} samples were never written (sample accounting bug)")
-        film.add_pixel_major(result)
+        film.add_pixel_major(clamp_radiance(result, self.clamp))
 
     def reused(self, key, make):
         """Device memory that keeps its size from pass to pass (streams, vertex memory) is made
@@ -165,8 +194,8 @@ class Technique:
             self.traversal.add_warp_loops("shadow", lanes["shadow_steps"])
 
     def extra_stats(self):
-        """Technique-specific figures added to the render stats."""
-        return {}
+        """Technique-specific figures added to the render stats (the work in flight, if chosen)."""
+        return dict(getattr(self, "work_sizes", {}))
 
     def simd_efficiency(self):
         return self.simd.efficiency() if self.count_simd else {}

@@ -10,6 +10,8 @@ One pass, read like the talk's slides:
 Light-tracing (t = 1) contributions land on other pixels: every connection writes a record
 (pixel, value) and the host adds the records up per pixel in float64 (no float atomics on
 the device). So a pass is an image, and the standard error comes from independent passes.
+Option `pool_size`: the samples in flight (default: the device's, toolkit/work_sizes.py: 4,096
+on a CPU); each stores MAX_VERTICES eye and light vertices.
 """
 from dataclasses import dataclass
 
@@ -18,7 +20,10 @@ import pyopencl as cl
 
 from ..compaction import Compactor
 from ..layout import BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, SUBPATH, WalkCounter
+from ..scene import NO_LIMIT
 from ..simd import PhaseCounter
+from ..strategies import StrategyImages, strategy_count
+from ..work_sizes import checked_size
 from .base import Technique
 
 
@@ -66,24 +71,37 @@ class PassState:
 
 class BdptTechnique(Technique):
     family = "bdpt"
-    pool_size = 1 << 12         # samples in flight (each has MAX_VERTICES eye + light vertices stored)
+    pool_size = None            # samples in flight (each stores MAX_VERTICES eye + light vertices); None: the device's
     target_batch = 1 << 14      # samples per pass: many passes give the standard error
     max_vertices = 64           # per subpath when the depth is unbounded; paths this long carry ~1e-10 of the energy at albedo 0.7
 
     def __init__(self, queue, device_scene, regenerate_fraction=0.6, coalesced_scatter=True, pool_size=None,
-                 **kwargs):
+                 strategy_max_edges=None, **kwargs):
+        """`strategy_max_edges`: build the kernels that keep each connection strategy apart
+        (render --strategies, toolkit/strategies.py), with images for paths up to that many edges."""
         scene = device_scene.scene
         # At least 2: the walk stores its first hit (vertex 1) before it checks the depth.
         self.max_vertices = max(2, min(self.max_vertices, scene.max_depth + 1)) if scene.max_depth >= 0 else self.max_vertices
+        # Subpath roulette from half the scene's rr_depth (cl/bdpt_walk.h); never without one (a
+        # general kernel has the roulette compiled in for every scene: Scene.features).
+        rr_depth = (scene.rr_depth + 1) // 2 if scene.rr_depth >= 0 else NO_LIMIT
         defines = {"MAX_VERTICES": self.max_vertices, "COALESCED_SCATTER": bool(coalesced_scatter),
-                   "BDPT_RR_DEPTH": (scene.rr_depth + 1) // 2}   # subpath roulette: see cl/bdpt_walk.h
+                   "BDPT_RR_DEPTH": rr_depth}
+        self.strategy_max_edges = strategy_max_edges
+        self.strategy_images = None     # strategies.StrategyImages of the passes so far, when built for them
+        if strategy_max_edges:
+            if self.family != "bdpt":   # mlt keeps its records with its chains: no strategies there
+                raise ValueError(f"{self.name} has no per-strategy images")
+            defines.update(STRATEGY_IMAGES=True, STRATEGY_MAX_EDGES=strategy_max_edges,
+                           STRATEGY_COUNT=strategy_count(strategy_max_edges))
         defines.update(kwargs.pop("extra_defines", None) or {})
+        checked_size("pool_size", pool_size)         # its range now, before the build; the device's memory after
         super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
         if not 0.0 < regenerate_fraction <= 1.0:
             raise ValueError("regenerate_fraction must be in (0, 1]")
         self.regenerate_fraction = regenerate_fraction
         self.coalesced_scatter = coalesced_scatter
-        self.pool_size = pool_size or self.pool_size
+        self.pool_size = self.in_flight("pool_size", pool_size, self.max_vertices)
         self.compactor = Compactor(queue, local_size=self.local_size)
         self.uncompacted = PhaseCounter(self.warp_width)   # the walk as it would be without compaction
 
@@ -118,6 +136,8 @@ class BdptTechnique(Technique):
         p = PassState(pool, camera, args, budget, in_flight=pool.size,   # every slot "terminated", nothing to connect
                       image=np.zeros((int(camera["width"] * camera["height"]), 3)))
         self.last_pass = p   # kept for inspection (tests, notebooks): the vertex memory of the last samples
+        if self.strategy_max_edges:
+            self.count_strategy_pass(camera, budget)
         return p
 
     def sampler_args(self):
@@ -210,6 +230,23 @@ class BdptTechnique(Technique):
         mask = np.zeros(p.pool.size, bool)      # without compaction each path keeps its slot's lane
         mask[slots] = True
         self.uncompacted.add_stream_step("walk", mask)
+
+    def count_strategy_pass(self, camera, budget):
+        """Per-strategy images: the pass's samples count towards them (render --strategies)."""
+        width, height = int(camera["width"]), int(camera["height"])
+        if self.strategy_images is None:
+            self.strategy_images = StrategyImages(self.strategy_max_edges, width, height)
+        self.strategy_images.spp += budget // (width * height)
+
+    def keep_strategies(self, values, pixels, index):
+        """Per-strategy images: records of the STRATEGY_IMAGES kernels hold (unweighted value,
+        MIS weight); they go to the strategy images with their strategy `index`, and come back
+        weighted for the BDPT image."""
+        self.strategy_images.add(values, pixels, index)
+        weighted = values.copy()
+        used = pixels >= 0      # the others are unwritten memory
+        weighted[used, :3] *= values[used, 3:]
+        return weighted
 
     def reduce_records(self, values, pixels, npix):
         """Add connection records (value, pixel) per pixel in float64; non-finite ones are counted and dropped."""

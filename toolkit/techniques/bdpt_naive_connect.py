@@ -7,6 +7,7 @@ import numpy as np
 import pyopencl as cl
 
 from ..simd import PhaseCounter
+from ..strategies import strategy_count, strategy_index
 from .bdpt_base import BdptTechnique
 
 
@@ -29,15 +30,36 @@ class BdptNaiveConnect(BdptTechnique):
         if count == 0:
             return np.zeros((npix, 3))
         pool = p.pool.size
-        n = pool * (self.max_vertices + 1)
-        values, pixels = self.reused(("records", n), lambda: (
-            cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * n), self.int_buffer(n)))
+        # Where each terminated slot's light-tracing records go: a scan of their counts, so the
+        # host reads back only the records written (before: MAX_VERTICES + 1 places per slot).
+        counts, firsts = self.reused(("splat counts", pool), lambda: (self.int_buffer(pool), self.int_buffer(pool)))
+        self.launch(self.kernel("bdpt_naive_connect_splats"), pool, np.int32(pool), p.pool.slots, counts)
+        firsts, splats = self.compactor.exclusive_scan(counts, pool, out=firsts)
+        n = splats + pool                      # the splats, then one eye-path sum per slot
+        if self.strategy_max_edges:   # and a record per eye-path strategy of the short paths (cl/bdpt_naive_connect.cl)
+            n += pool * strategy_count(self.strategy_max_edges)
+        capacity = 1 << max(12, (n - 1).bit_length())   # grows by powers of two, reused
+        values, pixels = self.reused(("records", capacity), lambda: (
+            cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * capacity), self.int_buffer(capacity)))
         cl.enqueue_fill_buffer(self.queue, pixels, np.int32(-1), 0, 4 * n)   # records a slot may leave unwritten
         self.launch(self.kernel("bdpt_naive_connect"), pool, *self.scene.args(), p.camera,
-                    np.int32(pool), p.pool.slots, p.pool.eye.vertices, p.pool.light.vertices, values, pixels,
-                    p.pool.lane_counts)
+                    np.int32(pool), np.int32(splats), firsts, p.pool.slots, p.pool.eye.vertices,
+                    p.pool.light.vertices, values, pixels, p.pool.lane_counts)
         self.count_connect(p)
-        return self.reduce_records(*self.read_records(values, pixels, n), npix)
+        values, pixels = self.read_records(values, pixels, n)
+        if self.strategy_max_edges:
+            values = self.keep_strategies(values, pixels, self.record_strategies(pool, self.read_ints(counts, pool)))
+        return self.reduce_records(values, pixels, npix)
+
+    def record_strategies(self, pool, splat_counts):
+        """The strategy index (toolkit/strategies.py) of each record, from where the kernel put it:
+        the t = 1 splats of s = 1 .. splat_counts[k] for each slot k in turn, one sum of the longer
+        paths per slot, then one record per short eye-path strategy, numbered as the images are."""
+        count = strategy_count(self.strategy_max_edges)
+        firsts = np.cumsum(splat_counts) - splat_counts
+        splat_s = np.arange(int(splat_counts.sum())) - np.repeat(firsts, splat_counts) + 1
+        return np.concatenate([strategy_index(splat_s, 1, self.strategy_max_edges),
+                               np.full(pool, count), np.tile(np.arange(count), pool)])
 
     def count_connect(self, p):
         if not self.count_simd:

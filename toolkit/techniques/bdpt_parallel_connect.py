@@ -5,6 +5,8 @@ connection, whatever the lengths of the subpaths."""
 import numpy as np
 import pyopencl as cl
 
+from ..layout import BDPT_SLOT
+from ..strategies import strategy_index
 from .bdpt_base import BdptTechnique
 
 
@@ -15,7 +17,24 @@ class BdptParallelConnect(BdptTechnique):
     def connect(self, p, count):
         npix = int(p.camera["width"] * p.camera["height"])
         records = self.connection_records(p, count)
-        return np.zeros((npix, 3)) if records is None else self.reduce_records(*records[:2], npix)
+        if records is None:
+            return np.zeros((npix, 3))
+        values, pixels, counts = records
+        if self.strategy_max_edges:
+            values = self.keep_strategies(values, pixels, self.record_strategies(p, counts))
+        return self.reduce_records(values, pixels, npix)
+
+    def record_strategies(self, p, counts):
+        """The strategy index (toolkit/strategies.py) of each connection record: a slot's records
+        are consecutive, local index k is strategy (s, t) with k + 1 = (t - 1)(n_light + 1) + s
+        (connection_strategy in cl/bdpt.h)."""
+        counts = self.read_ints(counts, p.pool.size)
+        n_light = self.read_structs(BDPT_SLOT, p.pool.slots, p.pool.size)["light_vertices"].astype(np.int64)
+        firsts = np.cumsum(counts) - counts
+        slot = np.repeat(np.arange(p.pool.size), counts)
+        kk = np.arange(counts.sum()) - firsts[slot] + 1
+        s, t = kk % (n_light[slot] + 1), kk // (n_light[slot] + 1) + 1
+        return strategy_index(s, t, self.strategy_max_edges)
 
     def connection_records(self, p, count):
         """Evaluate every connection of the terminated samples: (values (n, 4) float32, pixels (n,),

@@ -67,13 +67,13 @@ Options (keyword arguments of toolkit.render(..., options=...)):
 
 | option | default | meaning |
 | --- | --- | --- |
-| `chains` | 4096 (the BDPT pool size) | independent chains; 1 .. 2^20 (`mlt.chains`), at most the mutations of the render |
+| `chains` | the BDPT pool size (4096 on a CPU; `devices` shows it) | independent chains; 1 .. 2^18 (`mlt.chains`), at most the mutations of the render |
 | `large_step` | 0.3 | probability of a large step (every dimension fresh) |
 | `start` | `pool` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of its own `candidates` large steps, chosen in proportion to f, and weighted. `pool`: at one of all chains' candidates, chosen in proportion to f. `pool` is the default: at equal time (30 s, 32x32, `bench --equal-time`, two-core CPU) its RMSE was 0.0064 against naive's 0.0066 on covered_lamp and 0.0091 against 0.019 on cornell_spheres, where naive chains are still biased; on cornell_box, where they are not, naive was ahead (0.0060 against 0.0072); resample was behind pool on covered_lamp (0.0072) and cornell_spheres (0.0094) |
 | `candidates` | 16 | large steps per chain for `start = resample` or `pool` (`mlt.candidates`) |
 | `max_dims` | 128 | primary-sample dimensions a chain stores: 8 + 8 per vertex of the longer subpath, so 128 holds subpaths of 16 vertices (`mlt.max_dims`). A path that reads more gets fresh random numbers for the extra dimensions at every iteration (cl/rng.h): still correct, and counted (`overflow_proposals`) |
 | `combine` | true | Kelemen's combination: the large steps also splat as BDPT samples, joined with the Metropolis states by the balance heuristic (above) |
-| `time_limit` | none | seconds: stop after the iteration that passes it (the image holds the mutations made so far; `bench --equal-time` uses it) |
+| `time_limit` | none | seconds: stop after the iteration that passes it (the image holds the mutations made so far) |
 | BDPT options | | `pool_size` (4096: an iteration of 4096 chains is one pool-full; a quarter of that, which lets the pool regenerate like a BDPT pass does, measured no faster on covered_lamp 64x64), `regenerate_fraction`, `coalesced_scatter` as for bdpt_parallel_connect |
 
 spp means mutations: a render of spp samples per pixel makes spp x pixels mutations in all
@@ -89,7 +89,7 @@ import pyopencl as cl
 
 from ..film import Film
 from ..layout import BDPT_SLOT, LUMINANCE_WEIGHTS, MLT_CHAIN, MLT_ITERATION, MltMode
-from ..validate import InputError, finite_number, whole_number
+from ..validate import LIMITS, InputError, finite_number, whole_number
 from .bdpt_base import per_pixel_sums
 from .bdpt_parallel_connect import BdptParallelConnect
 
@@ -137,8 +137,7 @@ class Mlt(BdptParallelConnect):
 
     def __init__(self, queue, device_scene, chains=None, large_step=0.3, start="pool", candidates=16,
                  max_dims=128, combine=True, time_limit=None, **kwargs):
-        self.chain_count = whole_number("mlt.chains", chains if chains is not None else BdptParallelConnect.pool_size,
-                                        "chains")
+        self.chain_count = whole_number("mlt.chains", chains, "chains") if chains is not None else None
         self.large_step = finite_number("mlt.large_step", large_step, "large_step")
         if start not in STARTS:
             raise InputError(f"start must be one of {', '.join(STARTS)}, got {start!r}")
@@ -149,9 +148,17 @@ class Mlt(BdptParallelConnect):
             raise InputError(f"combine must be true or false, got {combine!r}")
         self.combine = bool(combine)
         self.time_limit = None if time_limit is None else finite_number("mlt.time_limit", time_limit, "time_limit")
+        if device_scene.scene.clamp is not None:
+            raise InputError("mlt does not clamp (scene integrator.clamp is set): every Metropolis splat already has "
+                             "the same brightness b / M, so there are no fireflies to cap, and a capped f would only "
+                             "change the distribution the chains sample; remove integrator.clamp for mlt")
+        if kwargs.get("pass_spp") is not None:
+            raise InputError("mlt renders in one pass of chains (see `chains`); pass_spp does not apply to it")
         defines = {"MLT": True, "MLT_MAX_DIMS": self.max_dims}
         defines.update(kwargs.pop("extra_defines", None) or {})
         super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
+        if self.chain_count is None:   # one chain per slot of the BDPT pool, within the chains' limit
+            self.chain_count = min(self.pool_size, LIMITS["mlt.chains"][1])
 
     # --- the render: start the chains, then iterate ------------------------------------------
 

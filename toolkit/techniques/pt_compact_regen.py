@@ -7,12 +7,15 @@ Kernel: cl/pt_compact_regen.cl. The stream has a fixed size; one iteration:
     regenerate  - new samples fill the end of the stream: consecutive pixels, side by side.
 With compaction="immediate" the compaction is fused into the extend kernel (one scan per
 work-group in local memory, one atomic per group); "multipass" labels, scans and gathers.
+Option `stream_size`: the paths in the stream (default: the device's, toolkit/work_sizes.py:
+32,768 on a CPU).
 """
 import numpy as np
 import pyopencl as cl
 
 from ..compaction import Compactor
 from ..layout import PATH_STATE, SHADOW_RAY, StreamCounter
+from ..work_sizes import checked_size
 from .base import Technique
 
 
@@ -20,10 +23,12 @@ class PtCompactRegen(Technique):
     name = "pt_compact_regen"
     family = "pt"
     source = "pt_compact_regen.cl"
-    stream_size = 1 << 15
+    stream_size = None   # paths in the stream; None: the device's (toolkit/work_sizes.py)
 
-    def __init__(self, *args, compaction="immediate", **kwargs):
+    def __init__(self, *args, compaction="immediate", stream_size=None, **kwargs):
+        checked_size("stream_size", stream_size)     # its range now, before the build; the device's memory after
         super().__init__(*args, **kwargs)
+        self.stream_size = self.in_flight("stream_size", stream_size)
         if compaction not in ("immediate", "multipass"):
             raise ValueError(f"compaction must be 'immediate' or 'multipass', not {compaction!r}")
         self.compaction = compaction

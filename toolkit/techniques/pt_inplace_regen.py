@@ -5,11 +5,14 @@ Kernel: cl/pt_inplace_regen.cl. Each work-item owns a slot. One iteration:
     regenerate - every slot whose path ended starts the next sample of the budget in place.
 Extension stays busy, but regeneration runs with only the terminated lanes active: the talk
 measures ~30% active threads per warp in that step.
+
+Option `stream_size`: the slots (default: the device's, toolkit/work_sizes.py: 32,768 on a CPU).
 """
 import numpy as np
 import pyopencl as cl
 
 from ..layout import PATH_STATE
+from ..work_sizes import checked_size
 from .base import Technique
 
 
@@ -17,7 +20,14 @@ class PtInplaceRegen(Technique):
     name = "pt_inplace_regen"
     family = "pt"
     source = "pt_inplace_regen.cl"
-    stream_size = 1 << 15   # slots (work-items) that stay resident
+    stream_size = None   # slots (work-items) that stay resident; None: the device's (toolkit/work_sizes.py)
+
+    reads_every = 4      # iterations per blocking read of the "any path alive" flag (counters off)
+
+    def __init__(self, *args, stream_size=None, **kwargs):
+        checked_size("stream_size", stream_size)     # its range now, before the build; the device's memory after
+        super().__init__(*args, **kwargs)
+        self.stream_size = self.in_flight("stream_size", stream_size)
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         budget = camera["width"] * camera["height"] * spp
@@ -30,6 +40,11 @@ class PtInplaceRegen(Technique):
         self.fill_ints(alive, 0)        # every slot free
         self.fill_ints(next_sample, 0)  # the pass's first sample comes next
         radiance = self.output_buffer(budget)
+        # The host waits for the "any path alive" flag only every `reads_every` iterations: in
+        # between, the GPU runs on. Once every path has ended, the iterations issued before the
+        # next read find no work (every lane returns at once), so the image does not change.
+        reads_every = 1 if self.count_simd else self.reads_every
+        step = 0
         while True:
             # Regenerate: every free slot starts the next sample of the budget, if one is left.
             cl.enqueue_fill_buffer(self.queue, any_alive, np.int32(0), 0, 4)
@@ -37,7 +52,8 @@ class PtInplaceRegen(Technique):
                         np.int32(slots), np.int32(sample_base), np.int32(budget), next_sample, capacity,
                         paths, alive, any_alive, regenerated)
             self.count_regenerate(regenerated, slots)
-            if not self.read_ints(any_alive, 1)[0]:
+            step += 1
+            if step % reads_every == 0 and not self.read_ints(any_alive, 1)[0]:
                 break   # budget spent and every path has ended
             # Extend: every slot with a live path traces one more vertex.
             self.launch(self.kernel("extend_in_place"), slots, *self.scene.args(), seed,
