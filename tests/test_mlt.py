@@ -146,7 +146,7 @@ def test_startup_bias_is_detected_falls_with_mutations_and_resampling_removes_it
 
 def test_every_stream_phase_is_at_least_97_percent_efficient(cornell_box):
     result = toolkit.render(cornell_box, technique="mlt", spp=32, seed=1, resolution=(32, 32), warp_width=32,
-                            options={"chains": 16384, "start": "naive"})   # (pool: 16x the samples, not the point here)
+                            options={"chains": 16384})
     eff = result.stats["simd_efficiency"]
     print(eff)
     assert {"mutate", "walk", "compact", "connect", "accept", "overall"} <= set(eff)
@@ -185,21 +185,21 @@ def test_option_limits_are_checked(cornell_box):
 # -- chain counts at the extremes --------------------------------------------------------------------
 
 def test_one_chain_and_64k_chains(cornell_box):
-    one = render(cornell_box, 4, 0, 4, chains=1, start="naive")
+    one = render(cornell_box, 4, 0, 4, chains=1)
     assert one.stats["mlt"]["chains"] == 1 and one.stats["mlt"]["mutations"] == 64
     assert np.isfinite(one.image).all() and one.image.sum() > 0
     # One mutation per chain after a naive start: every pixel is biased (startup bias), but the
     # plain estimator's image still sums to b, a mean over 65,536 + ~20,000 BDPT samples, so its
     # mean is right (the combined estimator's large-step splats do not keep that sum exactly).
-    many = render(cornell_box, 64, 0, 32, chains=65536, combine=False, start="naive")
+    many = render(cornell_box, 64, 0, 32, chains=65536, combine=False)
     assert many.stats["mlt"]["chains"] == 65536 and many.stats["mlt"]["mutations"] == 65536
     ref, _ = reference_at(cornell_box, 32, 32)
     assert np.all(relative_mean_error(many.image, ref) < 0.03)
 
 
 def test_time_limit_stops_after_the_iteration_that_passes_it(cornell_box):
-    """bench --equal-time renders mlt once with a time limit: it stops after whole iterations and
-    the image is normalized by the mutations made, not by the spp asked for."""
+    """time_limit stops a render after whole iterations, and the image is normalized by the
+    mutations made, not by the spp asked for."""
     r = render(cornell_box, 100000, 0, 8, chains=256, time_limit=1e-3)
     assert r.stats["mlt"]["mutations"] == 256                  # one iteration, then the time was up
     full = render(cornell_box, 4, 0, 8, chains=256)            # the same 256 mutations, not time-limited

@@ -69,7 +69,7 @@ Options (keyword arguments of toolkit.render(..., options=...)):
 | --- | --- | --- |
 | `chains` | the BDPT pool size (4096 on a CPU; `devices` shows it) | independent chains; 1 .. 2^18 (`mlt.chains`), at most the mutations of the render |
 | `large_step` | 0.3 | probability of a large step (every dimension fresh) |
-| `start` | `pool` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of its own `candidates` large steps, chosen in proportion to f, and weighted. `pool`: at one of all chains' candidates, chosen in proportion to f. `pool` is the default: at equal time (30 s, 32x32, `bench --equal-time`, two-core CPU) its RMSE was 0.0064 against naive's 0.0066 on covered_lamp and 0.0091 against 0.019 on cornell_spheres, where naive chains are still biased; on cornell_box, where they are not, naive was ahead (0.0060 against 0.0072); resample was behind pool on covered_lamp (0.0072) and cornell_spheres (0.0094) |
+| `start` | `naive` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of its own `candidates` large steps, chosen in proportion to f, and weighted. `pool`: at one of all chains' candidates, chosen in proportion to f, weight 1. At equal time (30 s, 32x32, two-core CPU) pool's RMSE was 0.0064 against naive's 0.0066 on covered_lamp and 0.0091 against 0.019 on cornell_spheres, where naive chains are still biased; on cornell_box, where they are not, naive was ahead (0.0060 against 0.0072). `naive` stays the default: its start is one iteration, while pool's grows with the chains, which `bench --equal-time`'s calibration (toolkit/study.py) does not model: it gave `mlt` with pool 3.0 s of a 10 s budget |
 | `candidates` | 16 | large steps per chain for `start = resample` or `pool` (`mlt.candidates`) |
 | `max_dims` | 128 | primary-sample dimensions a chain stores: 8 + 8 per vertex of the longer subpath, so 128 holds subpaths of 16 vertices (`mlt.max_dims`). A path that reads more gets fresh random numbers for the extra dimensions at every iteration (cl/rng.h): still correct, and counted (`overflow_proposals`) |
 | `combine` | true | Kelemen's combination: the large steps also splat as BDPT samples, joined with the Metropolis states by the balance heuristic (above) |
@@ -135,7 +135,7 @@ class Mlt(BdptParallelConnect):
     source = "mlt.cl"
     family = "mlt"
 
-    def __init__(self, queue, device_scene, chains=None, large_step=0.3, start="pool", candidates=16,
+    def __init__(self, queue, device_scene, chains=None, large_step=0.3, start="naive", candidates=16,
                  max_dims=128, combine=True, time_limit=None, **kwargs):
         self.chain_count = whole_number("mlt.chains", chains, "chains") if chains is not None else None
         self.large_step = finite_number("mlt.large_step", large_step, "large_step")
