@@ -35,8 +35,9 @@
  * proposal holds the mark MLT_FRESH) but drawn where the BDPT kernels read it (cl/rng.h,
  * mlt_proposal_dim), and mlt_accept stores it for the dimensions the accepted path used: so a
  * mutation costs random numbers and copies for the dimensions its paths use, not for all
- * MLT_MAX_DIMS (a large step used to cost more than its BDPT sample). The loops run to each
- * chain's own count; on a GPU a warp runs as long as its longest path, never past MLT_MAX_DIMS.
+ * MLT_MAX_DIMS. mlt_mutate still writes every stored word (a perturbed value or the mark), a
+ * cheap even store; the perturbations and mlt_accept's copy run to each chain's own count, so
+ * on a GPU a warp runs as long as its longest path, never past MLT_MAX_DIMS.
  * Host: toolkit/techniques/mlt.py; test kernel: cl/mlt_test.cl. */
 #ifndef MLT_H
 #define MLT_H
