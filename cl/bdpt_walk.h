@@ -40,7 +40,7 @@ static inline __attribute__((always_inline)) void store_vertex(__global BdptVert
  * sample is chain `id`'s proposal and pass.sample_base the iteration (toolkit/techniques/mlt.py). */
 #if MLT
 static inline BdptSampler bdpt_sampler_mlt(const BdptPass* pass, int id, __global const float* primary) {
-    BdptSampler s = {sampler_init(pass->seed ^ MLT_OVERFLOW_KEY, (uint)id, (uint)pass->sample_base), primary,
+    BdptSampler s = {mlt_mutation_sampler(pass->seed, id, pass->sample_base), primary,
                      (uint)pass->chains, (uint)id};
     return s;
 }

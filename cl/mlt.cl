@@ -8,6 +8,8 @@
  *   bdpt_parallel_connect_count, the scan, bdpt_parallel_connect
  *                                cl/bdpt_parallel_connect.cl  evaluate the proposals (one BDPT sample each)
  *   (the host sums each proposal's records: its contribution f and its splats)
- *   mlt_accept                   cl/mlt.h                    keep or reject each proposal */
+ *   mlt_accept                   cl/mlt.h                    keep or reject each proposal
+ * and once, for start = pool, after the candidates:
+ *   mlt_start_from               cl/mlt.h                    each chain's first state, picked by the host */
 #include "bdpt_parallel_connect.cl"
 #include "mlt.h"

@@ -28,27 +28,25 @@
  * fresh with density 1. Same product both ways. A large step is an independent uniform
  * proposal, symmetric as well; the mixture of the two is symmetric. Dimensions past
  * MLT_MAX_DIMS are fresh at every iteration (cl/rng.h): the same "fresh, density 1" case.
- * The workload is even: every chain writes MLT_MAX_DIMS values per iteration, whatever its path.
  *
  * Random numbers of the mutation itself come from Philox, keyed by (chain, iteration) under
- * MLT_MUTATION_KEY: dimension 0 chooses the step, 1 decides the acceptance, 2 + d mutates
- * dimension d. Host: toolkit/techniques/mlt.py; test kernel: cl/mlt_test.cl. */
+ * MLT_MUTATION_KEY (cl/rng.h): dimension 0 chooses the step, 1 decides the acceptance, 2 + d
+ * perturbs dimension d or is its fresh value. A fresh value is not written by mlt_mutate (the
+ * proposal holds the mark MLT_FRESH) but drawn where the BDPT kernels read it (cl/rng.h,
+ * mlt_proposal_dim), and mlt_accept stores it for the dimensions the accepted path used: so a
+ * mutation costs random numbers and copies for the dimensions its paths use, not for all
+ * MLT_MAX_DIMS. mlt_mutate still writes every stored word (a perturbed value or the mark), a
+ * cheap even store; the perturbations and mlt_accept's copy run to each chain's own count, so
+ * on a GPU a warp runs as long as its longest path, never past MLT_MAX_DIMS.
+ * Host: toolkit/techniques/mlt.py; test kernel: cl/mlt_test.cl. */
 #ifndef MLT_H
 #define MLT_H
 
 #include "common.h"
 #include "rng.h"
 
-#ifndef MLT_MAX_DIMS
-#define MLT_MAX_DIMS 128   /* set by the host: 8 + 8 * 15, subpaths of up to 16 vertices */
-#endif
-#define MLT_MUTATION_KEY 0x6d757461u
 #define MLT_S1 (1.0f / 1024.0f)
 #define MLT_S2 (1.0f / 64.0f)
-
-static inline Sampler mlt_mutation_sampler(const MltIteration* it, int chain) {
-    return sampler_init(it->seed ^ MLT_MUTATION_KEY, (uint)chain, (uint)it->iteration);
-}
 
 /* Kelemen's small step of one uniform u, driven by one uniform r: the sign from r < 1/2, the
  * size s2 exp(-log(s2 / s1) v) with v uniform in [0, 1) (sizes from 1/1024 to 1/64, denser
@@ -69,13 +67,12 @@ __kernel void mlt_mutate(const MltIteration it, __global const float* current, _
 {
     int c = get_global_id(0);
     if (c >= it.active) return;
-    Sampler m = mlt_mutation_sampler(&it, c);
+    Sampler m = mlt_mutation_sampler(it.seed, c, it.iteration);
     bool large = it.mode != MLT_MUTATE || sampler_get(&m, 0) < it.large_step;
     int used = large ? 0 : chains[c].dims_current;
     for (int d = 0; d < MLT_MAX_DIMS; ++d) {
-        float r = sampler_get(&m, 2u + (uint)d);
         size_t i = (size_t)d * (size_t)it.chains + (size_t)c;
-        proposal[i] = d < used ? mlt_perturb(current[i], r) : r;
+        proposal[i] = d < used ? mlt_perturb(current[i], mlt_fresh(&m, (uint)d)) : MLT_FRESH;
     }
     chains[c].large_step = large;
 }
@@ -85,14 +82,14 @@ __kernel void mlt_mutate(const MltIteration it, __global const float* current, _
  * a state with f = 0 (the start may have one). START: always accepted. CANDIDATE (start =
  * resample): weighted reservoir sampling, kept with probability f / (sum of f so far), so after
  * N candidates the state is candidate i with probability f_i / sum f. The accepted vector is
- * copied into the chain's current one; `acceptance` is what the host weights the splats with. */
+ * copied into the chain's current one (its used dimensions); `acceptance` is what the host weights the splats with. */
 __kernel void mlt_accept(const MltIteration it, __global float* current, __global const float* proposal,
                          __global MltChain* chains, __global const float* f_proposal,
                          __global const int* dims_proposal)
 {
     int c = get_global_id(0);
     if (c >= it.active) return;
-    Sampler m = mlt_mutation_sampler(&it, c);
+    Sampler m = mlt_mutation_sampler(it.seed, c, it.iteration);
     MltChain chain = chains[c];
     float fy = f_proposal[c];
     float a;
@@ -105,17 +102,35 @@ __kernel void mlt_accept(const MltIteration it, __global float* current, __globa
         a = chain.f_current > 0.0f ? fmin(1.0f, fy / chain.f_current) : 1.0f;
     }
     bool accept = sampler_get(&m, 1) < a;
-    if (accept) {
-        for (int d = 0; d < MLT_MAX_DIMS; ++d) {
-            size_t i = (size_t)d * (size_t)it.chains + (size_t)c;
-            current[i] = proposal[i];
-        }
+    if (accept) {   /* the dimensions the new state used: perturbed ones as stored, fresh ones drawn */
+        MltProposal y = {m, proposal, (uint)it.chains, (uint)c};
+        int used = min(dims_proposal[c], MLT_MAX_DIMS);
+        for (int d = 0; d < used; ++d)
+            current[(size_t)d * (size_t)it.chains + (size_t)c] = mlt_proposal_dim(&y, (uint)d);
         chain.f_current = fy;
         chain.dims_current = dims_proposal[c];
     }
     chain.accepted = accept;
     chain.acceptance = a;
     chains[c] = chain;
+}
+
+/* start = pool: chain c starts at a large step that chain src_chain[c] evaluated in iteration
+ * src_iteration[c] (the host picked it from all chains' candidates in proportion to f). A large
+ * step's dimensions were all fresh, so its vector is the mutation's random numbers of that
+ * (chain, iteration), drawn again here for the dimensions its path used. */
+__kernel void mlt_start_from(const MltIteration it, __global float* current, __global MltChain* chains,
+                             __global const int* src_chain, __global const int* src_iteration,
+                             __global const float* f, __global const int* dims)
+{
+    int c = get_global_id(0);
+    if (c >= it.active) return;
+    Sampler m = mlt_mutation_sampler(it.seed, src_chain[c], src_iteration[c]);
+    int used = min(dims[c], MLT_MAX_DIMS);
+    for (int d = 0; d < used; ++d)
+        current[(size_t)d * (size_t)it.chains + (size_t)c] = mlt_fresh(&m, (uint)d);
+    chains[c].f_current = f[c];
+    chains[c].dims_current = dims[c];
 }
 
 #endif

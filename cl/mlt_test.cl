@@ -12,12 +12,13 @@ __kernel void mlt_test_target(const MltIteration it, __global const float* propo
 {
     int c = get_global_id(0);
     if (c >= it.active) return;
-    float u0 = proposal[c];
+    MltProposal y = {mlt_mutation_sampler(it.seed, c, it.iteration), proposal, (uint)it.chains, (uint)c};
+    float u0 = mlt_proposal_dim(&y, 0);
     if (u0 < 0.5f) {
         f[c] = 0.5f + u0;
         dims[c] = 1;
     } else {
-        float u1 = proposal[(size_t)it.chains + (size_t)c];
+        float u1 = mlt_proposal_dim(&y, 1);
         f[c] = 6.0f * u0 * u1 * u1;
         dims[c] = 2;
     }

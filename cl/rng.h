@@ -66,24 +66,45 @@ static inline uint bdpt_scatter_dim(int vertex, bool light_path, uint offset) {
     return 8u + 8u * (uint)(vertex - 1) + (light_path ? 4u : 0u) + offset;
 }
 
+/* Metropolis proposals (cl/mlt.h): the uniforms of chain `chain`'s proposal, stored
+ * dimension-major, primary[dim * chains + chain]. A dimension the mutation perturbed holds its
+ * value there; a dimension the mutation draws afresh holds the mark MLT_FRESH (< 0), and its
+ * value is the mutation's own random number for it, Philox (seed ^ MLT_MUTATION_KEY, chain,
+ * iteration), dimension 2 + dim, drawn where it is read. So a large step costs the random
+ * numbers its path reads, not MLT_MAX_DIMS of them. Dimensions >= MLT_MAX_DIMS are not stored:
+ * always fresh, at every iteration, an independent proposal, which is symmetric too, so the
+ * chain stays correct; it only explores such long paths like a large step would (cl/mlt.h). */
+#ifndef MLT_MAX_DIMS
+#define MLT_MAX_DIMS 128   /* set by the host: 8 + 8 * 15, subpaths of up to 16 vertices */
+#endif
+#define MLT_MUTATION_KEY 0x6d757461u
+#define MLT_FRESH (-1.0f)
+
+static inline Sampler mlt_mutation_sampler(uint seed, int chain, int iteration) {
+    return sampler_init(seed ^ MLT_MUTATION_KEY, (uint)chain, (uint)iteration);
+}
+
+/* The fresh value of dimension `dim` (after the mutation's own two: the step and the acceptance). */
+static inline float mlt_fresh(Sampler* mutation, uint dim) { return sampler_get(mutation, 2u + dim); }
+
+typedef struct {
+    Sampler fresh;                   /* the mutation's random numbers: the fresh dimensions */
+    __global const float* primary;   /* the proposals: primary[dim * chains + chain] */
+    uint chains, chain;
+} MltProposal;
+
+/* Dimension `dim` of the proposal: stored (perturbed) or fresh. */
+static inline float mlt_proposal_dim(MltProposal* s, uint dim) {
+    float u = dim < MLT_MAX_DIMS ? s->primary[(size_t)dim * s->chains + s->chain] : MLT_FRESH;
+    return u >= 0.0f ? u : mlt_fresh(&s->fresh, dim);
+}
+
 /* The one hook through which the BDPT code (cl/bdpt_walk.h) reads its uniforms: a BdptSampler.
  * Built for bidirectional path tracing it is the Philox sampler above. Built with -DMLT=1
- * (toolkit/techniques/mlt.py) it answers dimension `dim` < MLT_MAX_DIMS from the chain's stored,
- * mutated primary-sample vector (cl/mlt.h; dimension-major: primary[dim * chains + chain]).
- * A path that reads more dimensions gets fresh Philox numbers for the extra ones, keyed by
- * (chain, iteration) under a key of their own: those dimensions are drawn afresh at every
- * iteration, an independent proposal, which is symmetric too, so the chain stays correct; it
- * only explores such long paths like a large step would (see cl/mlt.h). */
+ * (toolkit/techniques/mlt.py) it answers from the chain's proposal (MltProposal above). */
 #if MLT
-#define MLT_OVERFLOW_KEY 0x4d4c5431u
-typedef struct {
-    Sampler overflow;                /* dimensions >= MLT_MAX_DIMS */
-    __global const float* primary;   /* the chain's vector: primary[dim * chains + chain] */
-    uint chains, chain;
-} BdptSampler;
-static inline float bdpt_sample(BdptSampler* s, uint dim) {
-    return dim < MLT_MAX_DIMS ? s->primary[dim * s->chains + s->chain] : sampler_get(&s->overflow, dim);
-}
+typedef MltProposal BdptSampler;
+static inline float bdpt_sample(BdptSampler* s, uint dim) { return mlt_proposal_dim(s, dim); }
 /* The extra kernel parameter (and argument) that carries the vectors to the BDPT kernels. */
 #define BDPT_SAMPLER_PARAM , __global const float* mlt_primary
 #define BDPT_SAMPLER_ARG , mlt_primary

@@ -83,6 +83,13 @@ def run_chains(queue, chains, iterations, seed=0, large_step=0.3, history=False,
     vectors = np.empty(MAX_DIMS * chains, np.float32)
     cl.enqueue_copy(queue, vectors, current)
     final = vectors.reshape(MAX_DIMS, chains)[:2].T.copy()
+    # A state is the values of the dimensions it uses; mlt_accept stores only those. The target
+    # of a state that uses u0 alone is uniform in u1 (f does not read it), as the next small step
+    # would draw it: so draw it here.
+    rec = MLT_CHAIN.zeros(chains)
+    cl.enqueue_copy(queue, rec, records)
+    unused = rec["dims_current"] < 2
+    final[unused, 1] = np.random.default_rng(seed + 1).random(int(unused.sum()))
     if history:
         return final, np.array(trace), accepted / max(iterations, 1)
     return final

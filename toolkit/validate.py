@@ -62,6 +62,7 @@ LIMITS = {
     "mlt.chains": (1, 1 << 18, "independent Metropolis chains; each stores two vectors of max_dims floats"),
     "mlt.large_step": (1e-3, 1.0, "probability of a large step; b comes from the large steps"),
     "mlt.candidates": (1, 1024, "large steps per chain for start = resample"),
+    "mlt.time_limit": (1e-3, 1e6, "seconds after which an mlt render stops (it keeps the mutations made so far)"),
     "mlt.max_dims": (8, 512, "stored primary-sample dimensions per chain (8 + 8 per vertex: 512 holds 64 vertices)"),
 }
 

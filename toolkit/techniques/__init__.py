@@ -16,7 +16,7 @@ TECHNIQUES = {cls.name: cls for cls in (PtNaive, PtInplaceRegen, PtCompactRegen,
 # Variants: the same technique with an option set, for side-by-side measurements.
 VARIANTS = {"pt_compact_regen/multipass": ("pt_compact_regen", {"compaction": "multipass"}),
             "bdpt_parallel_connect/direct_scatter": ("bdpt_parallel_connect", {"coalesced_scatter": False}),
-            "mlt/resample": ("mlt", {"start": "resample"})}
+            "mlt/pool": ("mlt", {"start": "pool"}), "mlt/resample": ("mlt", {"start": "resample"})}
 
 
 def get_technique(name):

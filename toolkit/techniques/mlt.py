@@ -24,6 +24,21 @@ with probability 1 / P; Kelemen eq. 7 with Veach's expected-value splatting, sec
 b is estimated on the fly from the large steps, which are ordinary BDPT samples:
 b ~ (1 / L) sum over the L large steps of f(y) (the start's samples count too).
 
+Kelemen's combination (`combine`, on by default; Kelemen et al. 2002, sec. 5). The large steps
+are plain BDPT samples, uniform in primary sample space: with probability p = large_step per
+mutation, a second sampling technique beside the Metropolis states (density f / b per
+mutation). Both estimate I_j, and the balance heuristic joins them: the Metropolis technique's
+weight at z is (f(z) / b) / (f(z) / b + p), the large steps' p / (f(z) / b + p), so
+
+    I_j ~ P / M * sum_i ( b * [a_i h_j(y_i) / (f(y_i) + p b') + (1 - a_i) h_j(x_i) / (f(x_i) + p b')]
+                          + [y_i is a large step] * b' h_j(y_i) / (f(y_i) + p b') ).
+
+The weights sum to 1 whatever b' is (b' here only sets the balance), so it is b as estimated
+before the iteration, and the Metropolis sum is still scaled by the final b. Where f is small
+against p b (dark pixels, which few Metropolis states visit) the large steps carry the
+estimate like BDPT would; where f is large the Metropolis states do. With combine = False (or
+p -> 0) it is the plain estimator above. The start's samples only go into b.
+
 The start. `naive` (the talk): a chain starts at one large step, distributed like a BDPT
 sample (uniform in primary sample space), not like f / b: the first mutations of every chain
 are biased towards where samples are many rather than bright (startup bias), and with many
@@ -33,7 +48,16 @@ with probability f_k / sum_k f_k; with the weight w_c = (1/N) sum_k f_k, E[w_c g
 the integral of f g for every g, at the start and (the mutations keep f / b invariant) at every
 later iteration: no startup bias in expectation. Each chain's splats are weighted by
 w_c / mean_c(w_c) (a ratio estimator: its bias is O(1 / (chains x N)), far below the startup
-bias it removes), so the image still sums to b from all large steps.
+bias it removes), so the image still sums to b from all large steps. Its cost: the weights
+vary as much as a mean of N values of f does (a lot where f is heavy-tailed: covered_lamp),
+and that variance stays in the image.
+`pool` (the bootstrap of pbrt-v3's MLT): the chains draw their N candidates each as for
+`resample`, but every chain then starts at a candidate drawn from all chains' candidates
+together in proportion to f (systematic resampling: chains x N candidates, `chains` evenly
+spaced draws on the cumulative f), and every chain weighs 1. The chains then start distributed
+like f / b up to the resampling of a finite pool: a bias of O(1 / (chains x N)), like the ratio
+above, with no weights to add variance. A bright candidate may start several chains; they part
+with their first mutations.
 
 Splats (pixel, value) are added on the host in float64, like the t = 1 records of BDPT
 (bdpt_base.per_pixel_sums): no float atomics. Each chain's current state keeps its records
@@ -45,16 +69,19 @@ Options (keyword arguments of toolkit.render(..., options=...)):
 | --- | --- | --- |
 | `chains` | the BDPT pool size (4096 on a CPU; `devices` shows it) | independent chains; 1 .. 2^18 (`mlt.chains`), at most the mutations of the render |
 | `large_step` | 0.3 | probability of a large step (every dimension fresh) |
-| `start` | `naive` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of `candidates` large steps, chosen in proportion to f |
-| `candidates` | 16 | large steps per chain for `start = resample` (`mlt.candidates`) |
+| `start` | `naive` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of its own `candidates` large steps, chosen in proportion to f, and weighted. `pool`: at one of all chains' candidates, chosen in proportion to f, weight 1. At equal time (30 s, 32x32, two-core CPU) pool's RMSE was 0.0064 against naive's 0.0066 on covered_lamp and 0.0091 against 0.019 on cornell_spheres, where naive chains are still biased; on cornell_box, where they are not, naive was ahead (0.0060 against 0.0072). `naive` stays the default: its start is one iteration, while pool's grows with the chains, which `bench --equal-time`'s calibration (toolkit/study.py) does not model: it gave `mlt` with pool 3.0 s of a 10 s budget |
+| `candidates` | 16 | large steps per chain for `start = resample` or `pool` (`mlt.candidates`) |
 | `max_dims` | 128 | primary-sample dimensions a chain stores: 8 + 8 per vertex of the longer subpath, so 128 holds subpaths of 16 vertices (`mlt.max_dims`). A path that reads more gets fresh random numbers for the extra dimensions at every iteration (cl/rng.h): still correct, and counted (`overflow_proposals`) |
-| BDPT options | | `pool_size`, `regenerate_fraction`, `coalesced_scatter` as for bdpt_parallel_connect |
+| `combine` | true | Kelemen's combination: the large steps also splat as BDPT samples, joined with the Metropolis states by the balance heuristic (above) |
+| `time_limit` | none | seconds: stop after the iteration that passes it (the image holds the mutations made so far) |
+| BDPT options | | `pool_size` (the device's, as for bdpt_parallel_connect: with the default chains an iteration is one pool-full; a pool of a quarter of the chains, which regenerates like a BDPT pass, measured no faster on covered_lamp 64x64), `regenerate_fraction`, `coalesced_scatter` as for bdpt_parallel_connect |
 
 spp means mutations: a render of spp samples per pixel makes spp x pixels mutations in all
-(iterations of `chains` mutations; the last may use fewer chains). The start's samples come
+(iterations of `chains` mutations; the last may use fewer chains), fewer if `time_limit` stops it. The start's samples come
 on top. The image has no standard error of its own (one pass; MLT samples are correlated):
 compare independent runs (seeds), as tests/test_mlt.py and toolkit/mlt_bias.py do.
 """
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -66,7 +93,7 @@ from ..validate import LIMITS, InputError, finite_number, whole_number
 from .bdpt_base import per_pixel_sums
 from .bdpt_parallel_connect import BdptParallelConnect
 
-STARTS = ("naive", "resample")
+STARTS = ("naive", "resample", "pool")
 START_DIMS = 8     # rng.h: pixel, light pick, light point, emission direction (and one spare)
 DIMS_PER_VERTEX = 8
 
@@ -91,7 +118,8 @@ class Chains:
     cur_values: np.ndarray = None       # the current states' records: (n, 3) float64 values,
     cur_pixels: np.ndarray = None       #   their pixels
     cur_chain: np.ndarray = None        #   and their chains
-    splats: np.ndarray = None           # (pixels, 3) float64 sum of the weighted splats
+    splats: np.ndarray = None           # (pixels, 3) float64 sum of the Metropolis splats (times b at the end)
+    large_splats: np.ndarray = None     # (pixels, 3) float64 sum of the large steps' own splats (combine)
     candidate_sum: np.ndarray = None    # start = resample: sum of f over each chain's candidates
     weight: np.ndarray = None           # each chain's splat weight: 1, or w_c / mean(w) (resample)
     large_sum: float = 0.0              # sum of f over the large steps (for b)
@@ -108,7 +136,7 @@ class Mlt(BdptParallelConnect):
     family = "mlt"
 
     def __init__(self, queue, device_scene, chains=None, large_step=0.3, start="naive", candidates=16,
-                 max_dims=128, **kwargs):
+                 max_dims=128, combine=True, time_limit=None, **kwargs):
         self.chain_count = whole_number("mlt.chains", chains, "chains") if chains is not None else None
         self.large_step = finite_number("mlt.large_step", large_step, "large_step")
         if start not in STARTS:
@@ -116,6 +144,10 @@ class Mlt(BdptParallelConnect):
         self.start = start
         self.candidates = whole_number("mlt.candidates", candidates, "candidates")
         self.max_dims = whole_number("mlt.max_dims", max_dims, "max_dims")
+        if combine not in (True, False):
+            raise InputError(f"combine must be true or false, got {combine!r}")
+        self.combine = bool(combine)
+        self.time_limit = None if time_limit is None else finite_number("mlt.time_limit", time_limit, "time_limit")
         if device_scene.scene.clamp is not None:
             raise InputError("mlt does not clamp (scene integrator.clamp is set): every Metropolis splat already has "
                              "the same brightness b / M, so there are no fireflies to cap, and a capped f would only "
@@ -135,16 +167,22 @@ class Mlt(BdptParallelConnect):
         camera = self.scene.camera(width, height)
         pixels = width * height
         total = pixels * spp
+        start = time.perf_counter()
         c = self.begin(camera, np.uint32(seed), min(self.chain_count, total))
         shown = 0
-        while c.mutations < total:
+        while c.mutations < total and not self.out_of_time(start, c):
             self.iterate(c, min(c.count, total - c.mutations), MltMode.MUTATE)
             if progress is not None and c.mutations // pixels > shown:
                 progress.update(c.mutations // pixels - shown)
                 shown = c.mutations // pixels
-        film.add_pass(self.image(c).reshape(height, width, 3), spp, nonfinite=c.nonfinite)
+        # spp as made (whole samples per pixel; fewer than asked when time_limit stopped it)
+        film.add_pass(self.image(c).reshape(height, width, 3), max(1, c.mutations // pixels), nonfinite=c.nonfinite)
         self.queue.finish()
         return film
+
+    def out_of_time(self, start, c):
+        """time_limit: stop once it has passed (after at least one iteration of mutations)."""
+        return self.time_limit is not None and c.mutations > 0 and time.perf_counter() - start >= self.time_limit
 
     def begin(self, camera, seed, count):
         """The chains' memory and their first states (`start`)."""
@@ -159,9 +197,14 @@ class Mlt(BdptParallelConnect):
         c.candidate_sum, c.weight = np.zeros(count), np.ones(count)
         c.cur_values, c.cur_pixels, c.cur_chain = np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64)
         c.splats = np.zeros((int(camera["width"] * camera["height"]), 3))
+        c.large_splats = np.zeros_like(c.splats)
         self.camera, self.seed, self.last_chains = camera, seed, c
         if self.start == "naive":
             self.iterate(c, count, MltMode.START)
+        elif self.start == "pool":
+            first = c.iteration
+            candidates = [self.iterate(c, count, MltMode.START) for _ in range(self.candidates)]
+            self.start_from_pool(c, candidates, first)
         else:
             for _ in range(self.candidates):
                 self.iterate(c, count, MltMode.CANDIDATE)
@@ -179,6 +222,40 @@ class Mlt(BdptParallelConnect):
         records = self.accept(c, it, f, dims)
         self.splat(c, records, values, pixels, chain, f, mode)
         c.iteration += 1
+        return values, pixels, chain, f, dims
+
+    def start_from_pool(self, c, candidates, first):
+        """start = pool: every chain's first state drawn from all the chains' candidates (large
+        steps: `candidates` iterations from iteration `first`, each as returned by iterate) in
+        proportion to f, by systematic resampling (one uniform offset, `count` evenly spaced
+        points on the cumulative f); each chain's splat weight stays 1."""
+        count = c.count
+        f = np.concatenate([x[3] for x in candidates])          # entry k * count + chain
+        if not f.sum() > 0:
+            return                                               # no light found: keep the naive start
+        rng = np.random.default_rng([int(self.seed), 0x706f6f6c])
+        cdf = np.cumsum(f)
+        pick = np.searchsorted(cdf, (rng.random() + np.arange(count)) / count * cdf[-1], side="right")
+        pick = np.minimum(pick, len(f) - 1)
+        dims = np.concatenate([x[4] for x in candidates])[pick]
+        src_chain, src_iteration = pick % count, first + pick // count
+        ctx, flags = self.queue.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR
+        it = MLT_ITERATION.zeros(1)[0]
+        it["seed"], it["chains"], it["active"] = self.seed, count, count
+        self.launch(self.kernel("mlt_start_from"), count, it, c.current, c.records,
+                    *(cl.Buffer(ctx, flags, hostbuf=np.ascontiguousarray(x, dtype)) for x, dtype in
+                      ((src_chain, np.int32), (src_iteration, np.int32), (f[pick], np.float32), (dims, np.int32))))
+        c.f_current = f[pick].astype(np.float64)
+        # The chosen candidates' records become the chains' current records (a candidate picked
+        # by several chains is copied to each).
+        key = np.concatenate([k * count + x[2] for k, x in enumerate(candidates)])
+        order = np.argsort(key, kind="stable")
+        lo, hi = np.searchsorted(key[order], pick, "left"), np.searchsorted(key[order], pick, "right")
+        n = hi - lo
+        rows = order[np.repeat(lo - np.cumsum(n) + n, n) + np.arange(n.sum())]
+        c.cur_values = np.concatenate([x[0] for x in candidates])[rows]
+        c.cur_pixels = np.concatenate([x[1] for x in candidates])[rows]
+        c.cur_chain = np.repeat(np.arange(count), n)
 
     def mutate(self, c, it):
         """mlt_mutate: every active chain writes its proposal (cl/mlt.h)."""
@@ -233,9 +310,13 @@ class Mlt(BdptParallelConnect):
         return self.read_structs(MLT_CHAIN, c.records, active)
 
     def splat(self, c, records, values, pixels, chain, f, mode):
-        """Expected-value splats (MUTATE only), the large steps' f for b, and the new current records."""
+        """Expected-value splats (MUTATE only), the large steps' f for b, and the new current records.
+        With `combine`, a sample z (proposal or current) is weighted 1 / (f(z) + p b') instead of
+        1 / f(z), and a large step's proposal adds b' / (f(y) + p b') to the large steps' own sum
+        (Kelemen's combination; module docstring); b' is b as estimated before this iteration."""
         active = len(records)
         large = records["large_step"] != 0
+        b_before = c.large_sum / max(c.large_count, 1)
         c.large_sum += float(f[large].sum())
         c.large_count += int(large.sum())
         a = records["acceptance"].astype(np.float64)
@@ -244,12 +325,18 @@ class Mlt(BdptParallelConnect):
             c.candidate_sum[:active] += f
         if mode == MltMode.MUTATE:
             weight = c.weight[:active]
-            w_prop = np.divide(a * weight, f, out=np.zeros(active), where=f > 0)
+            mix = self.large_step * b_before if self.combine else 0.0   # p b': the large steps' density, in f's units
+            d_prop, d_cur = f + mix, c.f_current[:active] + mix
+            w_prop = np.divide(a * weight, d_prop, out=np.zeros(active), where=d_prop > 0)
+            w_cur = np.divide((1.0 - a) * weight, d_cur, out=np.zeros(active), where=d_cur > 0)
             mine = c.cur_chain < active
-            f_cur = c.f_current[:active]
-            w_cur = np.divide((1.0 - a) * weight, f_cur, out=np.zeros(active), where=f_cur > 0)
             v = np.concatenate([values * w_prop[chain][:, None], c.cur_values[mine] * w_cur[c.cur_chain[mine]][:, None]])
             c.splats += per_pixel_sums(v, np.concatenate([pixels, c.cur_pixels[mine]]), len(c.splats))
+            if self.combine:
+                w_large = np.divide(b_before * large, d_prop, out=np.zeros(active), where=d_prop > 0)
+                ours = large[chain]
+                c.large_splats += per_pixel_sums(values[ours] * w_large[chain[ours]][:, None], pixels[ours],
+                                                 len(c.splats))
             c.mutations += active
             c.accepted += int(accepted.sum())
         replaced = np.zeros(c.count, bool)
@@ -261,9 +348,9 @@ class Mlt(BdptParallelConnect):
         c.f_current[:active][accepted] = f[accepted]
 
     def image(self, c):
-        """P * b / M * (sum of the splats): the estimator of the module docstring."""
+        """P / M * (b * the Metropolis splats + the large steps' splats): the estimator of the module docstring."""
         b = c.large_sum / max(c.large_count, 1)
-        return c.splats * (len(c.splats) * b / max(c.mutations, 1))
+        return (c.splats * b + c.large_splats) * (len(c.splats) / max(c.mutations, 1))
 
     # --- measuring --------------------------------------------------------------------------
 
@@ -273,7 +360,7 @@ class Mlt(BdptParallelConnect):
     def extra_stats(self):
         stats = super().extra_stats()
         c = self.last_chains
-        stats["mlt"] = {"chains": c.count, "start": self.start, "large_step": self.large_step,
+        stats["mlt"] = {"chains": c.count, "start": self.start, "large_step": self.large_step, "combine": self.combine,
                         "mutations": c.mutations, "mutations_per_chain": c.mutations / c.count,
                         "acceptance_rate": c.accepted / max(c.mutations, 1),
                         "b": c.large_sum / max(c.large_count, 1), "large_steps": c.large_count,
