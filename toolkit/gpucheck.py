@@ -206,20 +206,11 @@ def format_report(r):
 def report_path(out):
     """`out` checked before any work: a .txt file (the JSON goes beside it) in a folder that
     accepts new files; else an InputError that names the problem."""
-    import tempfile
-    from .validate import InputError
+    from .validate import InputError, writable_file
     path = Path(out)
     if path.suffix.lower() != ".txt":
         raise InputError(f"--out {path}: the report is text; give a .txt name (its JSON goes beside it)")
-    if path.is_dir():
-        raise InputError(f"--out {path}: is a folder, not a file")
-    try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", suffix=".probe"):
-            pass
-    except OSError as error:
-        raise InputError(f"--out {path}: cannot write there ({error.strerror or error})") from None
-    return path
+    return writable_file(path)
 
 
 def write_report(report, out):

@@ -172,13 +172,20 @@ def check_output(path):
     """Refuse an output image path before any work is done: it must end in .exr (an sRGB .png
     is written beside it) or .png (sRGB 8-bit only), must not be a folder, and its folder must
     accept a new file (tried with a temporary file that is removed at once)."""
-    import tempfile
     path = Path(path)
     if path.suffix.lower() not in (".exr", ".png"):
         raise InputError(f"--out {path}: unsupported image type {path.suffix or '(none)'!r}; use .exr "
                          "(linear float, with an sRGB .png beside it) or .png (sRGB 8-bit)")
+    return writable_file(path, "an image file")
+
+
+def writable_file(path, what="a file"):
+    """`path` (an --out) must not be a folder, and its folder must accept a new file: tried with
+    a temporary file that is removed at once. Returns the Path; else an InputError."""
+    import tempfile
+    path = Path(path)
     if path.is_dir():
-        raise InputError(f"--out {path}: is a folder, not an image file")
+        raise InputError(f"--out {path}: is a folder, not {what}")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", suffix=".probe"):
