@@ -19,6 +19,7 @@ import pytest
 
 import toolkit
 from toolkit.device import candidates
+from toolkit.same_image import ACROSS_IMPLEMENTATIONS
 
 from conftest import SCENES, film_error_techniques
 
@@ -42,5 +43,5 @@ def test_every_implementation_renders_the_same_image(technique, scene, max_depth
     (first, reference), *others = images.items()
     assert np.all(np.isfinite(reference))
     for name, image in others:
-        np.testing.assert_allclose(image, reference, rtol=1e-4, atol=1e-6,
+        np.testing.assert_allclose(image, reference, *ACROSS_IMPLEMENTATIONS,
                                    err_msg=f"{technique} on {scene}: {name} against {first}")

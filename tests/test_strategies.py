@@ -9,10 +9,11 @@ import pyopencl as cl
 import pytest
 
 import toolkit
+from toolkit.same_image import PT_FAMILY, SAME_DEVICE
 from toolkit.simd import PhaseCounter
 from toolkit.techniques import TECHNIQUES, VARIANTS
 
-PT = ["pt_naive", "pt_inplace_regen", "pt_compact_regen", "pt_compact_regen/multipass"]
+PT = list(PT_FAMILY)
 
 
 @pytest.mark.parametrize("scene_name", ["cornell_box", "cornell_spheres"])
@@ -24,7 +25,7 @@ def test_strategies_compute_the_same_samples(scene_name, request):
     images = {t: toolkit.render(scene, technique=t, spp=8, seed=4, resolution=(32, 32)).image for t in PT}
     base = images["pt_naive"]
     for name, image in images.items():
-        np.testing.assert_allclose(image, base, rtol=1e-5, atol=1e-6, err_msg=name)
+        np.testing.assert_allclose(image, base, *SAME_DEVICE, err_msg=name)
 
 
 @pytest.mark.parametrize("technique", [*TECHNIQUES, *VARIANTS])

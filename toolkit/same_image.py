@@ -1,6 +1,7 @@
 """Same samples, same image: the checks that how the work is scheduled does not change what is
-computed, as library code (`python -m toolkit gpucheck` runs them on any device; the suite's
-tests/test_strategies.py, tests/test_bdpt.py and tests/test_implementations.py hold the same rules).
+computed, as library code (`python -m toolkit gpucheck` runs them on any device). The tolerances
+below are the only ones: tests/test_strategies.py, tests/test_bdpt.py, tests/test_implementations.py
+and tests/test_specialization.py assert with them.
 
 Random numbers are keyed by (seed, pixel, sample, dimension), not by work-item, so every
 technique of a family, every work-group size and every stream or pool size computes the same
