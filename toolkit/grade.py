@@ -31,10 +31,11 @@ import sys
 import tempfile
 import time
 from dataclasses import dataclass, field
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
+
+from .package_data import data_dir
 
 TIME_LIMIT = 10     # seconds per check (a check takes 0.1-3 s on a 2-core CPU): a loop that never
                     # ends in one function costs the few checks that call it, well within a minute
@@ -44,13 +45,7 @@ BUILD_LIMIT = 180   # seconds to build a submission's programs (a cold compiler 
 
 def assignments_dir():
     """The folder of the assignments (installed data package toolkit.assignments, or the checkout)."""
-    try:
-        installed = resources.files("toolkit.assignments")
-        if installed.joinpath("README.md").is_file():
-            return Path(str(installed))
-    except (ModuleNotFoundError, TypeError):
-        pass
-    return Path(__file__).resolve().parent.parent / "tutorials" / "assignments"
+    return data_dir("toolkit.assignments", "tutorials/assignments", "README.md")
 
 
 @dataclass

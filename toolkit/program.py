@@ -11,11 +11,12 @@ import re
 import sys
 import time
 import warnings
-from importlib import resources
 from pathlib import Path
 
 import numpy as np
 import pyopencl as cl
+
+from .package_data import data_dir
 
 # The default work-group size. A program is built for one local size (the LOCAL_SIZE define: the
 # kernels' reqd_work_group_size and __local arrays) and must be launched with it: the techniques
@@ -27,13 +28,7 @@ _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
 
 def cl_dir():
     """The folder that holds our OpenCL sources (installed package or source checkout)."""
-    try:
-        installed = resources.files("toolkit.cl")
-        if installed.joinpath("common.h").is_file():
-            return Path(str(installed))
-    except (ModuleNotFoundError, TypeError):
-        pass
-    return Path(__file__).resolve().parent.parent / "cl"
+    return data_dir("toolkit.cl", "cl", "common.h")
 
 
 def _pyopencl_include_dir():

@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from .obj import ObjError, read_obj
+from .package_data import data_dir
 from .validate import LIMITS, InputError, check_keys, finite_number, in_range, json_depth, \
     regular_file_inside, whole_number
 
@@ -379,11 +380,4 @@ def _load_reference(folder, camera):
 
 def bundled_scene_dir(name="cornell_box"):
     """Folder of a scene shipped with the toolkit (installed package or source checkout)."""
-    from importlib import resources
-    try:
-        installed = Path(str(resources.files("toolkit.scenes"))) / name
-        if (installed / "scene.json").is_file():
-            return installed
-    except (ModuleNotFoundError, TypeError):
-        pass
-    return Path(__file__).resolve().parent.parent / "scenes" / name
+    return data_dir("toolkit.scenes", "scenes", f"{name}/scene.json") / name
