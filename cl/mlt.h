@@ -3,8 +3,8 @@
  * "Metropolis Light Transport" runs it: many independent chains, one work-item per chain.
  *
  * A chain's state is a vector of uniforms u in [0, 1)^MLT_MAX_DIMS (the dimensions of rng.h's
- * table), stored dimension-major: primary[dim * chains + chain], so the work-items of a warp
- * touch consecutive words. Only the first `dims` of them were used by the state's path (its
+ * table), stored at primary[mlt_index(dim, chain, chains)] (cl/rng.h: dimension-major on a
+ * GPU, chain-major on a CPU). Only the first `dims` of them were used by the state's path (its
  * prefix, from the vertex counts: toolkit/techniques/mlt.py); the rest are unused, uniform noise.
  *
  * One iteration: mlt_mutate writes every chain's proposal, the BDPT kernels evaluate it
@@ -15,7 +15,8 @@
  * both current and mutated sample"):
  *   large step (probability large_step): every dimension drawn afresh, a BDPT sample;
  *   small step: a dimension the current state used is perturbed by Kelemen's exponential
- *     kernel, u' = u +- s2 exp(-log(s2 / s1) v) wrapped to [0, 1) (s1 = 1/1024, s2 = 1/64);
+ *     kernel, u' = u +- s2 exp(-log(s2 / s1) v) wrapped to [0, 1) (s2 = the option small_step,
+ *     1/16 by default, and s1 = s2 / 16: MLT_S2 and MLT_S1, set by the host);
  *     a dimension it did not use is drawn afresh. Of the proposal's dimensions, the ones it
  *     uses and the current state used are thus perturbed, the others fresh.
  * Why the proposal is symmetric, T(x -> y) = T(y -> x), as Metropolis-Hastings with
@@ -45,11 +46,12 @@
 #include "common.h"
 #include "rng.h"
 
-#define MLT_S1 (1.0f / 1024.0f)
-#define MLT_S2 (1.0f / 64.0f)
+#if !defined(MLT_S1) || !defined(MLT_S2)
+#error "MLT_S1 and MLT_S2 (the small step's sizes) come from the host: toolkit/techniques/mlt.py step_defines"
+#endif
 
 /* Kelemen's small step of one uniform u, driven by one uniform r: the sign from r < 1/2, the
- * size s2 exp(-log(s2 / s1) v) with v uniform in [0, 1) (sizes from 1/1024 to 1/64, denser
+ * size s2 exp(-log(s2 / s1) v) with v uniform in [0, 1) (sizes from s1 to s2, denser
  * towards the small ones), wrapped around [0, 1). Symmetric: +dv and -dv equally likely. */
 static inline float mlt_perturb(float u, float r) {
     bool up = r < 0.5f;
@@ -71,7 +73,7 @@ __kernel void mlt_mutate(const MltIteration it, __global const float* current, _
     bool large = it.mode != MLT_MUTATE || sampler_get(&m, 0) < it.large_step;
     int used = large ? 0 : chains[c].dims_current;
     for (int d = 0; d < MLT_MAX_DIMS; ++d) {
-        size_t i = (size_t)d * (size_t)it.chains + (size_t)c;
+        size_t i = mlt_index((uint)d, (uint)c, (uint)it.chains);
         proposal[i] = d < used ? mlt_perturb(current[i], mlt_fresh(&m, (uint)d)) : MLT_FRESH;
     }
     chains[c].large_step = large;
@@ -106,7 +108,7 @@ __kernel void mlt_accept(const MltIteration it, __global float* current, __globa
         MltProposal y = {m, proposal, (uint)it.chains, (uint)c};
         int used = min(dims_proposal[c], MLT_MAX_DIMS);
         for (int d = 0; d < used; ++d)
-            current[(size_t)d * (size_t)it.chains + (size_t)c] = mlt_proposal_dim(&y, (uint)d);
+            current[mlt_index((uint)d, (uint)c, (uint)it.chains)] = mlt_proposal_dim(&y, (uint)d);
         chain.f_current = fy;
         chain.dims_current = dims_proposal[c];
     }
@@ -128,7 +130,7 @@ __kernel void mlt_start_from(const MltIteration it, __global float* current, __g
     Sampler m = mlt_mutation_sampler(it.seed, src_chain[c], src_iteration[c]);
     int used = min(dims[c], MLT_MAX_DIMS);
     for (int d = 0; d < used; ++d)
-        current[(size_t)d * (size_t)it.chains + (size_t)c] = mlt_fresh(&m, (uint)d);
+        current[mlt_index((uint)d, (uint)c, (uint)it.chains)] = mlt_fresh(&m, (uint)d);
     chains[c].f_current = f[c];
     chains[c].dims_current = dims[c];
 }

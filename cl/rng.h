@@ -67,7 +67,7 @@ static inline uint bdpt_scatter_dim(int vertex, bool light_path, uint offset) {
 }
 
 /* Metropolis proposals (cl/mlt.h): the uniforms of chain `chain`'s proposal, stored
- * dimension-major, primary[dim * chains + chain]. A dimension the mutation perturbed holds its
+ * at primary[mlt_index(dim, chain, chains)] (below). A dimension the mutation perturbed holds its
  * value there; a dimension the mutation draws afresh holds the mark MLT_FRESH (< 0), and its
  * value is the mutation's own random number for it, Philox (seed ^ MLT_MUTATION_KEY, chain,
  * iteration), dimension 2 + dim, drawn where it is read. So a large step costs the random
@@ -80,6 +80,19 @@ static inline uint bdpt_scatter_dim(int vertex, bool light_path, uint offset) {
 #define MLT_MUTATION_KEY 0x6d757461u
 #define MLT_FRESH (-1.0f)
 
+/* Where dimension `dim` of chain `chain` is stored. Dimension-major (dim * chains + chain): the
+ * work-items of a warp, chains c .. c + 31 in mlt_mutate and mlt_accept, touch neighbouring
+ * words (coalesced on a GPU). Chain-major (MLT_CHAIN_MAJOR, chosen by the host on a CPU): the 8
+ * dimensions of one path vertex share a cache line, and a CPU work-item reads them with one
+ * miss where dimension-major costs eight; the walks see compacted, shuffled chains anyway. */
+static inline size_t mlt_index(uint dim, uint chain, uint chains) {
+#if MLT_CHAIN_MAJOR
+    return (size_t)chain * MLT_MAX_DIMS + dim;
+#else
+    return (size_t)dim * chains + chain;
+#endif
+}
+
 static inline Sampler mlt_mutation_sampler(uint seed, int chain, int iteration) {
     return sampler_init(seed ^ MLT_MUTATION_KEY, (uint)chain, (uint)iteration);
 }
@@ -89,13 +102,13 @@ static inline float mlt_fresh(Sampler* mutation, uint dim) { return sampler_get(
 
 typedef struct {
     Sampler fresh;                   /* the mutation's random numbers: the fresh dimensions */
-    __global const float* primary;   /* the proposals: primary[dim * chains + chain] */
+    __global const float* primary;   /* the proposals: primary[mlt_index(dim, chain, chains)] */
     uint chains, chain;
 } MltProposal;
 
 /* Dimension `dim` of the proposal: stored (perturbed) or fresh. */
 static inline float mlt_proposal_dim(MltProposal* s, uint dim) {
-    float u = dim < MLT_MAX_DIMS ? s->primary[(size_t)dim * s->chains + s->chain] : MLT_FRESH;
+    float u = dim < MLT_MAX_DIMS ? s->primary[mlt_index(dim, s->chain, s->chains)] : MLT_FRESH;
     return u >= 0.0f ? u : mlt_fresh(&s->fresh, dim);
 }
 

@@ -20,6 +20,7 @@ from toolkit import mlt_bias, mlt_toy
 from toolkit.api import DroppedSamplesWarning
 from toolkit.reference import reference_at, relative_mean_error, z_test
 from toolkit.stats import chi2_sf, pearson
+from toolkit.techniques.mlt import SMALL_STEP
 from toolkit.validate import InputError
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -76,7 +77,7 @@ def test_small_steps_alone_keep_the_target_invariant(queue):
     assert chi2_p(states) > ALPHA
     steps = np.abs(np.diff(trace[:, 0]))
     steps = np.minimum(steps, 1.0 - steps)            # around the circle
-    assert steps.max() <= 1.0 / 64 + 1e-6             # Kelemen's largest step s2
+    assert steps.max() <= SMALL_STEP + 1e-6           # the largest small step, s2
     assert (steps > 0).mean() > 0.5 and rate > 0.5    # it moves, small steps are mostly accepted
 
 
@@ -177,9 +178,31 @@ def test_paths_longer_than_the_stored_dimensions_use_fresh_numbers_and_stay_unbi
 def test_option_limits_are_checked(cornell_box):
     for options, name in (({"max_dims": 4}, "max_dims"), ({"chains": 0}, "chains"), ({"large_step": 0.0}, "large_step"),
                           ({"start": "cold"}, "start"), ({"candidates": 2.5}, "candidates"),
-                          ({"combine": "yes"}, "combine"), ({"time_limit": -1}, "time_limit")):
+                          ({"combine": "yes"}, "combine"), ({"time_limit": -1}, "time_limit"),
+                          ({"small_step": 0.9}, "small_step")):
         with pytest.raises(InputError, match=name):
             toolkit.render(cornell_box, technique="mlt", spp=1, resolution=(4, 4), options=options)
+
+
+# -- what only changes the cost ---------------------------------------------------------------------
+
+def test_storage_layout_and_connect_schedule_do_not_change_the_image(queue, cornell_box):
+    """The chains' vectors chain-major (a CPU's default) or dimension-major (a GPU's), and one
+    connect phase per iteration (mlt's default when the pool holds every chain) or several as
+    the proposals terminate (BDPT's regenerate_fraction 0.6): the same uniforms reach the same
+    code, so the image is the same on one device: bit for bit across layouts; to float64
+    rounding across schedules, whose records reach the host's float64 sums in another order."""
+    from toolkit.device_scene import DeviceScene
+    from toolkit.techniques.mlt import Mlt
+    device_scene = DeviceScene(queue, cornell_box)
+    images = []
+    for chain_major, fraction in ((True, None), (False, None), (True, 0.6)):
+        tech = Mlt(queue, device_scene, chains=256, count_simd=False, regenerate_fraction=fraction,
+                   extra_defines={"MLT_CHAIN_MAJOR": chain_major})
+        images.append(tech.render(8, 8, 16, seed=3).image())
+    assert images[0].sum() > 0
+    assert np.array_equal(images[0], images[1])
+    assert np.allclose(images[0], images[2], rtol=1e-12, atol=0)
 
 
 # -- chain counts at the extremes --------------------------------------------------------------------

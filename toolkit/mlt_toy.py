@@ -8,6 +8,7 @@ import pyopencl as cl
 
 from . import program
 from .layout import MLT_CHAIN, MLT_ITERATION, MltMode
+from .techniques.mlt import SMALL_STEP, step_defines
 
 TARGET_INTEGRAL = 9.0 / 8.0
 MAX_DIMS = 4     # the target reads 1 or 2 of them
@@ -47,7 +48,7 @@ def run_chains(queue, chains, iterations, seed=0, large_step=0.3, history=False,
     (one large step), or from the states `initial` (chains, 2). Returns the final (u0, u1) of
     every chain, shape (chains, 2), and with `history` also the states of chain 0 at every
     iteration (iterations + 1, 2) and its acceptance rate."""
-    built = program.build(queue.context, "mlt_test.cl", {"MLT_MAX_DIMS": MAX_DIMS})
+    built = program.build(queue.context, "mlt_test.cl", {"MLT_MAX_DIMS": MAX_DIMS, **step_defines(SMALL_STEP)})
     ctx, n = queue.context, program.padded(chains)
     current = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n * MAX_DIMS)
     proposal = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n * MAX_DIMS)

@@ -144,16 +144,23 @@ def run_repetition(job):
 def calibrate(job, seconds):
     """A run's speed near the budgets: a warm-up (build and first launches, timed apart), a render
     of 1 spp for a first guess, then renders of about seconds / 4 and `seconds` (`seconds` is half
-    the largest budget), each twice, the faster counted. The line through the last two, seconds = fixed + seconds_per_spp * spp,
+    the largest budget), each twice, the faster counted; up to two more aimed at `seconds` while
+    the last one took under 0.7 or over 1.4 times it. The line through the last two, seconds = fixed + seconds_per_spp * spp,
     is the cost model: near the budgets, where it is used (a short render costs more per sample:
     a BDPT pass ends with a drain of its longest paths, mlt starts its chains)."""
     start = time.perf_counter()
     _render(job, 1, job.seed)                 # also warms up, the first time in this process
     warmup = time.perf_counter() - start
     probes = [(1, _render(job, 1, job.seed).stats["seconds"])]
-    for share in (0.25, 1.0):
+    for share in (0.25, 1.0, 1.0, 1.0):
+        if share == 1.0 and len(probes) > 2 and 0.7 <= probes[-1][1] / seconds <= 1.4:
+            break      # the last probe landed near `seconds`: the line through the last two holds there
+        # Else probe again: a first guess from 1 spp can be far off where a short render costs more
+        # than its share (mlt's start = pool: the candidates' cost grows with the chains, which
+        # grow with spp until every chain runs), and a line through such probes is too steep.
         fixed, per_spp = _fit_cost(probes[-2:])
-        spp = int(min(max(probes[-1][0] + 1, (share * seconds - fixed) / per_spp), LIMITS["spp"][1]))
+        floor = probes[-1][0] + 1 if len(probes) < 3 else 1
+        spp = int(min(max(floor, (share * seconds - fixed) / per_spp), LIMITS["spp"][1]))
         # The faster of two: a busy moment of the machine only ever adds time.
         probes.append((spp, min(_render(job, spp, job.seed).stats["seconds"] for _ in range(2))))
     fixed, per_spp = _fit_cost(probes[-2:])

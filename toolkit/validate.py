@@ -64,6 +64,7 @@ LIMITS = {
     "mlt.candidates": (1, 1024, "large steps per chain for start = resample"),
     "mlt.time_limit": (1e-3, 1e6, "seconds after which an mlt render stops (it keeps the mutations made so far)"),
     "mlt.max_dims": (8, 512, "stored primary-sample dimensions per chain (8 + 8 per vertex: 512 holds 64 vertices)"),
+    "mlt.small_step": (1e-3, 0.5, "largest size of a small step (Kelemen's s2; the smallest, s1, is a sixteenth of it)"),
 }
 
 

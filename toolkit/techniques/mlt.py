@@ -69,6 +69,7 @@ Options (keyword arguments of toolkit.render(..., options=...)):
 | --- | --- | --- |
 | `chains` | the BDPT pool size (4096 on a CPU; `devices` shows it) | independent chains; 1 .. 2^18 (`mlt.chains`), at most the mutations of the render |
 | `large_step` | 0.3 | probability of a large step (every dimension fresh) |
+| `small_step` | 1/16 | the largest size of a small step, Kelemen's s2 (the smallest, s1, is s2 / 16); see SMALL_STEP |
 | `start` | `naive` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of its own `candidates` large steps, chosen in proportion to f, and weighted. `pool`: at one of all chains' candidates, chosen in proportion to f, weight 1. At equal time (30 s, 32x32, two-core CPU) pool's RMSE was 0.0064 against naive's 0.0066 on covered_lamp and 0.0091 against 0.019 on cornell_spheres, where naive chains are still biased; on cornell_box, where they are not, naive was ahead (0.0060 against 0.0072). `naive` stays the default: its start is one iteration, while pool's grows with the chains, which `bench --equal-time`'s calibration (toolkit/study.py) does not model: it gave `mlt` with pool 3.0 s of a 10 s budget |
 | `candidates` | 16 | large steps per chain for `start = resample` or `pool` (`mlt.candidates`) |
 | `max_dims` | 128 | primary-sample dimensions a chain stores: 8 + 8 per vertex of the longer subpath, so 128 holds subpaths of 16 vertices (`mlt.max_dims`). A path that reads more gets fresh random numbers for the extra dimensions at every iteration (cl/rng.h): still correct, and counted (`overflow_proposals`) |
@@ -96,6 +97,18 @@ from .bdpt_parallel_connect import BdptParallelConnect
 STARTS = ("naive", "resample", "pool")
 START_DIMS = 8     # rng.h: pixel, light pick, light point, emission direction (and one spare)
 DIMS_PER_VERTEX = 8
+
+
+SMALL_STEP = 1 / 16
+# The largest small step, Kelemen's s2 (his paper: 1/64, with s1 = 1/1024). On covered_lamp,
+# 32x32, 4,096 chains, 64 mutations each, pool start, 6 runs, the relative squared error of one
+# run was 0.0216 with s2 = 1/64 and 0.0136 with 1/16 (1/32: 0.0167, 1/8: 0.0161 at large_step 0.1):
+# paths through the slit tolerate larger moves than the 1/64 that Kelemen tuned for.
+
+
+def step_defines(small_step):
+    """The small step's sizes for cl/mlt.h: s2 = small_step, s1 = s2 / 16 (Kelemen's ratio)."""
+    return {"MLT_S2": float(small_step), "MLT_S1": float(small_step) / 16}
 
 
 def used_dims(eye_vertices, light_vertices):
@@ -136,7 +149,7 @@ class Mlt(BdptParallelConnect):
     family = "mlt"
 
     def __init__(self, queue, device_scene, chains=None, large_step=0.3, start="naive", candidates=16,
-                 max_dims=128, combine=True, time_limit=None, **kwargs):
+                 max_dims=128, combine=True, time_limit=None, small_step=SMALL_STEP, **kwargs):
         self.chain_count = whole_number("mlt.chains", chains, "chains") if chains is not None else None
         self.large_step = finite_number("mlt.large_step", large_step, "large_step")
         if start not in STARTS:
@@ -154,11 +167,23 @@ class Mlt(BdptParallelConnect):
                              "change the distribution the chains sample; remove integrator.clamp for mlt")
         if kwargs.get("pass_spp") is not None:
             raise InputError("mlt renders in one pass of chains (see `chains`); pass_spp does not apply to it")
-        defines = {"MLT": True, "MLT_MAX_DIMS": self.max_dims}
+        self.small_step = finite_number("mlt.small_step", small_step, "small_step")
+        defines = {"MLT": True, "MLT_MAX_DIMS": self.max_dims, **step_defines(self.small_step),
+                   # cl/rng.h mlt_index: a CPU reads a vertex's dimensions from one cache line
+                   "MLT_CHAIN_MAJOR": bool(queue.device.type & cl.device_type.CPU)}
         defines.update(kwargs.pop("extra_defines", None) or {})
+        fraction_given = kwargs.get("regenerate_fraction") is not None
+        if not fraction_given:
+            kwargs.pop("regenerate_fraction", None)
         super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
         if self.chain_count is None:   # one chain per slot of the BDPT pool, within the chains' limit
             self.chain_count = min(self.pool_size, LIMITS["mlt.chains"][1])
+        if not fraction_given and self.chain_count <= self.pool_size:
+            # One connect phase per iteration, after its last proposal has terminated: when the
+            # pool holds every chain's proposal, no slot is regenerated before the chains accept,
+            # so connecting the early finishers sooner frees nothing and only adds connect phases
+            # (8 per iteration instead of 1 on covered_lamp 64x64; 1.65 -> 1.43 BDPT samples per mutation).
+            self.regenerate_fraction = 1.0
 
     # --- the render: start the chains, then iterate ------------------------------------------
 
