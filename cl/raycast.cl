@@ -1,40 +1,40 @@
 /* Plain ray casting through the BVH, one ray per work-item: the device side of the
- * cross-check against Embree (toolkit/crosscheck.py). Rays are in the scene's rebased
- * coordinates; directions are unit vectors; hits are reported with the ORIGINAL scene
- * triangle index (tris[i].prim), -1 on a miss. */
+ * cross-check against Embree (toolkit/crosscheck.py) and of `bench --peer embree`. Rays are in
+ * the scene's rebased coordinates; directions are unit vectors; hits are reported with the
+ * ORIGINAL scene triangle index (tris[i].prim), -1 on a miss. Rays come as the host's (n, 3)
+ * float32 arrays and results go back as one array per field, so the host neither packs nor
+ * unpacks them (toolkit/raycast.py). n is below 2^29 (the host checks), so 3 * n + gid fits an int. */
 #include "bvh.h"
 
-/* Closest hit in (0, inf): out[i] = (t, u, v, 0) and prim[i]; t = INFINITY on a miss. */
+/* Closest hit in (0, inf), as four rows of n words in `out`: t, u, v and the triangle (prim, as
+ * an int); t = INFINITY and prim = -1 on a miss. One buffer, so the host reads it back at once. */
 __kernel void raycast_closest(SCENE_PARAMS, const int n,
-                              __global const float4* origins,
-                              __global const float4* dirs,
-                              __global float4* out,
-                              __global int* prim)
+                              __global const float* origins,
+                              __global const float* dirs,
+                              __global float* out)
 {
     int gid = get_global_id(0);
     if (gid >= n) return;
     SceneView s = SCENE_INIT;
     int steps = 0;
-    Hit h = trace_closest(&s, origins[gid].xyz, dirs[gid].xyz, 0.0f, INFINITY, &steps);
-    if (h.tri < 0) {
-        out[gid] = (float4)(INFINITY, 0.0f, 0.0f, 0.0f);
-        prim[gid] = -1;
-    } else {
-        out[gid] = (float4)(h.t, h.u, h.v, 0.0f);
-        prim[gid] = s.tris[h.tri].prim;
-    }
+    Hit h = trace_closest(&s, vload3(gid, origins), vload3(gid, dirs), 0.0f, INFINITY, &steps);
+    bool hit = h.tri >= 0;
+    out[gid] = hit ? h.t : INFINITY;
+    out[n + gid] = hit ? h.u : 0.0f;
+    out[2 * n + gid] = hit ? h.v : 0.0f;
+    ((__global int*)out)[3 * n + gid] = hit ? s.tris[h.tri].prim : -1;
 }
 
-/* Any hit on the segment (0, dirs[i].w): blocked[i] = 1 if something lies on it, else 0. */
+/* Any hit on the segment (0, tmax[i]): blocked[i] = 1 if something lies on it, else 0. */
 __kernel void raycast_any(SCENE_PARAMS, const int n,
-                          __global const float4* origins,
-                          __global const float4* dirs,
+                          __global const float* origins,
+                          __global const float* dirs,
+                          __global const float* tmax,
                           __global int* blocked)
 {
     int gid = get_global_id(0);
     if (gid >= n) return;
     SceneView s = SCENE_INIT;
     int steps = 0;
-    float4 d = dirs[gid];
-    blocked[gid] = trace_any(&s, origins[gid].xyz, d.xyz, 0.0f, d.w, &steps) ? 1 : 0;
+    blocked[gid] = trace_any(&s, vload3(gid, origins), vload3(gid, dirs), 0.0f, tmax[gid], &steps) ? 1 : 0;
 }

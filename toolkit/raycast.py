@@ -9,14 +9,12 @@ import pyopencl as cl
 from . import program
 
 
-def _pack(vectors, w=None):
-    """(N, 3) -> contiguous (N, 4) float32 with .w = w (0 if None)."""
-    v = np.asarray(vectors, np.float32)
-    packed = np.zeros((len(v), 4), np.float32)
-    packed[:, :3] = v[:, :3]
-    if w is not None:
-        packed[:, 3] = np.broadcast_to(np.asarray(w, np.float32), (len(v),))
-    return packed
+def _rays(vectors):
+    """(N, 3) float32, C-contiguous: what the kernels read (no copy when it already is)."""
+    v = np.ascontiguousarray(vectors, np.float32)
+    if v.ndim != 2 or v.shape[1] != 3:
+        raise ValueError(f"expected an (N, 3) array of rays, got shape {v.shape}")
+    return v
 
 
 class DeviceRaycaster:
@@ -29,40 +27,41 @@ class DeviceRaycaster:
         self._closest = cl.Kernel(self.program, "raycast_closest")
         self._any = cl.Kernel(self.program, "raycast_any")
 
-    def _buffers(self, origins, dirs, w=None):
-        mf = cl.mem_flags
-        ctx = self.queue.context
-        o = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=_pack(origins))
-        d = cl.Buffer(ctx, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=_pack(dirs, w))
-        return o, d
+    def _input(self, array):
+        """A read-only buffer over a host array, used in place where the device can (a CPU
+        device reads the host's memory: no copy), copied where it cannot."""
+        return cl.Buffer(self.queue.context, cl.mem_flags.READ_ONLY | cl.mem_flags.USE_HOST_PTR, hostbuf=array)
+
+    def _output(self, n, dtype):
+        return np.empty(n, dtype), cl.Buffer(self.queue.context, cl.mem_flags.WRITE_ONLY, n * np.dtype(dtype).itemsize)
 
     def closest(self, origins, dirs):
         """(t, prim, u, v): closest hit in (0, inf); prim = -1 and t = inf on a miss."""
+        origins, dirs = _rays(origins), _rays(dirs)
         n = len(origins)
         if n == 0:
             e = np.zeros(0, np.float32)
             return e, np.zeros(0, np.int32), e, e
-        o, d = self._buffers(origins, dirs)
-        out = np.empty((n, 4), np.float32)
-        prim = np.empty(n, np.int32)
-        out_buf = cl.Buffer(self.queue.context, cl.mem_flags.WRITE_ONLY, out.nbytes)
-        prim_buf = cl.Buffer(self.queue.context, cl.mem_flags.WRITE_ONLY, prim.nbytes)
+        if n >= 1 << 29:
+            raise ValueError(f"{n} rays in one call; at most {(1 << 29) - 1} (the kernel indexes 4 n words with an int)")
+        out, buf = self._output(4 * n, np.float32)
         program.launch(self.queue, self._closest, n, *self.device_scene.args(), np.int32(n),
-                       o, d, out_buf, prim_buf)
-        cl.enqueue_copy(self.queue, out, out_buf)
-        cl.enqueue_copy(self.queue, prim, prim_buf)
-        self.queue.finish()
-        return out[:, 0].copy(), prim, out[:, 1].copy(), out[:, 2].copy()
+                       self._input(origins), self._input(dirs), buf)
+        cl.enqueue_copy(self.queue, out, buf)
+        self.queue.finish()    # the inputs are the caller's arrays: done with them before returning
+        t, u, v, prim = out.reshape(4, n)
+        return t, prim.view(np.int32), u, v
 
     def occluded(self, origins, dirs, tmax):
         """Whether anything lies on each segment (0, tmax) (bool array)."""
+        origins, dirs = _rays(origins), _rays(dirs)
         n = len(origins)
         if n == 0:
             return np.zeros(0, bool)
-        o, d = self._buffers(origins, dirs, tmax)
-        blocked = np.empty(n, np.int32)
-        buf = cl.Buffer(self.queue.context, cl.mem_flags.WRITE_ONLY, blocked.nbytes)
-        program.launch(self.queue, self._any, n, *self.device_scene.args(), np.int32(n), o, d, buf)
+        tmax = np.ascontiguousarray(np.broadcast_to(np.asarray(tmax, np.float32), (n,)))
+        blocked, buf = self._output(n, np.int32)
+        program.launch(self.queue, self._any, n, *self.device_scene.args(), np.int32(n),
+                       self._input(origins), self._input(dirs), self._input(tmax), buf)
         cl.enqueue_copy(self.queue, blocked, buf)
         self.queue.finish()
         return blocked != 0
