@@ -71,6 +71,10 @@ static inline bool hit_triangle(__global const Triangle* tri, float3 o, const Ra
     return true;
 }
 
+/* The next float above t >= 0 (nextafter(t, INFINITY)), written out for the same reason as
+ * min4 below: PoCL's nextafter is a function call, and the leaf test asks for it every time. */
+static inline float next_up(float t) { return t < INFINITY ? as_float(as_int(t) + 1) : t; }
+
 /* Whether a hit at t on triangle `tri` replaces `hit`: the closest hit is the smallest t and, on
  * equal t (coplanar overlapping triangles, a ray through a shared edge), the lowest triangle
  * index. So it does not depend on the order in which a BVH visits its leaves, and the binary
@@ -114,7 +118,7 @@ static inline Hit trace_closest(const SceneView* s, float3 o, float3 d, float tm
         if (n->count > 0) {
             for (int i = n->first; i < n->first + n->count; ++i) {
                 float t, u, v;
-                if (hit_triangle(&s->tris[i], o, &shear, tmin, nextafter(hit.t, INFINITY), &t, &u, &v)
+                if (hit_triangle(&s->tris[i], o, &shear, tmin, next_up(hit.t), &t, &u, &v)
                     && closer(t, i, &hit)) {
                     hit.t = t; hit.u = u; hit.v = v; hit.tri = i;
                 }
@@ -191,16 +195,24 @@ static inline float4 tri_group_coord(__global const TriGroup* g, int v, int k) {
 static inline float lane(float4 v, int i) { return i == 0 ? v.s0 : (i == 1 ? v.s1 : (i == 2 ? v.s2 : v.s3)); }
 static inline int lane_int(int4 v, int i) { return i == 0 ? v.s0 : (i == 1 ? v.s1 : (i == 2 ? v.s2 : v.s3)); }
 
+/* fmin, fmax and any of four lanes, written out: PoCL 3.0 does not inline its built-in
+ * functions, so each fmin in the traversal's hottest loop was a function call (perf: fmin and
+ * fmax 8% of pt_naive). Same results: fmin's other operand where one is NaN (a slab's
+ * 0 * inf); a vector ?: picks lanes like select. tests/test_wide_bvh.py holds the hits. */
+static inline float4 min4(float4 a, float4 b) { return ((a < b) | (b != b)) ? a : b; }
+static inline float4 max4(float4 a, float4 b) { return ((a > b) | (b != b)) ? a : b; }
+static inline bool any4(int4 m) { return (m.s0 | m.s1 | m.s2 | m.s3) < 0; }
+
 /* hit_box for the four children at once: entry distances, INFINITY where a child is missed
  * (or the lane is empty). The same operations as hit_box, lane by lane. */
 static inline float4 hit_boxes(__global const WideNode* n, float3 o, float3 inv_d, float tmin, float tmax) {
     float4 x0 = (n->lo_x - o.x) * inv_d.x, x1 = (n->hi_x - o.x) * inv_d.x;
     float4 y0 = (n->lo_y - o.y) * inv_d.y, y1 = (n->hi_y - o.y) * inv_d.y;
     float4 z0 = (n->lo_z - o.z) * inv_d.z, z1 = (n->hi_z - o.z) * inv_d.z;
-    float4 enter = fmax((float4)(tmin), fmax(fmin(x0, x1), fmax(fmin(y0, y1), fmin(z0, z1))));
-    float4 leave = fmin((float4)(tmax), fmin(fmax(x0, x1), fmin(fmax(y0, y1), fmax(z0, z1)))) * BOX_SLACK;
+    float4 enter = max4((float4)(tmin), max4(min4(x0, x1), max4(min4(y0, y1), min4(z0, z1))));
+    float4 leave = min4((float4)(tmax), min4(max4(x0, x1), min4(max4(y0, y1), max4(z0, z1)))) * BOX_SLACK;
     int4 hit = (enter <= leave) & (n->child != (int4)(WIDE_EMPTY));
-    return select((float4)(INFINITY), enter, hit);
+    return hit ? enter : (float4)(INFINITY);
 }
 
 /* hit_triangle for the four triangles of a group at once: the lanes with a hit in (tmin, tmax)
@@ -266,10 +278,10 @@ static inline Hit trace_closest(const SceneView* s, float3 o, float3 d, float tm
         } else {
             __global const TriGroup* g = tri_group(s, ref);
             float4 t, u, v;
-            int4 mask = hit_triangles(g, o, &shear, tmin, nextafter(hit.t, INFINITY), &t, &u, &v);
-            if (any(mask)) {
+            int4 mask = hit_triangles(g, o, &shear, tmin, next_up(hit.t), &t, &u, &v);
+            if (any4(mask)) {
                 /* The nearest lane; on equal distances the first (lanes hold increasing triangle indices). */
-                t = select((float4)(INFINITY), t, mask);
+                t = mask ? t : (float4)(INFINITY);
                 float best = fmin(fmin(t.s0, t.s1), fmin(t.s2, t.s3));
                 int i = t.s0 == best ? 0 : (t.s1 == best ? 1 : (t.s2 == best ? 2 : 3));
                 int tri = lane_int(g->tri, i);
@@ -301,7 +313,7 @@ static inline bool trace_any(const SceneView* s, float3 o, float3 d, float tmin,
             top = push_hit_children(stack_ref, stack_t, top, n->child, hit_boxes(n, o, inv_d, tmin, tmax));
         } else {
             float4 t, u, v;
-            blocked = any(hit_triangles(tri_group(s, ref), o, &shear, tmin, tmax, &t, &u, &v));
+            blocked = any4(hit_triangles(tri_group(s, ref), o, &shear, tmin, tmax, &t, &u, &v));
         }
     }
     if (steps) *steps += visited;
