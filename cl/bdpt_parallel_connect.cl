@@ -29,7 +29,7 @@ __kernel void bdpt_parallel_connect_count(const int pool, __global const BdptSlo
 }
 
 /* The last index i in [0, n) with firsts[i] <= g (firsts is non-decreasing, firsts[0] = 0). */
-static inline int find_sample(__global const int* firsts, int n, int g) {
+static inline __attribute__((always_inline)) int find_sample(__global const int* firsts, int n, int g) {
     int lo = 0, hi = n;            /* invariant: firsts[lo] <= g, answer in [lo, hi) */
     while (hi - lo > 1) {
         int mid = (lo + hi) / 2;

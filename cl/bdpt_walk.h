@@ -39,14 +39,14 @@ static inline __attribute__((always_inline)) void store_vertex(__global BdptVert
 /* The sampler of sample `id` of the pass (see the dimension table in rng.h). Under MLT the
  * sample is chain `id`'s proposal and pass.sample_base the iteration (toolkit/techniques/mlt.py). */
 #if MLT
-static inline BdptSampler bdpt_sampler_mlt(const BdptPass* pass, int id, __global const float* primary) {
+static inline __attribute__((always_inline)) BdptSampler bdpt_sampler_mlt(const BdptPass* pass, int id, __global const float* primary) {
     BdptSampler s = {mlt_mutation_sampler(pass->seed, id, pass->sample_base), primary,
                      (uint)pass->chains, (uint)id};
     return s;
 }
 #define bdpt_sampler(cam, pass, id) bdpt_sampler_mlt(pass, id, mlt_primary)
 #else
-static inline BdptSampler bdpt_sampler(const Camera* cam, const BdptPass* pass, int id) {
+static inline __attribute__((always_inline)) BdptSampler bdpt_sampler(const Camera* cam, const BdptPass* pass, int id) {
     return sampler_init(pass->seed, (uint)sample_pixel(cam, id), (uint)sample_number(cam, id, pass->sample_base));
 }
 #endif
@@ -54,7 +54,7 @@ static inline BdptSampler bdpt_sampler(const Camera* cam, const BdptPass* pass, 
 /* The pixel of sample `id` and the camera sample (*u, *v) inside it. BDPT: the pass assigns
  * the pixel (camera.h). MLT: the pixel is part of the primary sample, (*u, *v) in [0, 1)^2
  * cover the whole image and are turned into a pixel and a position inside it. */
-static inline int bdpt_pixel(const Camera* cam, int id, float* u, float* v) {
+static inline __attribute__((always_inline)) int bdpt_pixel(const Camera* cam, int id, float* u, float* v) {
 #if MLT
     float x = *u * (float)cam->width, y = *v * (float)cam->height;
     int px = min((int)x, cam->width - 1), py = min((int)y, cam->height - 1);
@@ -68,7 +68,7 @@ static inline int bdpt_pixel(const Camera* cam, int id, float* u, float* v) {
 
 /* Extend a subpath by one vertex: intersect, store the vertex, sample the BSDF, roulette.
  * Sets *store_at to where the new vertex goes. Returns false when the subpath has ended. */
-static inline bool subpath_extend(const SceneView* s, Subpath* p, BdptSampler* rng, bool light_path,
+static inline __attribute__((always_inline)) bool subpath_extend(const SceneView* s, Subpath* p, BdptSampler* rng, bool light_path,
                            BdptVertex* v, int* store_at, int* steps) {
     float3 d = p->dir.xyz;
     Hit h = trace_closest(s, p->origin.xyz, d, 0.0f, INFINITY, steps);

@@ -24,9 +24,9 @@ typedef struct {
 } ConnectionPdfs;
 
 /* The term a strategy with density ratio r (to the evaluated one) adds to the denominator. */
-static inline float mis_term(float r) { return MIS_POWER ? r * r : r; }
+static inline __attribute__((always_inline)) float mis_term(float r) { return MIS_POWER ? r * r : r; }
 
-static inline float mis_weight(__global const BdptVertex* eye, __global const BdptVertex* light,
+static inline __attribute__((always_inline)) float mis_weight(__global const BdptVertex* eye, __global const BdptVertex* light,
                         int s, int t, const ConnectionPdfs* c) {
     float sum = 0.0f;
     /* Hypothetical strategies with more light vertices: walk the eye subpath backwards. */

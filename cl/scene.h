@@ -20,18 +20,18 @@ typedef struct {
 
 /* How far to move a ray origin off a surface: relative to the scene's size and to the
  * magnitude of the point's coordinates (float32 spacing grows with distance from the origin). */
-static inline float ray_offset(const SceneView* s, float3 p) {
+static inline __attribute__((always_inline)) float ray_offset(const SceneView* s, float3 p) {
     float m = fmax(fabs(p.x), fmax(fabs(p.y), fabs(p.z)));
     return s->epsilon + m * 64.0f * FLT_EPSILON;
 }
 
 /* p moved off the surface with normal n to the side of direction w. */
-static inline float3 offset_point(const SceneView* s, float3 p, float3 n, float3 w) {
+static inline __attribute__((always_inline)) float3 offset_point(const SceneView* s, float3 p, float3 n, float3 w) {
     float e = ray_offset(s, p);
     return p + (dot(n, w) >= 0.0f ? e : -e) * n;
 }
 
-static inline float3 triangle_normal(const Triangle* t) {
+static inline __attribute__((always_inline)) float3 triangle_normal(const Triangle* t) {
     return normalize(cross(t->v1.xyz - t->v0.xyz, t->v2.xyz - t->v0.xyz));
 }
 

@@ -15,9 +15,9 @@
 #define VERTEX_WORDS ((int)(sizeof(BdptVertex) / sizeof(uint)))
 
 /* Vertex k of the subpath of pool slot `slot`. */
-static inline int vertex_index(int slot, int k) { return slot * MAX_VERTICES + k; }
+static inline __attribute__((always_inline)) int vertex_index(int slot, int k) { return slot * MAX_VERTICES + k; }
 
 /* Word w of vertex `index` in the vertex memory seen as uint words. */
-static inline size_t vertex_word(int index, int w) { return (size_t)index * VERTEX_WORDS + w; }
+static inline __attribute__((always_inline)) size_t vertex_word(int index, int w) { return (size_t)index * VERTEX_WORDS + w; }
 
 #endif
