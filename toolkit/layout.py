@@ -54,18 +54,18 @@ class Record:
         lines += [f"    __global {t}* {f};" for f, t in fields]
         lines.append(f"}} {self.name}SoA;")
         lines.append("/* The fields of `capacity` records (a multiple of 4) stored one after another in `memory`. */")
-        lines.append(f"static inline {self.name}SoA {lower}_soa(__global void* memory, int capacity) {{")
+        lines.append(f"static inline __attribute__((always_inline)) {self.name}SoA {lower}_soa(__global void* memory, int capacity) {{")
         lines.append("    __global uchar* m = (__global uchar*)memory;")
         lines.append(f"    {self.name}SoA s;")
         for f, t in fields:
             lines.append(f"    s.{f} = (__global {t}*)m;")
             lines.append(f"    m += (size_t)capacity * sizeof({t});")
         lines.append("    return s;\n}")
-        lines.append(f"static inline {self.name} {lower}_load({self.name}SoA s, int i) {{")
+        lines.append(f"static inline __attribute__((always_inline)) {self.name} {lower}_load({self.name}SoA s, int i) {{")
         lines.append(f"    {self.name} r;")
         lines += [f"    r.{f} = s.{f}[i];" for f, _ in fields]
         lines.append("    return r;\n}")
-        lines.append(f"static inline void {lower}_store({self.name}SoA s, int i, const {self.name}* r) {{")
+        lines.append(f"static inline __attribute__((always_inline)) void {lower}_store({self.name}SoA s, int i, const {self.name}* r) {{")
         lines += [f"    s.{f}[i] = r->{f};" for f, _ in fields]
         lines.append("}")
         return "\n".join(lines)
