@@ -75,7 +75,7 @@ Options (keyword arguments of toolkit.render(..., options=...)):
 | `max_dims` | 128 | primary-sample dimensions a chain stores: 8 + 8 per vertex of the longer subpath, so 128 holds subpaths of 16 vertices (`mlt.max_dims`). A path that reads more gets fresh random numbers for the extra dimensions at every iteration (cl/rng.h): still correct, and counted (`overflow_proposals`) |
 | `combine` | true | Kelemen's combination: the large steps also splat as BDPT samples, joined with the Metropolis states by the balance heuristic (above) |
 | `time_limit` | none | seconds: stop after the iteration that passes it (the image holds the mutations made so far) |
-| BDPT options | | `pool_size` (the device's, as for bdpt_parallel_connect: with the default chains an iteration is one pool-full; a pool of a quarter of the chains, which regenerates like a BDPT pass, measured no faster on covered_lamp 64x64), `regenerate_fraction`, `coalesced_scatter` as for bdpt_parallel_connect |
+| BDPT options | | `pool_size` (the device's, as for bdpt_parallel_connect: with the default chains an iteration is one pool-full; a pool of a quarter of the chains, which regenerates like a BDPT pass, measured no faster on covered_lamp 64x64), `regenerate_fraction` (default 1 where the pool holds every chain: one connect phase per iteration; else 0.6 as for BDPT), `coalesced_scatter` as for bdpt_parallel_connect |
 
 spp means mutations: a render of spp samples per pixel makes spp x pixels mutations in all
 (iterations of `chains` mutations; the last may use fewer chains), fewer if `time_limit` stops it. The start's samples come
