@@ -28,8 +28,8 @@ static inline __attribute__((always_inline)) Sampler sampler_init(uint seed, uin
     return s;
 }
 
-/* The uniform number of dimension `dim` of this sample. Always inlined: PoCL 3.0 kept it a
- * call (7.6% of pt_naive in perf), and inlined, a run of reads from one block shares its Philox call. */
+/* The uniform number of dimension `dim` of this sample. Inlined (as every helper, common.h),
+ * a run of reads from one block shares its Philox call. */
 static inline __attribute__((always_inline)) float sampler_get(Sampler* s, uint dim) {
     uint block = dim >> 2;
     if (block != s->block) { s->cache = rng_block(s->seed, s->pixel, s->sample, block); s->block = block; }

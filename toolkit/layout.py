@@ -10,6 +10,9 @@ from enum import IntEnum, IntFlag
 
 import numpy as np
 
+# How every generated helper is declared, as every helper in cl/ (cl/common.h says why).
+HELPER = "static inline __attribute__((always_inline))"
+
 # C type -> (numpy base type, element count, alignment in bytes). OpenCL C aligns a vector
 # type to its size; numpy's align=True would align a float32 x 4 sub-array to 4 bytes only.
 _C_TYPES = {"float": ("float32", 1, 4), "int": ("int32", 1, 4), "uint": ("uint32", 1, 4),
@@ -54,18 +57,18 @@ class Record:
         lines += [f"    __global {t}* {f};" for f, t in fields]
         lines.append(f"}} {self.name}SoA;")
         lines.append("/* The fields of `capacity` records (a multiple of 4) stored one after another in `memory`. */")
-        lines.append(f"static inline __attribute__((always_inline)) {self.name}SoA {lower}_soa(__global void* memory, int capacity) {{")
+        lines.append(f"{HELPER} {self.name}SoA {lower}_soa(__global void* memory, int capacity) {{")
         lines.append("    __global uchar* m = (__global uchar*)memory;")
         lines.append(f"    {self.name}SoA s;")
         for f, t in fields:
             lines.append(f"    s.{f} = (__global {t}*)m;")
             lines.append(f"    m += (size_t)capacity * sizeof({t});")
         lines.append("    return s;\n}")
-        lines.append(f"static inline __attribute__((always_inline)) {self.name} {lower}_load({self.name}SoA s, int i) {{")
+        lines.append(f"{HELPER} {self.name} {lower}_load({self.name}SoA s, int i) {{")
         lines.append(f"    {self.name} r;")
         lines += [f"    r.{f} = s.{f}[i];" for f, _ in fields]
         lines.append("    return r;\n}")
-        lines.append(f"static inline __attribute__((always_inline)) void {lower}_store({self.name}SoA s, int i, const {self.name}* r) {{")
+        lines.append(f"{HELPER} void {lower}_store({self.name}SoA s, int i, const {self.name}* r) {{")
         lines += [f"    s.{f}[i] = r->{f};" for f, _ in fields]
         lines.append("}")
         return "\n".join(lines)

@@ -172,13 +172,13 @@ class Mlt(BdptParallelConnect):
                    # cl/rng.h mlt_index: a CPU reads a vertex's dimensions from one cache line
                    "MLT_CHAIN_MAJOR": bool(queue.device.type & cl.device_type.CPU)}
         defines.update(kwargs.pop("extra_defines", None) or {})
-        fraction_given = kwargs.get("regenerate_fraction") is not None
-        if not fraction_given:
-            kwargs.pop("regenerate_fraction", None)
+        fraction = kwargs.pop("regenerate_fraction", None)     # None: mlt's default, below
+        if fraction is not None:
+            kwargs["regenerate_fraction"] = fraction
         super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
         if self.chain_count is None:   # one chain per slot of the BDPT pool, within the chains' limit
             self.chain_count = min(self.pool_size, LIMITS["mlt.chains"][1])
-        if not fraction_given and self.chain_count <= self.pool_size:
+        if fraction is None and self.chain_count <= self.pool_size:
             # One connect phase per iteration, after its last proposal has terminated: when the
             # pool holds every chain's proposal, no slot is regenerated before the chains accept,
             # so connecting the early finishers sooner frees nothing and only adds connect phases
