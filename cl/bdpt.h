@@ -30,7 +30,7 @@
 #include "lights.h"
 #include "materials.h"
 
-/* VERTEX_DELTA, VERTEX_CAMERA, VERTEX_LIGHT (y_0, the point sampled on a light): VertexFlag in toolkit/layout.py. */
+/* VERTEX_DELTA, VERTEX_CAMERA, VERTEX_LIGHT (y_0, the point sampled on a light): VertexFlag in toolkit/core/layout.py. */
 
 /* MAX_VERTICES and vertex_index: where the random walk keeps its vertices. */
 #include "vertex_memory.h"
@@ -38,22 +38,22 @@
 #define STRATEGY_IMAGES 0  /* 1: connect kernels keep each strategy apart (render --strategies) */
 #endif
 
-static inline __attribute__((always_inline)) bool is_delta(const BdptVertex* v) { return (v->flags & VERTEX_DELTA) != 0; }
-static inline __attribute__((always_inline)) bool is_camera(const BdptVertex* v) { return (v->flags & VERTEX_CAMERA) != 0; }
-static inline __attribute__((always_inline)) bool is_light_origin(const BdptVertex* v) { return (v->flags & VERTEX_LIGHT) != 0; }
+HELPER bool is_delta(const BdptVertex* v) { return (v->flags & VERTEX_DELTA) != 0; }
+HELPER bool is_camera(const BdptVertex* v) { return (v->flags & VERTEX_CAMERA) != 0; }
+HELPER bool is_light_origin(const BdptVertex* v) { return (v->flags & VERTEX_LIGHT) != 0; }
 
 /* ---- the pinhole camera as a vertex ----------------------------------------------------- */
 
-static inline __attribute__((always_inline)) float film_area(const Camera* cam) { return 4.0f * length(cam->right.xyz) * length(cam->up.xyz); }
+HELPER float film_area(const Camera* cam) { return 4.0f * length(cam->right.xyz) * length(cam->up.xyz); }
 
 /* Solid-angle density of the camera choosing direction w (uniform on the film). */
-static inline __attribute__((always_inline)) float camera_pdf_dir(const Camera* cam, float3 w) {
+HELPER float camera_pdf_dir(const Camera* cam, float3 w) {
     float c = dot(w, cam->forward.xyz);
     return c > 0.0f ? 1.0f / (film_area(cam) * c * c * c) : 0.0f;
 }
 
 /* Pixel hit by direction w from the camera, or -1 outside the image. */
-static inline __attribute__((always_inline)) int camera_pixel(const Camera* cam, float3 w) {
+HELPER int camera_pixel(const Camera* cam, float3 w) {
     float c = dot(w, cam->forward.xyz);
     if (c <= 0.0f) return -1;
     float3 on_plane = w / c;
@@ -69,13 +69,13 @@ static inline __attribute__((always_inline)) int camera_pixel(const Camera* cam,
 /* ---- densities ------------------------------------------------------------------------ */
 
 /* Shading frame of a surface vertex seen from direction `toward` (two-sided materials flip). */
-static inline __attribute__((always_inline)) void vertex_frame(const SceneView* s, const BdptVertex* v, float3 toward, float3* n, float3* ts, float3* tt) {
+HELPER void vertex_frame(const SceneView* s, const BdptVertex* v, float3 toward, float3* n, float3* ts, float3* tt) {
     *n = shading_normal(s->materials[v->material].type, v->normal.xyz, toward);
     make_basis(*n, ts, tt);
 }
 
 /* f(wo, wi) at a surface vertex, directions in world space; wo towards where light goes. */
-static inline __attribute__((always_inline)) float3 vertex_bsdf(const SceneView* s, const BdptVertex* v, float3 wo, float3 wi, float* pdf) {
+HELPER float3 vertex_bsdf(const SceneView* s, const BdptVertex* v, float3 wo, float3 wi, float* pdf) {
     float3 n, ts, tt;
     vertex_frame(s, v, wo, &n, &ts, &tt);
     Material m = s->materials[v->material];
@@ -83,7 +83,7 @@ static inline __attribute__((always_inline)) float3 vertex_bsdf(const SceneView*
 }
 
 /* Convert a solid-angle density at `from` towards `to` into an area density at `to`. */
-static inline __attribute__((always_inline)) float to_area(float pdf_dir, float3 from, const BdptVertex* to) {
+HELPER float to_area(float pdf_dir, float3 from, const BdptVertex* to) {
     float3 d = to->pos.xyz - from;
     float dist2 = dot(d, d);
     if (dist2 <= 0.0f) return 0.0f;
@@ -93,11 +93,11 @@ static inline __attribute__((always_inline)) float to_area(float pdf_dir, float3
 
 /* The "density" of a specular bounce in direction w (cos_w = cos of w to the normal) for
  * MIS: the delta's coefficient 1 per projected solid angle, so |cos_w| per solid angle. */
-static inline __attribute__((always_inline)) float delta_pdf_dir(float cos_w) { return fabs(cos_w); }
+HELPER float delta_pdf_dir(float cos_w) { return fabs(cos_w); }
 
 /* Area density at `next` of sampling it from vertex v, which was reached from `prev`
  * (prev may be 0 for the camera and the light origin, which have no predecessor). */
-static inline __attribute__((always_inline)) float vertex_pdf(const SceneView* s, const Camera* cam, const BdptVertex* prev, const BdptVertex* v,
+HELPER float vertex_pdf(const SceneView* s, const Camera* cam, const BdptVertex* prev, const BdptVertex* v,
                         const BdptVertex* next) {
     float3 w = normalize(next->pos.xyz - v->pos.xyz);
     float pdf_dir;
@@ -116,15 +116,15 @@ static inline __attribute__((always_inline)) float vertex_pdf(const SceneView* s
 
 /* Area density of light sampling choosing the point of `v` (an eye vertex on a light), and
  * solid-angle density of the light emitting from there towards `to`, as an area density. */
-static inline __attribute__((always_inline)) float light_origin_pdf(const SceneView* s, const BdptVertex* v) {
+HELPER float light_origin_pdf(const SceneView* s, const BdptVertex* v) {
     return v->light >= 0 ? s->tris[s->lights[v->light].triangle].light_pdf : 0.0f;
 }
-static inline __attribute__((always_inline)) float light_emit_pdf(const BdptVertex* v, const BdptVertex* to) {
+HELPER float light_emit_pdf(const BdptVertex* v, const BdptVertex* to) {
     float3 w = normalize(to->pos.xyz - v->pos.xyz);
     return to_area(fmax(0.0f, dot(v->normal.xyz, w)) * INV_PI, v->pos.xyz, to);
 }
 
-static inline __attribute__((always_inline)) float remap0(float f) { return f != 0.0f ? f : 1.0f; }
+HELPER float remap0(float f) { return f != 0.0f ? f : 1.0f; }
 
 /* ---- MIS: the weight of one strategy among all that could make this path (mis.h) ---- */
 
@@ -136,7 +136,7 @@ static inline __attribute__((always_inline)) float remap0(float f) { return f !=
  * contribution whose largest RGB component m exceeds CLAMP is scaled by CLAMP / m (its colour
  * kept, as pbrt-v4's maxcomponentvalue). Per connection, not per sample: a sample's strategies
  * land in different pixels, and so both connect phases clamp the same values. Biased. */
-static inline __attribute__((always_inline)) float3 clamp_contribution(float3 value) {
+HELPER float3 clamp_contribution(float3 value) {
 #ifdef CLAMP
     float m = fmax(value.x, fmax(value.y, value.z));
     if (m > CLAMP) value *= CLAMP / m;
@@ -153,7 +153,7 @@ typedef struct {
 #endif
 } Connection;
 
-static inline __attribute__((always_inline)) bool visible(const SceneView* s, const BdptVertex* a, const BdptVertex* b, int* steps) {
+HELPER bool visible(const SceneView* s, const BdptVertex* a, const BdptVertex* b, int* steps) {
     float3 d = b->pos.xyz - a->pos.xyz;
     float3 from = is_camera(a) ? a->pos.xyz : offset_point(s, a->pos.xyz, a->normal.xyz, d);
     float3 to = is_camera(b) ? b->pos.xyz : offset_point(s, b->pos.xyz, b->normal.xyz, -d);
@@ -165,7 +165,7 @@ static inline __attribute__((always_inline)) bool visible(const SceneView* s, co
 
 /* What the light subpath's end y_{s-1} sends towards w: the emitted radiance at the light
  * origin (one-sided), otherwise its BSDF for light arriving from y_{s-2}. */
-static inline __attribute__((always_inline)) float3 light_end_f(const SceneView* s, const BdptVertex* qs, int s_len, float3 w) {
+HELPER float3 light_end_f(const SceneView* s, const BdptVertex* qs, int s_len, float3 w) {
     if (s_len == 1)
         return dot(qs->normal.xyz, w) > 0.0f ? s->lights[qs->light].emission.xyz : (float3)(0.0f);
     float unused;
@@ -175,7 +175,7 @@ static inline __attribute__((always_inline)) float3 light_end_f(const SceneView*
 /* Evaluate strategy (s, t) of the sample whose subpaths are `eye` (t_max vertices) and `light`.
  * `own_pixel` is where eye-path strategies land. Returns value 0 / pixel -1 when the strategy
  * cannot make a path (delta endpoint, light's back side, occluded, outside the image...). */
-static inline __attribute__((always_inline)) Connection connect_strategy(const SceneView* s, const Camera* cam, __global const BdptVertex* eye,
+HELPER Connection connect_strategy(const SceneView* s, const Camera* cam, __global const BdptVertex* eye,
                                    __global const BdptVertex* light, int s_len, int t_len, int own_pixel,
                                    int* steps) {
     Connection out = {(float3)(0.0f), -1, 0.0f};
@@ -243,9 +243,9 @@ static inline __attribute__((always_inline)) Connection connect_strategy(const S
 }
 
 /* What a connect kernel stores of a connection, (value, MIS weight). Built for per-strategy
- * images (STRATEGY_IMAGES, toolkit/strategies.py), the value is the unweighted one: the host
+ * images (STRATEGY_IMAGES, toolkit/measure/strategies.py), the value is the unweighted one: the host
  * weighs it (float32 value * weight, as above) for the image and keeps both for the strategies. */
-static inline __attribute__((always_inline)) float4 connection_record(const Connection* c) {
+HELPER float4 connection_record(const Connection* c) {
 #if STRATEGY_IMAGES
     return (float4)(c->unweighted, c->weight);
 #else
@@ -256,8 +256,8 @@ static inline __attribute__((always_inline)) float4 connection_record(const Conn
 #if STRATEGY_IMAGES
 /* The per-strategy images' index of strategy (s, t): the strategies of paths with k = s + t - 1
  * edges (k = 1 .. STRATEGY_MAX_EDGES) in order of k, then of s (s = 0 .. k); STRATEGY_COUNT
- * (toolkit/strategies.py: strategy_index, the same numbering) for longer paths. */
-static inline __attribute__((always_inline)) int strategy_index(int s_len, int t_len) {
+ * (toolkit/measure/strategies.py: strategy_index, the same numbering) for longer paths. */
+HELPER int strategy_index(int s_len, int t_len) {
     int k = s_len + t_len - 1;
     return k <= STRATEGY_MAX_EDGES ? (k - 1) * (k + 2) / 2 + s_len : STRATEGY_COUNT;
 }
@@ -266,8 +266,8 @@ static inline __attribute__((always_inline)) int strategy_index(int s_len, int t
 /* Strategies of a sample with n_light light and n_eye eye vertices: every (s, t) with
  * 0 <= s <= n_light, 1 <= t <= n_eye, except (0, 1), which would need the eye path to hit
  * the pinhole. Index k in [0, count) maps to k + 1 = (t - 1) * (n_light + 1) + s. */
-static inline __attribute__((always_inline)) int connection_count(int n_light, int n_eye) { return (n_light + 1) * n_eye - 1; }
-static inline __attribute__((always_inline)) void connection_strategy(int k, int n_light, int* s, int* t) {
+HELPER int connection_count(int n_light, int n_eye) { return (n_light + 1) * n_eye - 1; }
+HELPER void connection_strategy(int k, int n_light, int* s, int* t) {
     int kk = k + 1;
     *s = kk % (n_light + 1);
     *t = kk / (n_light + 1) + 1;

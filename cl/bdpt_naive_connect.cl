@@ -8,9 +8,9 @@
  *   bdpt_regenerate        cl/bdpt_walk.h   start samples in free pool slots
  *   bdpt_extend            cl/bdpt_walk.h   one random-walk step of the eye or the light stream
  *   bdpt_mark_terminated   cl/bdpt_walk.h   flag the slots that wait for their connections
- *   the compaction         toolkit/compaction.py (cl/compact.cl): list the flagged slots
+ *   the compaction         toolkit/opencl/compaction.py (cl/compact.cl): list the flagged slots
  *   bdpt_naive_connect_splats  here         how many light-tracing (t = 1) records each slot writes
- *   the exclusive scan     toolkit/compaction.py (cl/compact.cl): where each slot's records start
+ *   the exclusive scan     toolkit/opencl/compaction.py (cl/compact.cl): where each slot's records start
  *   bdpt_naive_connect     here             every (s, t) strategy of a terminated sample, in its slot's work-item
  * The scan only packs the records, so that the host reads back the records written and not
  * MAX_VERTICES places per slot; the connections themselves are evaluated the plain way. */

@@ -2,7 +2,7 @@
  * work-item per connection, so every lane of a warp evaluates one connection.
  *   1. each pool slot writes its number of connections (0 unless its sample terminated);
  *   2. an exclusive scan of those counts gives each sample its first connection index
- *      (toolkit/compaction.py), and the total;
+ *      (toolkit/opencl/compaction.py), and the total;
  *   3. work-item g finds its sample by binary search: the last slot whose first index
  *      is <= g; its local index g - first picks the strategy (s, t).
  * Worked example: counts [0, 3, 0, 2] scan to firsts [0, 0, 3, 3], total 5.
@@ -14,9 +14,9 @@
  *   bdpt_regenerate              cl/bdpt_walk.h   start samples in free pool slots
  *   bdpt_extend                  cl/bdpt_walk.h   one random-walk step of the eye or the light stream
  *   bdpt_mark_terminated         cl/bdpt_walk.h   flag the slots that wait for their connections
- *   the compaction               toolkit/compaction.py (cl/compact.cl): list the flagged slots
+ *   the compaction               toolkit/opencl/compaction.py (cl/compact.cl): list the flagged slots
  *   bdpt_parallel_connect_count  here             step 1
- *   the exclusive scan           toolkit/compaction.py (cl/compact.cl): step 2
+ *   the exclusive scan           toolkit/opencl/compaction.py (cl/compact.cl): step 2
  *   bdpt_parallel_connect        here             step 3 */
 #include "bdpt_walk.h"
 
@@ -29,7 +29,7 @@ __kernel void bdpt_parallel_connect_count(const int pool, __global const BdptSlo
 }
 
 /* The last index i in [0, n) with firsts[i] <= g (firsts is non-decreasing, firsts[0] = 0). */
-static inline __attribute__((always_inline)) int find_sample(__global const int* firsts, int n, int g) {
+HELPER int find_sample(__global const int* firsts, int n, int g) {
     int lo = 0, hi = n;            /* invariant: firsts[lo] <= g, answer in [lo, hi) */
     while (hi - lo > 1) {
         int mid = (lo + hi) / 2;

@@ -9,7 +9,7 @@
  * subpath: pdf_fwd of each vertex from the two before it (of the origin: the light's area
  * density, or 1 for the pinhole), and pdf_rev from the next vertex, for the vertices that have
  * both neighbours, except z_1, whose previous vertex is the pinhole (a delta in position). */
-static inline __attribute__((always_inline)) void store_walk_densities(const SceneView* s, const Camera* cam, __global BdptVertex* v, int len, int is_light)
+HELPER void store_walk_densities(const SceneView* s, const Camera* cam, __global BdptVertex* v, int len, int is_light)
 {
     for (int i = 0; i < len; ++i) {
         BdptVertex x = v[i];

@@ -15,7 +15,7 @@
  * stages its vertices in local memory, then work-item j writes word j, j + LOCAL_SIZE, ...
  * of the staged block, so consecutive work-items write consecutive words of one vertex.
  * Both leave identical memory. Every work-item of the group must call this (barriers). */
-static inline __attribute__((always_inline)) void store_vertex(__global BdptVertex* memory, int index, const BdptVertex* v,
+HELPER void store_vertex(__global BdptVertex* memory, int index, const BdptVertex* v,
                          __local uint* stage, __local int* dest) {
 #if COALESCED_SCATTER
     int lid = get_local_id(0);
@@ -39,14 +39,14 @@ static inline __attribute__((always_inline)) void store_vertex(__global BdptVert
 /* The sampler of sample `id` of the pass (see the dimension table in rng.h). Under MLT the
  * sample is chain `id`'s proposal and pass.sample_base the iteration (toolkit/techniques/mlt.py). */
 #if MLT
-static inline __attribute__((always_inline)) BdptSampler bdpt_sampler_mlt(const BdptPass* pass, int id, __global const float* primary) {
+HELPER BdptSampler bdpt_sampler_mlt(const BdptPass* pass, int id, __global const float* primary) {
     BdptSampler s = {mlt_mutation_sampler(pass->seed, id, pass->sample_base), primary,
                      (uint)pass->chains, (uint)id};
     return s;
 }
 #define bdpt_sampler(cam, pass, id) bdpt_sampler_mlt(pass, id, mlt_primary)
 #else
-static inline __attribute__((always_inline)) BdptSampler bdpt_sampler(const Camera* cam, const BdptPass* pass, int id) {
+HELPER BdptSampler bdpt_sampler(const Camera* cam, const BdptPass* pass, int id) {
     return sampler_init(pass->seed, (uint)sample_pixel(cam, id), (uint)sample_number(cam, id, pass->sample_base));
 }
 #endif
@@ -54,7 +54,7 @@ static inline __attribute__((always_inline)) BdptSampler bdpt_sampler(const Came
 /* The pixel of sample `id` and the camera sample (*u, *v) inside it. BDPT: the pass assigns
  * the pixel (camera.h). MLT: the pixel is part of the primary sample, (*u, *v) in [0, 1)^2
  * cover the whole image and are turned into a pixel and a position inside it. */
-static inline __attribute__((always_inline)) int bdpt_pixel(const Camera* cam, int id, float* u, float* v) {
+HELPER int bdpt_pixel(const Camera* cam, int id, float* u, float* v) {
 #if MLT
     float x = *u * (float)cam->width, y = *v * (float)cam->height;
     int px = min((int)x, cam->width - 1), py = min((int)y, cam->height - 1);
@@ -68,7 +68,7 @@ static inline __attribute__((always_inline)) int bdpt_pixel(const Camera* cam, i
 
 /* Extend a subpath by one vertex: intersect, store the vertex, sample the BSDF, roulette.
  * Sets *store_at to where the new vertex goes. Returns false when the subpath has ended. */
-static inline __attribute__((always_inline)) bool subpath_extend(const SceneView* s, Subpath* p, BdptSampler* rng, bool light_path,
+HELPER bool subpath_extend(const SceneView* s, Subpath* p, BdptSampler* rng, bool light_path,
                            BdptVertex* v, int* store_at, int* steps) {
     float3 d = p->dir.xyz;
     Hit h = trace_closest(s, p->origin.xyz, d, 0.0f, INFINITY, steps);
@@ -135,8 +135,8 @@ static inline __attribute__((always_inline)) bool subpath_extend(const SceneView
 }
 
 /* The walk's counters, one int buffer that the host reads once per step (one wait, not three):
- * counters[EYE_SURVIVORS], [LIGHT_SURVIVORS], [TERMINATED_SAMPLES] (WalkCounter in toolkit/layout.py).
- * A slot's `live` counts its subpaths still walking (SlotState in toolkit/layout.py):
+ * counters[EYE_SURVIVORS], [LIGHT_SURVIVORS], [TERMINATED_SAMPLES] (WalkCounter in toolkit/core/layout.py).
+ * A slot's `live` counts its subpaths still walking (SlotState in toolkit/core/layout.py):
  * SLOT_BOTH_WALKING after regeneration, SLOT_ONE_WALKING, SLOT_TERMINATED when both have
  * ended (it waits for its connections), SLOT_IDLE when the pass's budget left it empty. */
 

@@ -1,7 +1,7 @@
 /* Test kernels for cl/materials.h: draw samples from bsdf_sample and evaluate bsdf_eval at
- * given directions, so the host (toolkit/bsdf_check.py, tests/test_bsdf.py) can check that
+ * given directions, so the host (toolkit/verify/bsdf_check.py, tests/test_bsdf.py) can check that
  * each material samples the density its own eval reports. Everything is in the local frame
- * (normal +z). Build with every HAS_* define set to 1 and the MAT_* codes of toolkit.scene. */
+ * (normal +z). Build with every HAS_* define set to 1 and the MAT_* codes of toolkit.core.scene. */
 #include "materials.h"
 #include "rng.h"
 

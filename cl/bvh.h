@@ -1,5 +1,5 @@
 /* BVH traversal for closest-hit and any-hit (shadow) queries, for one of two BVHs chosen at
- * compile time (toolkit/device_scene.py, `--bvh`):
+ * compile time (toolkit/opencl/device_scene.py, `--bvh`):
  * - binary (default without BVH_WIDE): nodes in depth-first order, the left child follows its
  *   parent, `first` is the right; one box test per step, one triangle at a time.
  * - wide (BVH_WIDE): four children per node and four triangles per leaf, each tested with
@@ -12,7 +12,7 @@
 
 #include "scene.h"
 
-/* BVH_STACK_SIZE comes from toolkit/layout.py (the host refuses deeper BVHs). */
+/* BVH_STACK_SIZE comes from toolkit/core/layout.py (the host refuses deeper BVHs). */
 
 typedef struct {
     float t;      /* distance along the (unit) ray direction */
@@ -36,9 +36,9 @@ typedef struct {
     float sx, sy, sz;      /* shear and scale */
 } RayShear;
 
-static inline __attribute__((always_inline)) float axis(float3 v, int k) { return k == 0 ? v.x : (k == 1 ? v.y : v.z); }
+HELPER float axis(float3 v, int k) { return k == 0 ? v.x : (k == 1 ? v.y : v.z); }
 
-static inline __attribute__((always_inline)) RayShear ray_shear(float3 d) {
+HELPER RayShear ray_shear(float3 d) {
     float ax = fabs(d.x), ay = fabs(d.y), az = fabs(d.z);
     int kz = ax > ay ? (ax > az ? 0 : 2) : (ay > az ? 1 : 2);
     int kx = kz == 2 ? 0 : kz + 1;
@@ -50,7 +50,7 @@ static inline __attribute__((always_inline)) RayShear ray_shear(float3 d) {
 }
 
 /* Accepts t in (tmin, tmax); u, v are the barycentrics of v1 and v2. */
-static inline __attribute__((always_inline)) bool hit_triangle(__global const Triangle* tri, float3 o, const RayShear* r, float tmin, float tmax,
+HELPER bool hit_triangle(__global const Triangle* tri, float3 o, const RayShear* r, float tmin, float tmax,
                          float* t_out, float* u_out, float* v_out) {
 #pragma OPENCL FP_CONTRACT OFF
     float3 a = tri->v0.xyz - o, b = tri->v1.xyz - o, c = tri->v2.xyz - o;
@@ -73,13 +73,13 @@ static inline __attribute__((always_inline)) bool hit_triangle(__global const Tr
 
 /* The next float above t >= 0 (nextafter(t, INFINITY)), written out for the same reason as
  * min4 below: PoCL's nextafter is a function call, and the leaf test asks for it every time. */
-static inline __attribute__((always_inline)) float next_up(float t) { return t < INFINITY ? as_float(as_int(t) + 1) : t; }
+HELPER float next_up(float t) { return t < INFINITY ? as_float(as_int(t) + 1) : t; }
 
 /* Whether a hit at t on triangle `tri` replaces `hit`: the closest hit is the smallest t and, on
  * equal t (coplanar overlapping triangles, a ray through a shared edge), the lowest triangle
  * index. So it does not depend on the order in which a BVH visits its leaves, and the binary
  * and wide BVHs report the same triangle. The search accepts t up to hit.t itself for this. */
-static inline __attribute__((always_inline)) bool closer(float t, int tri, const Hit* hit) {
+HELPER bool closer(float t, int tri, const Hit* hit) {
     return t < hit->t || (t == hit->t && tri < hit->tri);
 }
 
@@ -92,7 +92,7 @@ static inline __attribute__((always_inline)) bool closer(float t, int tri, const
 #define BOX_SLACK (1.0f + 16.0f * FLT_EPSILON)
 
 /* Entry distance of the ray into the box, or INFINITY if it misses within (tmin, tmax). */
-static inline __attribute__((always_inline)) float hit_box(__global const BvhNode* node, float3 o, float3 inv_d, float tmin, float tmax) {
+HELPER float hit_box(__global const BvhNode* node, float3 o, float3 inv_d, float tmin, float tmax) {
     float3 t0 = (node->lo.xyz - o) * inv_d;
     float3 t1 = (node->hi.xyz - o) * inv_d;
     float3 near = fmin(t0, t1), far = fmax(t0, t1);
@@ -104,7 +104,7 @@ static inline __attribute__((always_inline)) float hit_box(__global const BvhNod
 #ifndef BVH_WIDE
 
 /* Closest hit in (tmin, tmax). `steps` counts visited nodes (traversal divergence counter). */
-static inline __attribute__((always_inline)) Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
+HELPER Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
     Hit hit = {tmax, 0.0f, 0.0f, -1};
     float3 inv_d = 1.0f / d;
     RayShear shear = ray_shear(d);
@@ -150,7 +150,7 @@ static inline __attribute__((always_inline)) Hit trace_closest(const SceneView* 
 }
 
 /* Whether anything lies on the segment (tmin, tmax): shadow rays stop at the first hit. */
-static inline __attribute__((always_inline)) bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
+HELPER bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
     float3 inv_d = 1.0f / d;
     RayShear shear = ray_shear(d);
     int stack[BVH_STACK_SIZE];
@@ -180,32 +180,32 @@ static inline __attribute__((always_inline)) bool trace_any(const SceneView* s, 
 #else  /* BVH_WIDE */
 
 /* The wide BVH lives in one buffer of 16-byte words (s->nodes): WideNode and TriGroup records
- * (toolkit/layout.py), found by their position. A child reference >= 0 is an inner node,
+ * (toolkit/core/layout.py), found by their position. A child reference >= 0 is an inner node,
  * < 0 is ~position of a leaf's TriGroup, WIDE_EMPTY an unused lane. */
-static inline __attribute__((always_inline)) __global const WideNode* wide_node(const SceneView* s, int ref) {
+HELPER __global const WideNode* wide_node(const SceneView* s, int ref) {
     return (__global const WideNode*)(s->nodes + ref);
 }
-static inline __attribute__((always_inline)) __global const TriGroup* tri_group(const SceneView* s, int ref) {
+HELPER __global const TriGroup* tri_group(const SceneView* s, int ref) {
     return (__global const TriGroup*)(s->nodes + ~ref);
 }
 /* Coordinate k (0 x, 1 y, 2 z) of vertex v of the group's four triangles: v0x, v0y, v0z, v1x, ... follow each other. */
-static inline __attribute__((always_inline)) float4 tri_group_coord(__global const TriGroup* g, int v, int k) {
+HELPER float4 tri_group_coord(__global const TriGroup* g, int v, int k) {
     return ((__global const float4*)g)[3 * v + k];
 }
-static inline __attribute__((always_inline)) float lane(float4 v, int i) { return i == 0 ? v.s0 : (i == 1 ? v.s1 : (i == 2 ? v.s2 : v.s3)); }
-static inline __attribute__((always_inline)) int lane_int(int4 v, int i) { return i == 0 ? v.s0 : (i == 1 ? v.s1 : (i == 2 ? v.s2 : v.s3)); }
+HELPER float lane(float4 v, int i) { return i == 0 ? v.s0 : (i == 1 ? v.s1 : (i == 2 ? v.s2 : v.s3)); }
+HELPER int lane_int(int4 v, int i) { return i == 0 ? v.s0 : (i == 1 ? v.s1 : (i == 2 ? v.s2 : v.s3)); }
 
 /* fmin, fmax and any of four lanes, written out: PoCL 3.0 does not inline its built-in
  * functions, so each fmin in the traversal's hottest loop was a function call (perf: fmin and
  * fmax 8% of pt_naive). Same results: fmin's other operand where one is NaN (a slab's
  * 0 * inf); a vector ?: picks lanes like select. tests/test_wide_bvh.py holds the hits. */
-static inline __attribute__((always_inline)) float4 min4(float4 a, float4 b) { return ((a < b) | (b != b)) ? a : b; }
-static inline __attribute__((always_inline)) float4 max4(float4 a, float4 b) { return ((a > b) | (b != b)) ? a : b; }
-static inline __attribute__((always_inline)) bool any4(int4 m) { return (m.s0 | m.s1 | m.s2 | m.s3) < 0; }
+HELPER float4 min4(float4 a, float4 b) { return ((a < b) | (b != b)) ? a : b; }
+HELPER float4 max4(float4 a, float4 b) { return ((a > b) | (b != b)) ? a : b; }
+HELPER bool any4(int4 m) { return (m.s0 | m.s1 | m.s2 | m.s3) < 0; }
 
 /* hit_box for the four children at once: entry distances, INFINITY where a child is missed
  * (or the lane is empty). The same operations as hit_box, lane by lane. */
-static inline __attribute__((always_inline)) float4 hit_boxes(__global const WideNode* n, float3 o, float3 inv_d, float tmin, float tmax) {
+HELPER float4 hit_boxes(__global const WideNode* n, float3 o, float3 inv_d, float tmin, float tmax) {
     float4 x0 = (n->lo_x - o.x) * inv_d.x, x1 = (n->hi_x - o.x) * inv_d.x;
     float4 y0 = (n->lo_y - o.y) * inv_d.y, y1 = (n->hi_y - o.y) * inv_d.y;
     float4 z0 = (n->lo_z - o.z) * inv_d.z, z1 = (n->hi_z - o.z) * inv_d.z;
@@ -219,7 +219,7 @@ static inline __attribute__((always_inline)) float4 hit_boxes(__global const Wid
  * (a mask: -1 where hit) and their t, u, v. The same operations as hit_triangle, in the same
  * order, lane by lane (FP_CONTRACT off in both), so the two BVHs find bit-identical hits and
  * the watertight property holds in every lane. Empty lanes are degenerate triangles: det = 0. */
-static inline __attribute__((always_inline)) int4 hit_triangles(__global const TriGroup* g, float3 o, const RayShear* r, float tmin, float tmax,
+HELPER int4 hit_triangles(__global const TriGroup* g, float3 o, const RayShear* r, float tmin, float tmax,
                           float4* t_out, float4* u_out, float4* v_out) {
 #pragma OPENCL FP_CONTRACT OFF
     float ox = axis(o, r->kx), oy = axis(o, r->ky), oz = axis(o, r->kz);
@@ -243,7 +243,7 @@ static inline __attribute__((always_inline)) int4 hit_triangles(__global const T
 
 /* Push the children a node's box test hit onto the stack, nearest on top (insertion sort of
  * at most four entries above `base`), so they are visited front to back. */
-static inline __attribute__((always_inline)) int push_hit_children(int* stack_ref, float* stack_t, int top, int4 child, float4 enter) {
+HELPER int push_hit_children(int* stack_ref, float* stack_t, int top, int4 child, float4 enter) {
     int base = top;
     for (int i = 0; i < BVH_WIDTH; ++i) {
         float ti = lane(enter, i);
@@ -258,7 +258,7 @@ static inline __attribute__((always_inline)) int push_hit_children(int* stack_re
 }
 
 /* Closest hit in (tmin, tmax). `steps` counts visited nodes and leaves (traversal divergence counter). */
-static inline __attribute__((always_inline)) Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
+HELPER Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
     Hit hit = {tmax, 0.0f, 0.0f, -1};
     float3 inv_d = 1.0f / d;
     RayShear shear = ray_shear(d);
@@ -296,7 +296,7 @@ static inline __attribute__((always_inline)) Hit trace_closest(const SceneView* 
 }
 
 /* Whether anything lies on the segment (tmin, tmax): shadow rays stop at the first hit. */
-static inline __attribute__((always_inline)) bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
+HELPER bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
     float3 inv_d = 1.0f / d;
     RayShear shear = ray_shear(d);
     int stack_ref[BVH_STACK_SIZE];

@@ -5,7 +5,7 @@
 #include "common.h"
 
 /* Direction through continuous image position (x right, y down, in pixels). */
-static inline __attribute__((always_inline)) float3 camera_direction(const Camera* cam, float x, float y) {
+HELPER float3 camera_direction(const Camera* cam, float x, float y) {
     float sx = 2.0f * x / (float)cam->width - 1.0f;
     float sy = 1.0f - 2.0f * y / (float)cam->height;
     return normalize(cam->forward.xyz + sx * cam->right.xyz + sy * cam->up.xyz);
@@ -13,14 +13,14 @@ static inline __attribute__((always_inline)) float3 camera_direction(const Camer
 
 /* Sample `id` of a pass: consecutive ids are consecutive pixels (so samples started together
  * trace coherent primary rays), then the next sample of every pixel. */
-static inline __attribute__((always_inline)) int sample_pixel(const Camera* cam, int id) { return id % (cam->width * cam->height); }
-static inline __attribute__((always_inline)) int sample_number(const Camera* cam, int id, int sample_base) {
+HELPER int sample_pixel(const Camera* cam, int id) { return id % (cam->width * cam->height); }
+HELPER int sample_number(const Camera* cam, int id, int sample_base) {
     return sample_base + id / (cam->width * cam->height);
 }
 
 /* The camera sample: the direction through a box-filtered position (u, v in [0, 1)) inside
  * `pixel` (FORMAT.md). Path tracers and BDPT draw u, v from the same two dimensions. */
-static inline __attribute__((always_inline)) float3 camera_sample(const Camera* cam, int pixel, float u, float v) {
+HELPER float3 camera_sample(const Camera* cam, int pixel, float u, float v) {
     float x = (float)(pixel % cam->width) + u;
     float y = (float)(pixel / cam->width) + v;
     return camera_direction(cam, x, y);

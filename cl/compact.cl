@@ -1,4 +1,4 @@
-/* Stream compaction of alive flags into a stream of indices, two ways (host: toolkit/compaction.py).
+/* Stream compaction of alive flags into a stream of indices, two ways (host: toolkit/opencl/compaction.py).
  *
  * Multi-pass (order preserving, stable):
  *   scan_blocks           exclusive scan of each work-group's LOCAL_SIZE values in local memory,

@@ -4,7 +4,7 @@
  * tracing kernel that has just extended its path calls immediate_compact_slot() with
  * alive = "my path continues" and, if it gets a slot >= 0, writes its own record (of
  * whatever struct type) to out[slot]. The standalone kernels are in compact.cl; the host
- * side is toolkit/compaction.py.
+ * side is toolkit/opencl/compaction.py.
  *
  * Needs -DLOCAL_SIZE=<work-group size> (the host passes the technique's or Compactor's
  * local_size, default program.LOCAL_SIZE = 64): the local scratch is sized at compile time,
@@ -28,6 +28,8 @@
 #ifndef COMPACT_H
 #define COMPACT_H
 
+#include "common.h"
+
 #ifndef LOCAL_SIZE
 #error "compact.h needs -DLOCAL_SIZE=<work-group size> (pass program.LOCAL_SIZE in the defines)"
 #endif
@@ -44,7 +46,7 @@
  * and keeps it to one short loop. It works for any LOCAL_SIZE, not only powers of two.
  * Uses scratch[0 .. LOCAL_SIZE-1]; the trailing barrier lets the caller reuse the scratch
  * (e.g. call again in a loop) right after it returns. */
-static inline __attribute__((always_inline)) int compact_group_scan(int value, __local int* scratch, int* total)
+HELPER int compact_group_scan(int value, __local int* scratch, int* total)
 {
     int lid = get_local_id(0);
     scratch[lid] = value;
@@ -77,7 +79,7 @@ static inline __attribute__((always_inline)) int compact_group_scan(int value, _
  * `counter` must be zero before the launch; afterwards it holds the number of survivors.
  * 32-bit atomic_add on a __global int is OpenCL 1.1 core (no extension needed).
  * Uses all COMPACT_SCRATCH_INTS ints of scratch; see the rules at the top of this file. */
-static inline __attribute__((always_inline)) int immediate_compact_slot(bool alive, __local int* scratch, volatile __global int* counter)
+HELPER int immediate_compact_slot(bool alive, __local int* scratch, volatile __global int* counter)
 {
     int total;
     int rank = compact_group_scan(alive ? 1 : 0, scratch, &total);

@@ -1,6 +1,6 @@
-/* Test kernel: sizeof and offsetof of every struct generated from toolkit/layout.py, as the
+/* Test kernel: sizeof and offsetof of every struct generated from toolkit/core/layout.py, as the
  * device compiler lays them out; tests/test_layout.py compares them with the numpy dtypes. */
-#include "layout.h"
+#include "common.h"
 
 __kernel void layout_check(__global int* out)
 {

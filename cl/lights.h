@@ -15,7 +15,7 @@ typedef struct {
     int light;        /* index into the light array */
 } LightSample;
 
-static inline __attribute__((always_inline)) int pick_light(const SceneView* s, float u) {
+HELPER int pick_light(const SceneView* s, float u) {
     int lo = 0, hi = s->light_count - 1;
     while (lo < hi) {               /* first light whose inclusive CDF exceeds u */
         int mid = (lo + hi) / 2;
@@ -24,7 +24,7 @@ static inline __attribute__((always_inline)) int pick_light(const SceneView* s, 
     return lo;
 }
 
-static inline __attribute__((always_inline)) LightSample sample_light(const SceneView* s, float u_pick, float u1, float u2) {
+HELPER LightSample sample_light(const SceneView* s, float u_pick, float u1, float u2) {
     int index = pick_light(s, u_pick);
     LightTri light = s->lights[index];
     Triangle tri = s->tris[light.triangle];
@@ -40,7 +40,7 @@ static inline __attribute__((always_inline)) LightSample sample_light(const Scen
 }
 
 /* Radiance leaving triangle `tri` (normal n) towards w, pointing away from it: lights are one-sided. */
-static inline __attribute__((always_inline)) float3 emitted(const SceneView* s, const Triangle* tri, float3 n, float3 w) {
+HELPER float3 emitted(const SceneView* s, const Triangle* tri, float3 n, float3 w) {
     if (tri->light < 0 || dot(n, w) <= 0.0f) return (float3)(0.0f);
     return s->lights[tri->light].emission.xyz;
 }

@@ -17,7 +17,7 @@ typedef struct {
 } BsdfSample;
 
 /* Materials whose every lobe is a delta distribution: no light sampling, no evaluation. */
-static inline __attribute__((always_inline)) bool is_specular(int type) {
+HELPER bool is_specular(int type) {
     return false
 #if HAS_MIRROR
         || type == MAT_MIRROR
@@ -31,7 +31,7 @@ static inline __attribute__((always_inline)) bool is_specular(int type) {
 /* The shading normal at a surface with geometric normal ng, seen from direction wo:
  * two-sided materials shade with the normal facing wo; a dielectric keeps its outward
  * normal (its BSDF tells inside from outside by the sign of wo.z). */
-static inline __attribute__((always_inline)) float3 shading_normal(int type, float3 ng, float3 wo) {
+HELPER float3 shading_normal(int type, float3 ng, float3 wo) {
 #if HAS_DIELECTRIC
     if (type == MAT_DIELECTRIC) return ng;
 #endif
@@ -41,7 +41,7 @@ static inline __attribute__((always_inline)) float3 shading_normal(int type, flo
 
 #if HAS_GLOSSY
 /* GGX (Trowbridge-Reitz) as FORMAT.md defines it; Walter et al. 2007, eqs. 33-34. */
-static inline __attribute__((always_inline)) float ggx_d(float3 m, float alpha) {
+HELPER float ggx_d(float3 m, float alpha) {
     if (m.z <= 0.0f) return 0.0f;
     float a2 = alpha * alpha;
     /* k = cos^2 (a2 - 1) + 1 written as sin^2 + cos^2 a2: the textbook form cancels to 0 in
@@ -49,14 +49,14 @@ static inline __attribute__((always_inline)) float ggx_d(float3 m, float alpha) 
     float k = (m.x * m.x + m.y * m.y) + m.z * m.z * a2;
     return a2 / (PI * k * k);
 }
-static inline __attribute__((always_inline)) float ggx_g1(float3 w, float alpha) {
+HELPER float ggx_g1(float3 w, float alpha) {
     float c2 = w.z * w.z;
     if (c2 <= 0.0f) return 0.0f;
     float tan2 = fmax(0.0f, 1.0f - c2) / c2;
     return 2.0f / (1.0f + sqrt(1.0f + alpha * alpha * tan2));
 }
 /* Visible-normal sampling: Heitz 2018, "Sampling the GGX Distribution of Visible Normals". */
-static inline __attribute__((always_inline)) float3 ggx_sample_visible_normal(float3 wo, float alpha, float u1, float u2) {
+HELPER float3 ggx_sample_visible_normal(float3 wo, float alpha, float u1, float u2) {
     float3 vh = normalize((float3)(alpha * wo.x, alpha * wo.y, wo.z));
     float len2 = vh.x * vh.x + vh.y * vh.y;
     float3 t1 = len2 > 0.0f ? (float3)(-vh.y, vh.x, 0.0f) * rsqrt(len2) : (float3)(1.0f, 0.0f, 0.0f);
@@ -70,7 +70,7 @@ static inline __attribute__((always_inline)) float3 ggx_sample_visible_normal(fl
     return normalize((float3)(alpha * nh.x, alpha * nh.y, fmax(1e-6f, nh.z)));
 }
 /* pdf of wi under visible-normal sampling: G1(wo) D(m) / (4 cos theta_o). */
-static inline __attribute__((always_inline)) float ggx_pdf(float3 wo, float3 wi, float alpha) {
+HELPER float ggx_pdf(float3 wo, float3 wi, float alpha) {
     if (wo.z <= 0.0f || wi.z <= 0.0f) return 0.0f;
     float3 m = normalize(wo + wi);
     return ggx_g1(wo, alpha) * ggx_d(m, alpha) / (4.0f * wo.z);
@@ -79,7 +79,7 @@ static inline __attribute__((always_inline)) float ggx_pdf(float3 wo, float3 wi,
 
 #if HAS_DIELECTRIC
 /* Unpolarised Fresnel reflectance for relative index eta = n_t / n_i; cos_t returned (>= 0). */
-static inline __attribute__((always_inline)) float fresnel_dielectric(float cos_i, float eta, float* cos_t) {
+HELPER float fresnel_dielectric(float cos_i, float eta, float* cos_t) {
     float sin2_t = (1.0f - cos_i * cos_i) / (eta * eta);
     if (sin2_t >= 1.0f) { *cos_t = 0.0f; return 1.0f; }  /* total internal reflection */
     float ct = sqrt(1.0f - sin2_t);
@@ -91,7 +91,7 @@ static inline __attribute__((always_inline)) float fresnel_dielectric(float cos_
 #endif
 
 /* f(wo, wi) and the pdf of sampling wi; zero for delta lobes (they are never evaluated). */
-static inline __attribute__((always_inline)) float3 bsdf_eval(const Material* m, float3 wo, float3 wi, float* pdf) {
+HELPER float3 bsdf_eval(const Material* m, float3 wo, float3 wi, float* pdf) {
     *pdf = 0.0f;
     if (wo.z <= 0.0f || wi.z <= 0.0f) return (float3)(0.0f);
 #if HAS_DIFFUSE
@@ -114,7 +114,7 @@ static inline __attribute__((always_inline)) float3 bsdf_eval(const Material* m,
 /* Draw wi given wo. The two-sided materials expect wo.z > 0 (the caller flips the frame);
  * the dielectric takes wo on either side: +z is its exterior (index 1). Returns false when
  * the path ends (no valid direction). */
-static inline __attribute__((always_inline)) bool bsdf_sample(const Material* m, float3 wo, float u1, float u2, float u_lobe, BsdfSample* out) {
+HELPER bool bsdf_sample(const Material* m, float3 wo, float u1, float u2, float u_lobe, BsdfSample* out) {
     out->specular = false;
     out->pdf = 0.0f;
 #if HAS_DIFFUSE

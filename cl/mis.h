@@ -15,6 +15,8 @@
 #ifndef MIS_H
 #define MIS_H
 
+#include "common.h"
+
 #ifndef MIS_POWER
 #define MIS_POWER 0
 #endif
@@ -24,9 +26,9 @@ typedef struct {
 } ConnectionPdfs;
 
 /* The term a strategy with density ratio r (to the evaluated one) adds to the denominator. */
-static inline __attribute__((always_inline)) float mis_term(float r) { return MIS_POWER ? r * r : r; }
+HELPER float mis_term(float r) { return MIS_POWER ? r * r : r; }
 
-static inline __attribute__((always_inline)) float mis_weight(__global const BdptVertex* eye, __global const BdptVertex* light,
+HELPER float mis_weight(__global const BdptVertex* eye, __global const BdptVertex* light,
                         int s, int t, const ConnectionPdfs* c) {
     float sum = 0.0f;
     /* Hypothetical strategies with more light vertices: walk the eye subpath backwards. */

@@ -53,7 +53,7 @@
 /* Kelemen's small step of one uniform u, driven by one uniform r: the sign from r < 1/2, the
  * size s2 exp(-log(s2 / s1) v) with v uniform in [0, 1) (sizes from s1 to s2, denser
  * towards the small ones), wrapped around [0, 1). Symmetric: +dv and -dv equally likely. */
-static inline __attribute__((always_inline)) float mlt_perturb(float u, float r) {
+HELPER float mlt_perturb(float u, float r) {
     bool up = r < 0.5f;
     float v = up ? 2.0f * r : 2.0f * r - 1.0f;
     float dv = MLT_S2 * exp(-log(MLT_S2 / MLT_S1) * v);

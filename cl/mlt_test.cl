@@ -1,5 +1,5 @@
 /* Test kernel: the Metropolis mutation and acceptance of cl/mlt.h on a known target in
- * primary sample space instead of a light path (host: toolkit/mlt_toy.py, tests/test_mlt.py).
+ * primary sample space instead of a light path (host: toolkit/verify/mlt_toy.py, tests/test_mlt.py).
  * The target uses a different number of dimensions in two regions, like paths of different
  * lengths:
  *     u0 <  1/2:  f = 1/2 + u0           uses dimension 0 only (u1 is not read)

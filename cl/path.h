@@ -18,8 +18,8 @@ typedef struct {
     int shadow_rays;
 } LaneCounters;
 
-/* What a lane did in one launch, as the host reads it (LaneCounts, toolkit/layout.py). */
-static inline __attribute__((always_inline)) LaneCounts lane_counts_of(int work, const LaneCounters* c) {
+/* What a lane did in one launch, as the host reads it (LaneCounts, toolkit/core/layout.py). */
+HELPER LaneCounts lane_counts_of(int work, const LaneCounters* c) {
     LaneCounts out = {.work = work, .closest_steps = c->traversal_steps, .shadow_rays = c->shadow_rays,
                       .shadow_steps = c->shadow_steps};
     return out;
@@ -27,7 +27,7 @@ static inline __attribute__((always_inline)) LaneCounts lane_counts_of(int work,
 
 /* A new camera path for (pixel, sample): the camera sample (camera.h) of its first two dimensions.
  * `slot` is where its result goes in the pass's output buffer. */
-static inline __attribute__((always_inline)) void path_start(PathState* p, const Camera* cam, int pixel, int sample, int slot, uint seed) {
+HELPER void path_start(PathState* p, const Camera* cam, int pixel, int sample, int slot, uint seed) {
     Sampler rng = sampler_init(seed, (uint)pixel, (uint)sample);
     p->origin = (float4)(cam->origin.xyz, 0.0f);   /* camera rays start exactly at the pinhole */
     p->dir = (float4)(camera_sample(cam, pixel, sampler_get(&rng, DIM_PIXEL), sampler_get(&rng, DIM_PIXEL + 1)), 0.0f);
@@ -42,18 +42,18 @@ static inline __attribute__((always_inline)) void path_start(PathState* p, const
 }
 
 /* The sample with index `id` in a pass (sample_pixel, camera.h); its result goes to output slot id. */
-static inline __attribute__((always_inline)) void path_start_sample(PathState* p, const Camera* cam, int id, int sample_base, uint seed) {
+HELPER void path_start_sample(PathState* p, const Camera* cam, int id, int sample_base, uint seed) {
     path_start(p, cam, sample_pixel(cam, id), sample_number(cam, id, sample_base), id, seed);
 }
 
-static inline __attribute__((always_inline)) float path_rand(const PathState* p, Sampler* rng, uint offset) {
+HELPER float path_rand(const PathState* p, Sampler* rng, uint offset) {
     return sampler_get(rng, bounce_dim(p->bounce, offset));
 }
 
 /* Extend the path by one vertex: intersect, add emission, prepare a next-event shadow ray
  * (shadow->slot >= 0 if there is one), sample the BSDF, roulette.
  * Returns false when the path has terminated. */
-static inline __attribute__((always_inline)) bool path_extend_deferred(const SceneView* s, PathState* p, uint seed, LaneCounters* count,
+HELPER bool path_extend_deferred(const SceneView* s, PathState* p, uint seed, LaneCounters* count,
                                  ShadowRay* shadow) {
     shadow->slot = -1;
 #if USE_MAX_DEPTH
@@ -154,13 +154,13 @@ static inline __attribute__((always_inline)) bool path_extend_deferred(const Sce
 }
 
 /* Whether a shadow ray reaches its light. */
-static inline __attribute__((always_inline)) bool shadow_unoccluded(const SceneView* s, const ShadowRay* r, LaneCounters* count) {
+HELPER bool shadow_unoccluded(const SceneView* s, const ShadowRay* r, LaneCounters* count) {
     count->shadow_rays += 1;
     return !trace_any(s, r->origin.xyz, r->dir.xyz, 0.0f, r->origin.w, &count->shadow_steps);
 }
 
 /* Extend by one vertex and trace the shadow ray at once (one path per work-item). */
-static inline __attribute__((always_inline)) bool path_extend(const SceneView* s, PathState* p, uint seed, LaneCounters* count) {
+HELPER bool path_extend(const SceneView* s, PathState* p, uint seed, LaneCounters* count) {
     ShadowRay shadow;
     bool continues = path_extend_deferred(s, p, seed, count, &shadow);
     if (shadow.slot >= 0 && shadow_unoccluded(s, &shadow, count))
@@ -170,14 +170,14 @@ static inline __attribute__((always_inline)) bool path_extend(const SceneView* s
 
 /* Write the sample's value to the pass output, where queued shadow rays may already have
  * added their part; .w becomes 0 (done) or 1 (not finite: the host counts and drops it). */
-static inline __attribute__((always_inline)) void path_finish(__global float4* out, const PathState* p) {
+HELPER void path_finish(__global float4* out, const PathState* p) {
     float3 L = out[p->slot].xyz + p->radiance.xyz;
     out[p->slot] = all_finite(L) ? (float4)(L, 0.0f) : (float4)(0.0f, 0.0f, 0.0f, 1.0f);
 }
 
 /* One extension of the path stored at index i of a stream, in place: a path that continues is
  * stored back, one that ends writes its sample's value. Returns whether it continues. */
-static inline __attribute__((always_inline)) bool path_extend_in_place(const SceneView* s, PathStateSoA paths, int i, uint seed, LaneCounters* count,
+HELPER bool path_extend_in_place(const SceneView* s, PathStateSoA paths, int i, uint seed, LaneCounters* count,
                                  __global float4* out) {
     PathState p = path_state_load(paths, i);
     bool continues = path_extend(s, &p, seed, count);

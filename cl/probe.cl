@@ -1,4 +1,4 @@
-/* The device probe (toolkit/device.py): a small kernel that uses what the toolkit's kernels
+/* The device probe (toolkit/opencl/device.py): a small kernel that uses what the toolkit's kernels
  * use (the generated layout header, pyopencl's Philox, float3 maths, local memory with
  * barriers, global atomics), built once per device to find out whether this OpenCL
  * implementation can build and run them. The host checks every number it writes. */

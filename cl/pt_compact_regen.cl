@@ -7,13 +7,13 @@
  *   regenerate - new samples fill the end of the stream, so it keeps its size; they are
  *             consecutive pixels, side by side, so their primary rays are coherent.
  * Compaction is "immediate" (single pass, fused into extend: cl/compact.h) or multi-pass
- * (extend writes alive flags, toolkit/compaction.py scans, pt_compact_regen_gather moves).
+ * (extend writes alive flags, toolkit/opencl/compaction.py scans, pt_compact_regen_gather moves).
  * Kernels this technique launches (toolkit/techniques/pt_compact_regen.py):
  *   pt_compact_regen_generate    here
  *   pt_compact_regen_extend      here (immediate compaction)
  *   pt_compact_regen_shadow      here (immediate compaction)
  *   extend_in_place              cl/extend_in_place.h (multi-pass compaction; shared with pt_inplace_regen)
- *   the scan                     toolkit/compaction.py (multi-pass compaction)
+ *   the scan                     toolkit/opencl/compaction.py (multi-pass compaction)
  *   pt_compact_regen_gather      here (multi-pass compaction)
  * Every stream is a structure of arrays of `capacity` records in one buffer (layout.h). */
 #include "path.h"
@@ -22,7 +22,7 @@
 
 /* Extend + immediate compaction: survivors are written packed into the `out` stream, and
  * the shadow rays they prepared packed into the shadow queue; counters[STREAM_PATHS] and
- * counters[STREAM_SHADOW_RAYS] count them (StreamCounter, toolkit/layout.py). */
+ * counters[STREAM_SHADOW_RAYS] count them (StreamCounter, toolkit/core/layout.py). */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
 void pt_compact_regen_extend(SCENE_PARAMS, const uint seed, const int length, const int capacity,
                              __global void* in, __global void* out, __global void* shadow,

@@ -1,9 +1,9 @@
 /* Plain ray casting through the BVH, one ray per work-item: the device side of the
- * cross-check against Embree (toolkit/crosscheck.py) and of `bench --peer embree`. Rays are in
+ * cross-check against Embree (toolkit/verify/crosscheck.py) and of `bench --peer embree`. Rays are in
  * the scene's rebased coordinates; directions are unit vectors; hits are reported with the
  * ORIGINAL scene triangle index (tris[i].prim), -1 on a miss. Rays come as the host's (n, 3)
  * float32 arrays and results go back as one buffer of one row per field, so the host neither
- * packs nor unpacks them (toolkit/raycast.py). n is below 2^29 (the host checks), so 3 * n + gid fits an int. */
+ * packs nor unpacks them (toolkit/opencl/raycast.py). n is below 2^29 (the host checks), so 3 * n + gid fits an int. */
 #include "bvh.h"
 
 /* Closest hit in (0, inf), as four rows of n words in `out`: t, u, v and the triangle (prim, as

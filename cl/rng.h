@@ -5,6 +5,8 @@
 #ifndef RNG_H
 #define RNG_H
 
+#include "common.h"
+
 #include <pyopencl-random123/philox.cl>
 
 typedef struct {
@@ -14,23 +16,23 @@ typedef struct {
     uint dim;        /* next dimension for sampler_next() */
 } Sampler;
 
-static inline __attribute__((always_inline)) float uint_to_unit(uint x) { return (float)(x >> 8) * (1.0f / 16777216.0f); /* in [0, 1) */ }
+HELPER float uint_to_unit(uint x) { return (float)(x >> 8) * (1.0f / 16777216.0f); /* in [0, 1) */ }
 
-static inline __attribute__((always_inline)) float4 rng_block(uint seed, uint pixel, uint sample, uint block) {
+HELPER float4 rng_block(uint seed, uint pixel, uint sample, uint block) {
     philox4x32_ctr_t counter = {{pixel, sample, block, 0x6d6c7421u}};
     philox4x32_key_t key = {{seed, 0x9e3779b9u}};
     philox4x32_ctr_t r = philox4x32(counter, key);
     return (float4)(uint_to_unit(r.v[0]), uint_to_unit(r.v[1]), uint_to_unit(r.v[2]), uint_to_unit(r.v[3]));
 }
 
-static inline __attribute__((always_inline)) Sampler sampler_init(uint seed, uint pixel, uint sample) {
+HELPER Sampler sampler_init(uint seed, uint pixel, uint sample) {
     Sampler s = {seed, pixel, sample, 0xffffffffu, (float4)(0.0f), 0};
     return s;
 }
 
 /* The uniform number of dimension `dim` of this sample. Inlined (as every helper, common.h),
  * a run of reads from one block shares its Philox call. */
-static inline __attribute__((always_inline)) float sampler_get(Sampler* s, uint dim) {
+HELPER float sampler_get(Sampler* s, uint dim) {
     uint block = dim >> 2;
     if (block != s->block) { s->cache = rng_block(s->seed, s->pixel, s->sample, block); s->block = block; }
     uint k = dim & 3u;
@@ -48,7 +50,7 @@ static inline __attribute__((always_inline)) float sampler_get(Sampler* s, uint 
 #define DIM_BSDF_V 4
 #define DIM_BSDF_LOBE 5
 #define DIM_ROULETTE 6
-static inline __attribute__((always_inline)) uint bounce_dim(int bounce, uint offset) { return 4u + (uint)bounce * DIMS_PER_BOUNCE + offset; }
+HELPER uint bounce_dim(int bounce, uint offset) { return 4u + (uint)bounce * DIMS_PER_BOUNCE + offset; }
 
 /* The sampler interface of a bidirectional sample: every random number it consumes is
  * dimension `dim` of sample (pixel, sample). A Metropolis sampler can drive the same BDPT code
@@ -63,7 +65,7 @@ static inline __attribute__((always_inline)) uint bounce_dim(int bounce, uint of
 #define BDPT_DIM_LIGHT_PICK 2
 #define BDPT_DIM_LIGHT_POINT 3
 #define BDPT_DIM_EMIT_DIR 5
-static inline __attribute__((always_inline)) uint bdpt_scatter_dim(int vertex, bool light_path, uint offset) {
+HELPER uint bdpt_scatter_dim(int vertex, bool light_path, uint offset) {
     return 8u + 8u * (uint)(vertex - 1) + (light_path ? 4u : 0u) + offset;
 }
 
@@ -86,7 +88,7 @@ static inline __attribute__((always_inline)) uint bdpt_scatter_dim(int vertex, b
  * words (coalesced on a GPU). Chain-major (MLT_CHAIN_MAJOR, chosen by the host on a CPU): the 8
  * dimensions of one path vertex share a cache line, and a CPU work-item reads them with one
  * miss where dimension-major costs eight; the walks see compacted, shuffled chains anyway. */
-static inline __attribute__((always_inline)) size_t mlt_index(uint dim, uint chain, uint chains) {
+HELPER size_t mlt_index(uint dim, uint chain, uint chains) {
 #if MLT_CHAIN_MAJOR
     return (size_t)chain * MLT_MAX_DIMS + dim;
 #else
@@ -94,12 +96,12 @@ static inline __attribute__((always_inline)) size_t mlt_index(uint dim, uint cha
 #endif
 }
 
-static inline __attribute__((always_inline)) Sampler mlt_mutation_sampler(uint seed, int chain, int iteration) {
+HELPER Sampler mlt_mutation_sampler(uint seed, int chain, int iteration) {
     return sampler_init(seed ^ MLT_MUTATION_KEY, (uint)chain, (uint)iteration);
 }
 
 /* The fresh value of dimension `dim` (after the mutation's own two: the step and the acceptance). */
-static inline __attribute__((always_inline)) float mlt_fresh(Sampler* mutation, uint dim) { return sampler_get(mutation, 2u + dim); }
+HELPER float mlt_fresh(Sampler* mutation, uint dim) { return sampler_get(mutation, 2u + dim); }
 
 typedef struct {
     Sampler fresh;                   /* the mutation's random numbers: the fresh dimensions */
@@ -108,7 +110,7 @@ typedef struct {
 } MltProposal;
 
 /* Dimension `dim` of the proposal: stored (perturbed) or fresh. */
-static inline __attribute__((always_inline)) float mlt_proposal_dim(MltProposal* s, uint dim) {
+HELPER float mlt_proposal_dim(MltProposal* s, uint dim) {
     float u = dim < MLT_MAX_DIMS ? s->primary[mlt_index(dim, s->chain, s->chains)] : MLT_FRESH;
     return u >= 0.0f ? u : mlt_fresh(&s->fresh, dim);
 }
@@ -118,13 +120,13 @@ static inline __attribute__((always_inline)) float mlt_proposal_dim(MltProposal*
  * (toolkit/techniques/mlt.py) it answers from the chain's proposal (MltProposal above). */
 #if MLT
 typedef MltProposal BdptSampler;
-static inline __attribute__((always_inline)) float bdpt_sample(BdptSampler* s, uint dim) { return mlt_proposal_dim(s, dim); }
+HELPER float bdpt_sample(BdptSampler* s, uint dim) { return mlt_proposal_dim(s, dim); }
 /* The extra kernel parameter (and argument) that carries the vectors to the BDPT kernels. */
 #define BDPT_SAMPLER_PARAM , __global const float* mlt_primary
 #define BDPT_SAMPLER_ARG , mlt_primary
 #else
 typedef Sampler BdptSampler;
-static inline __attribute__((always_inline)) float bdpt_sample(BdptSampler* s, uint dim) { return sampler_get(s, dim); }
+HELPER float bdpt_sample(BdptSampler* s, uint dim) { return sampler_get(s, dim); }
 #define BDPT_SAMPLER_PARAM
 #define BDPT_SAMPLER_ARG
 #endif

@@ -7,7 +7,7 @@
 #include "common.h"
 
 /* A kernel takes the scene as SCENE_PARAMS and makes its view with `SceneView s = SCENE_INIT;`
- * (both generated, with the host's argument order, from SCENE_ARGS in toolkit/layout.py). */
+ * (both generated, with the host's argument order, from SCENE_ARGS in toolkit/core/layout.py). */
 
 typedef struct {
     __global const BVH_WORD* nodes;   /* BvhNode records, or the wide BVH's words (BVH_WIDE, cl/bvh.h) */
@@ -20,18 +20,18 @@ typedef struct {
 
 /* How far to move a ray origin off a surface: relative to the scene's size and to the
  * magnitude of the point's coordinates (float32 spacing grows with distance from the origin). */
-static inline __attribute__((always_inline)) float ray_offset(const SceneView* s, float3 p) {
+HELPER float ray_offset(const SceneView* s, float3 p) {
     float m = fmax(fabs(p.x), fmax(fabs(p.y), fabs(p.z)));
     return s->epsilon + m * 64.0f * FLT_EPSILON;
 }
 
 /* p moved off the surface with normal n to the side of direction w. */
-static inline __attribute__((always_inline)) float3 offset_point(const SceneView* s, float3 p, float3 n, float3 w) {
+HELPER float3 offset_point(const SceneView* s, float3 p, float3 n, float3 w) {
     float e = ray_offset(s, p);
     return p + (dot(n, w) >= 0.0f ? e : -e) * n;
 }
 
-static inline __attribute__((always_inline)) float3 triangle_normal(const Triangle* t) {
+HELPER float3 triangle_normal(const Triangle* t) {
     return normalize(cross(t->v1.xyz - t->v0.xyz, t->v2.xyz - t->v0.xyz));
 }
 

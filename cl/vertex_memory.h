@@ -1,12 +1,12 @@
 /* Where the BDPT random walk keeps its vertices: MAX_VERTICES per pool slot, slot after slot.
  * Index widths: the vertex index slot * MAX_VERTICES + k is an int (the host keeps it below
- * 2^31: toolkit/work_sizes.py buffer_plan), but the word offset of a vertex, VERTEX_WORDS (24)
+ * 2^31: toolkit/opencl/work_sizes.py buffer_plan), but the word offset of a vertex, VERTEX_WORDS (24)
  * times larger, would pass 2^31 at about 1.4M samples in flight (64 vertices each), so it is
  * formed in size_t. */
 #ifndef VERTEX_MEMORY_H
 #define VERTEX_MEMORY_H
 
-#include "layout.h"
+#include "common.h"
 
 #ifndef MAX_VERTICES
 #define MAX_VERTICES 64  /* per subpath; set by the host (toolkit/techniques/bdpt_base.py) */
@@ -15,9 +15,9 @@
 #define VERTEX_WORDS ((int)(sizeof(BdptVertex) / sizeof(uint)))
 
 /* Vertex k of the subpath of pool slot `slot`. */
-static inline __attribute__((always_inline)) int vertex_index(int slot, int k) { return slot * MAX_VERTICES + k; }
+HELPER int vertex_index(int slot, int k) { return slot * MAX_VERTICES + k; }
 
 /* Word w of vertex `index` in the vertex memory seen as uint words. */
-static inline __attribute__((always_inline)) size_t vertex_word(int index, int w) { return (size_t)index * VERTEX_WORDS + w; }
+HELPER size_t vertex_word(int index, int w) { return (size_t)index * VERTEX_WORDS + w; }
 
 #endif

@@ -18,7 +18,7 @@ os.environ["TOOLKIT_WERROR"] = "1"
 def pytest_report_header(config):
     """The device the suite runs on, so that a failure report says where it ran."""
     try:
-        from toolkit.device import candidates, describe, describe_implementation, get_queue
+        from toolkit.opencl.device import candidates, describe, describe_implementation, get_queue
         device = get_queue().device
         lines = [f"toolkit device: {describe(device)}; {describe_implementation(device)}"]
         others = [f"{c.implementation} ({'usable' if c.usable else c.reason})"
@@ -56,7 +56,7 @@ def scene_dirs():
 
 @pytest.fixture(scope="session")
 def queue():
-    from toolkit.device import get_queue
+    from toolkit.opencl.device import get_queue
     return get_queue()
 
 

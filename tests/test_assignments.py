@@ -1,4 +1,4 @@
-"""The course assignments' autograder (toolkit/grade.py, tutorials/assignments/): the reference
+"""The course assignments' autograder (toolkit/grading/grade.py, tutorials/assignments/): the reference
 solutions score 100, the untouched stubs 0, each deliberately wrong kernel (tests/fixtures/
 assignments/) loses exactly the checks it breaks, a kernel that does not build, does not finish
 or crashes costs its points while the grader goes on, and the handouts name only files and
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from toolkit.grade import ASSIGNMENTS, assignments_dir, grade
+from toolkit.grading.grade import ASSIGNMENTS, assignments_dir, grade
 
 ROOT = Path(__file__).resolve().parent.parent
 FIXTURES = ROOT / "tests" / "fixtures" / "assignments"

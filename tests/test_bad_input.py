@@ -22,7 +22,7 @@ import pytest
 import toolkit
 
 from conftest import film_error_techniques
-from toolkit.validate import LIMITS, limit_text
+from toolkit.core.validate import LIMITS, limit_text
 
 ROOT = Path(__file__).resolve().parent.parent
 CORNELL = ROOT / "scenes" / "cornell_box"
@@ -90,14 +90,14 @@ def truncate_reference(box, tmp):
 
 # Simulated conditions, set inside the CLI's process just before it writes an image or builds a BVH.
 DISK_FULL = """
-import resource, toolkit.images as im
+import resource, toolkit.core.images as im
 real = im._write_temporary
 def full(*a):   # like a full disk: any file write past 64 bytes fails (EFBIG; SIGXFSZ is ignored by Python)
     resource.setrlimit(resource.RLIMIT_FSIZE, (64, resource.RLIM_INFINITY))
     return real(*a)
 im._write_temporary = full
 """
-BIG_MESH = "import toolkit.bvh; toolkit.bvh.PROGRESS_FROM = 1   # every build counts as big"
+BIG_MESH = "import toolkit.core.bvh; toolkit.core.bvh.PROGRESS_FROM = 1   # every build counts as big"
 
 CASES = {
     # 1. memory corruption: BDPT at max_depth 0 wrote past its vertex memory (see also test_buffer_guard.py)
@@ -236,7 +236,7 @@ def test_scenes_at_the_scale_limits_render_like_the_box(cornell_box, technique):
         np.testing.assert_allclose(r.image.mean((0, 1)), plain.image.mean((0, 1)), rtol=0.01)
 
 
-# -- the limits: one table (toolkit/validate.py), stated in scenes/FORMAT.md ---------------------
+# -- the limits: one table (toolkit/core/validate.py), stated in scenes/FORMAT.md ---------------------
 
 SCENE_LIMITS = [n for n in LIMITS if n.split(".")[0] in ("camera", "material", "shape", "integrator", "scene", "mesh",
                                                          "technique", "mlt")]   # and the technique options FORMAT.md states
@@ -255,7 +255,7 @@ def test_format_md_states_every_limit_the_loader_enforces():
 def test_limits_are_what_the_loader_enforces(tmp_path):
     """Each numeric scene.json limit: the value at the limit loads, one just outside fails and
     names the limit (the table is what the loader uses, not a copy)."""
-    from toolkit.scene import SceneError, load_scene
+    from toolkit.core.scene import SceneError, load_scene
     box = tmp_path / "box"
     shutil.copytree(CORNELL, box, ignore=shutil.ignore_patterns("*.exr"))
     original = (box / "scene.json").read_text()

@@ -4,14 +4,14 @@ import pyopencl as cl
 import pytest
 
 import toolkit
-from toolkit import program
-from toolkit.device_scene import DeviceScene
-from toolkit.embree_ref import EmbreeIntersector
-from toolkit.layout import BDPT_VERTEX, VertexFlag
-from toolkit.same_image import SAME_DEVICE_BDPT
+from toolkit.opencl import program
+from toolkit.opencl.device_scene import DeviceScene
+from toolkit.peers.embree import EmbreeIntersector
+from toolkit.core.layout import BDPT_VERTEX, VertexFlag
+from toolkit.verify.same_image import SAME_DEVICE_BDPT
 from toolkit.techniques import BdptParallelConnect
 
-VERTEX_DELTA = VertexFlag.DELTA   # flags of BdptVertex (toolkit/layout.py, emitted into layout.h)
+VERTEX_DELTA = VertexFlag.DELTA   # flags of BdptVertex (toolkit/core/layout.py, emitted into layout.h)
 VERTEX_LIGHT = VertexFlag.LIGHT
 
 

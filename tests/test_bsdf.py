@@ -1,5 +1,5 @@
 """Each BSDF of cl/materials.h samples the density its own bsdf_eval reports, that density
-integrates as it should, and the sample weights are f |cos| / pdf (toolkit/bsdf_check.py).
+integrates as it should, and the sample weights are f |cos| / pdf (toolkit/verify/bsdf_check.py).
 
 All random numbers come from fixed Philox seeds, so every run draws the same samples.
 """
@@ -8,8 +8,8 @@ import math
 import numpy as np
 import pytest
 
-from toolkit.bsdf_check import BsdfChecker, chi2_test, direction, integrate
-from toolkit.stats import sidak
+from toolkit.verify.bsdf_check import BsdfChecker, chi2_test, direction, integrate
+from toolkit.measure.stats import sidak
 
 DIFFUSE = {"type": "diffuse", "reflectance": [0.8, 0.8, 0.8]}
 GLOSSY_ALPHAS = (0.1, 0.3, 0.7)

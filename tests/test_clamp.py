@@ -1,6 +1,6 @@
 """Firefly clamping, the scene's `integrator.clamp` (scenes/FORMAT.md): a contribution whose largest
 RGB component exceeds the clamp is scaled down to it. The path tracers clamp each sample on the
-host (toolkit/film.py), BDPT each connection on the device (cl/bdpt.h), mlt refuses it. What the
+host (toolkit/core/film.py), BDPT each connection on the device (cl/bdpt.h), mlt refuses it. What the
 clamp does to the error (less variance, a bias) is tested by the study: tests/test_study.py."""
 import dataclasses
 import json
@@ -11,8 +11,8 @@ import numpy as np
 import pytest
 
 import toolkit
-from toolkit.film import clamp_radiance
-from toolkit.scene import SceneError, load_scene
+from toolkit.core.film import clamp_radiance
+from toolkit.core.scene import SceneError, load_scene
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
 

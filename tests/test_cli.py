@@ -49,7 +49,7 @@ def test_render_json_summary_matches_the_written_images(tmp_path):
     assert out.is_file() and out.with_suffix(".png").is_file()
 
     import OpenImageIO as oiio
-    from toolkit.images import read_exr
+    from toolkit.core.images import read_exr
     image = read_exr(out)
     assert image.shape == (16, 16, 3)
     assert np.isfinite(image).all()
@@ -144,7 +144,7 @@ def test_device_option_before_or_after_the_command(tmp_path):
 def test_crosscheck_runs_on_the_device_it_is_given():
     # The best device by its P:D (platform 0 may be the Oclgrind simulator, which the toolkit
     # only uses when named: its wide-BVH hits disagree with Embree, and crosscheck says so).
-    from toolkit.device import candidates
+    from toolkit.opencl.device import candidates
     best = next(c for c in candidates() if c.usable and c.rank[0] < 4)
     ok = run_cli("crosscheck", "--device", best.selector, "--rays", "1000", "--json")
     assert ok.returncode == 0, ok.stderr
@@ -155,7 +155,7 @@ def test_crosscheck_runs_on_the_device_it_is_given():
 def test_equal_time_report_says_what_a_bdpt_sample_costs_and_is_worth():
     """The equal-time summary: cost = seconds per sample relative to the best path tracer,
     worth = squared error x samples relative to it (both of a made-up report)."""
-    from toolkit.bench import format_equal_time
+    from toolkit.measure.study import format_equal_time
     report = {"pt_naive": {"spp": 1000, "seconds": 10.0, "rmse": 0.010, "rmse_hard_pixels": 0.01},
               "pt_compact_regen": {"spp": 800, "seconds": 10.0, "rmse": 0.012, "rmse_hard_pixels": 0.01},
               "bdpt_parallel_connect": {"spp": 200, "seconds": 10.0, "rmse": 0.008, "rmse_hard_pixels": 0.004}}

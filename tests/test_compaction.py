@@ -1,4 +1,4 @@
-"""Stream compaction (cl/compact.h, cl/compact.cl, toolkit/compaction.py) against numpy.
+"""Stream compaction (cl/compact.h, cl/compact.cl, toolkit/opencl/compaction.py) against numpy.
 
 Multi-pass must give np.flatnonzero(mask) exactly (stable). Immediate gives the alive set in
 unspecified work-group order: we check the set (sorted output == flatnonzero, which also
@@ -10,8 +10,10 @@ import pyopencl as cl
 import pyopencl.array as cl_array
 import pytest
 
-from toolkit import device, program
-from toolkit.compaction import Compactor
+from toolkit.opencl import device
+
+from toolkit.opencl import program
+from toolkit.opencl.compaction import Compactor
 
 L = program.LOCAL_SIZE
 METHODS = ["immediate", "multipass"]
@@ -289,7 +291,7 @@ def test_exclusive_scan_on_a_fresh_compactor(queue):
     """exclusive_scan works as the first call on a new Compactor (it once relied on state set
     by compact_indices)."""
     import pyopencl as cl
-    from toolkit.compaction import Compactor
+    from toolkit.opencl.compaction import Compactor
     counts = np.array([0, 3, 0, 2, 8, 0, 5, 7], np.int32)
     buf = cl.Buffer(queue.context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=counts)
     out, total = Compactor(queue).exclusive_scan(buf, len(counts))

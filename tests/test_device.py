@@ -10,8 +10,9 @@ import numpy as np
 import pyopencl as cl
 import pytest
 
-from toolkit import device
-from toolkit.images import read_exr
+from toolkit.opencl import device
+from toolkit.core.images import read_exr
+from toolkit.cli import devices_report
 
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 # Issue 17's case: pip's PoCL 3.0 on an AMD Zen 5 (the log as PoCL writes it).
@@ -38,7 +39,7 @@ def test_no_platform_gives_instructions(monkeypatch):
     assert device.list_devices() == []
     with pytest.raises(device.NoOpenCLError, match="pocl-binary-distribution"):
         device.pick_device()
-    assert "pip install pocl-binary-distribution" in device.report()
+    assert "pip install pocl-binary-distribution" in devices_report()
 
 
 def test_selectors_pick_the_named_device():

@@ -3,7 +3,7 @@ Both BVHs (binary, and the wide one collapsed from it) are checked.
 embreex is a dependency of the toolkit (setup.cfg), so without it this test fails rather than skips.
 
 Both intersectors get the same float32 question (rebased triangles, same rays); see
-toolkit/crosscheck.py for the rule that excuses rounding-decided answers (hits within 1e-4
+toolkit/verify/crosscheck.py for the rule that excuses rounding-decided answers (hits within 1e-4
 barycentric of an edge, or equal-distance ties). Run with `pytest -s` to see the figures.
 """
 import sys
@@ -15,8 +15,8 @@ ROOT = Path(__file__).resolve().parent.parent
 if str(ROOT) not in sys.path:  # a source checkout that is not pip-installed
     sys.path.insert(0, str(ROOT))
 
-from toolkit.crosscheck import TIE_RELATIVE, compare_with_embree, format_figures  # noqa: E402
-from toolkit.scene import load_scene  # noqa: E402
+from toolkit.verify.crosscheck import TIE_RELATIVE, compare_with_embree, format_figures  # noqa: E402
+from toolkit.core.scene import load_scene  # noqa: E402
 
 SCENES_DIR = Path(__file__).parent.parent / "scenes"
 SCENES = sorted(p for p in SCENES_DIR.iterdir() if (p / "scene.json").is_file())
@@ -37,7 +37,7 @@ def test_traversal_agrees_with_embree(folder, bvh):
     assert f["device_any_vs_closest_mismatch"] == 0
     # Distances agree where the prims do: to TIE_RELATIVE relative for all but a few short or
     # grazing hits, and for every hit once float32's condition number (coordinates' size over
-    # |cos|, see toolkit/crosscheck.py) is taken out.
+    # |cos|, see toolkit/verify/crosscheck.py) is taken out.
     assert f["rel_t_error_above_tie"] < 1e-3 * f["agreeing_hits"]
     assert f["max_t_error_conditioned"] <= TIE_RELATIVE
     # Rounding-decided answers are rare (ties proven in float64 to be genuine are both right).

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from toolkit.scene import SceneError, load_scene
+from toolkit.core.scene import SceneError, load_scene
 
 CORNELL = Path(__file__).resolve().parent.parent / "scenes" / "cornell_box"
 BASE = json.loads((CORNELL / "scene.json").read_text())

@@ -7,10 +7,13 @@ import json
 import numpy as np
 import pytest
 
-from toolkit import gpucheck, same_image
+from toolkit.verify import gpucheck
+
+from toolkit.verify import same_image
 from toolkit.cli import main
-from toolkit.device import device_warp_width, get_queue
-from toolkit.work_sizes import device_work_sizes
+from toolkit.opencl.device import get_queue
+from toolkit.opencl.device_model import device_warp_width
+from toolkit.opencl.work_sizes import device_work_sizes
 
 
 @pytest.fixture(scope="module")

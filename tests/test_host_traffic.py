@@ -4,14 +4,14 @@ counters and allocates nothing, whatever the stream size; the buffers a render n
 once, at its start, and reused by every pass.
 
 The hook wraps pyopencl.enqueue_copy (device -> host reads), pyopencl.Buffer (allocations) and
-toolkit.program.launch (to split the render into iterations at its extension kernel)."""
+toolkit.opencl.program.launch (to split the render into iterations at its extension kernel)."""
 import numpy as np
 import pyopencl as cl
 import pytest
 
-from toolkit import program
-from toolkit.device import get_queue
-from toolkit.device_scene import DeviceScene
+from toolkit.opencl import program
+from toolkit.opencl.device import get_queue
+from toolkit.opencl.device_scene import DeviceScene
 from toolkit.techniques import PtInplaceRegen, get_technique
 
 # The kernel that starts each iteration (one extension step over the stream).
@@ -121,7 +121,7 @@ def test_later_passes_reuse_the_first_pass_buffers(monkeypatch, cornell_box, tec
 def test_a_compactor_keeps_its_scratch_memory(monkeypatch, queue):
     """After reserve(n), compacting and scanning streams of up to n items into buffers of the
     caller's allocates nothing: a technique that compacts every iteration allocates once."""
-    from toolkit.compaction import Compactor
+    from toolkit.opencl.compaction import Compactor
     compactor = Compactor(queue)
     n = 5000
     flags = cl.Buffer(queue.context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR,

@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 import toolkit
-from toolkit.device import candidates
-from toolkit.same_image import ACROSS_IMPLEMENTATIONS
+from toolkit.opencl.device import candidates
+from toolkit.verify.same_image import ACROSS_IMPLEMENTATIONS
 
 from conftest import SCENES, film_error_techniques
 
@@ -31,7 +31,7 @@ IMPLEMENTATIONS = [c for c in candidates() if c.usable and "Oclgrind" not in c.p
 @pytest.mark.parametrize("technique", film_error_techniques())
 def test_every_implementation_renders_the_same_image(technique, scene, max_depth):
     """A finite max_depth too: Intel's cross-work-item vectorizer got the compaction-based
-    techniques wrong there (toolkit/runtimes.py switches it off)."""
+    techniques wrong there (toolkit/opencl/runtimes.py switches it off)."""
     if len(IMPLEMENTATIONS) < 2:
         pytest.skip("only one OpenCL implementation is usable here")
     loaded = toolkit.load_scene(SCENES / scene)

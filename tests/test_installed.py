@@ -10,8 +10,8 @@ import pytest
 PROBE = """
 import sys, json
 import toolkit
-from toolkit.program import cl_dir
-from toolkit.scene import bundled_scene_dir
+from toolkit.opencl.program import cl_dir
+from toolkit.core.scene import bundled_scene_dir
 result = toolkit.render(spp=1, resolution=(8, 8))
 print(json.dumps({"package": toolkit.__file__, "cl": str(cl_dir()), "scene": str(bundled_scene_dir()),
                   "mean": result.stats["mean"]}))
@@ -43,7 +43,7 @@ def test_installed_package_hands_out_the_assignment_stubs(tmp_path):
         pytest.skip("the toolkit is not installed in this environment (only the checkout is on the path)")
     assert run.returncode == 0, run.stderr
     assert "TODO" in run.stdout and "immediate_compact_slot" in run.stdout
-    where = subprocess.run([sys.executable, "-c", "from toolkit.grade import assignments_dir; print(assignments_dir())"],
+    where = subprocess.run([sys.executable, "-c", "from toolkit.grading.grade import assignments_dir; print(assignments_dir())"],
                            cwd=tmp_path, env=env, capture_output=True, text=True)
     assert where.returncode == 0, where.stderr
     folder = where.stdout.strip()

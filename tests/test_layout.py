@@ -3,7 +3,9 @@ import numpy as np
 import pyopencl as cl
 import pytest
 
-from toolkit import layout, program
+from toolkit.core import layout
+
+from toolkit.opencl import program
 from toolkit.techniques import TECHNIQUES
 
 
@@ -26,7 +28,7 @@ def test_float4_fields_are_16_byte_aligned_like_c():
 
 @pytest.mark.parametrize("name", sorted(TECHNIQUES))
 def test_no_kernel_takes_more_than_16_arguments(queue, cornell_spheres, name):
-    from toolkit.device_scene import DeviceScene
+    from toolkit.opencl.device_scene import DeviceScene
     tech = TECHNIQUES[name](queue, DeviceScene(queue, cornell_spheres))
     counts = {k.function_name: k.num_args for k in tech.program.all_kernels()}
     assert counts and max(counts.values()) <= 16, counts

@@ -16,12 +16,13 @@ import numpy as np
 import pytest
 
 import toolkit
-from toolkit import mlt_bias, mlt_toy
+from toolkit.measure import mlt_bias
+from toolkit.verify import mlt_toy
 from toolkit.api import DroppedSamplesWarning
-from toolkit.reference import reference_at, relative_mean_error, z_test
-from toolkit.stats import chi2_sf, pearson
+from toolkit.measure.reference import reference_at, relative_mean_error, z_test
+from toolkit.measure.stats import chi2_sf, pearson
 from toolkit.techniques.mlt import SMALL_STEP
-from toolkit.validate import InputError
+from toolkit.core.validate import InputError
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -127,7 +128,7 @@ def test_the_region_test_detects_a_wrong_image(cornell_box):
 # -- (c) startup bias ------------------------------------------------------------------------------
 
 def test_startup_bias_is_detected_falls_with_mutations_and_resampling_removes_it():
-    """covered_lamp at 16x16, 1024 chains, 6 runs each (toolkit/mlt_bias.py): bias^2 and the
+    """covered_lamp at 16x16, 1024 chains, 6 runs each (toolkit/measure/mlt_bias.py): bias^2 and the
     variance of one run, both relative to the mean squared reference. The noise floor of the
     bias^2 estimate is about variance / runs * sqrt(2 / pixels): a bias is detected when bias^2
     exceeds ten times variance / runs."""
@@ -192,7 +193,7 @@ def test_storage_layout_and_connect_schedule_do_not_change_the_image(queue, corn
     the proposals terminate (BDPT's regenerate_fraction 0.6): the same uniforms reach the same
     code, so the image is the same on one device: bit for bit across layouts; to float64
     rounding across schedules, whose records reach the host's float64 sums in another order."""
-    from toolkit.device_scene import DeviceScene
+    from toolkit.opencl.device_scene import DeviceScene
     from toolkit.techniques.mlt import Mlt
     device_scene = DeviceScene(queue, cornell_box)
     images = []
@@ -232,7 +233,7 @@ def test_time_limit_stops_after_the_iteration_that_passes_it(cornell_box):
 # -- (f) the command line ----------------------------------------------------------------------------
 
 def test_render_command_writes_an_image_without_nan_and_shows_progress(tmp_path):
-    from toolkit.images import read_exr
+    from toolkit.core.images import read_exr
     out = tmp_path / "lamp.exr"
     start = time.perf_counter()
     result = subprocess.run([sys.executable, "-m", "toolkit", "render", "scenes/covered_lamp", "--technique", "mlt",

@@ -1,4 +1,4 @@
-"""The peer benchmarks (toolkit/peers.py): the Mitsuba converter renders what the toolkit renders,
+"""The peer benchmarks (toolkit/peers/mitsuba.py): the Mitsuba converter renders what the toolkit renders,
 the Embree figures are measured on the same rays, and without Mitsuba `--peer` says how to install it."""
 import subprocess
 import sys
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import toolkit
-from toolkit import peers
-from toolkit.reference import relative_mean_error, z_test
+from toolkit.peers import mitsuba as peers
+from toolkit.measure.reference import relative_mean_error, z_test
 
 ROOT = Path(__file__).resolve().parent.parent
 

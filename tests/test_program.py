@@ -1,4 +1,4 @@
-"""toolkit/program.py: build errors that point into our files, memoised builds, scene-specialised
+"""toolkit/opencl/program.py: build errors that point into our files, memoised builds, scene-specialised
 builds (absent materials are not compiled), and the fixed local size with a padded global size.
 
 Test kernels are written to tmp_path and built with `program.build(..., directory=tmp_path)`;
@@ -11,9 +11,9 @@ import numpy as np
 import pyopencl as cl
 import pytest
 
-from toolkit import program
-from toolkit.device import candidates
-from toolkit.program import KernelBuildError
+from toolkit.opencl import program
+from toolkit.opencl.device import candidates
+from toolkit.opencl.program import KernelBuildError
 
 
 def write(folder, name, text):
@@ -45,7 +45,7 @@ IMPLEMENTATIONS = [c for c in candidates() if c.usable]
 
 
 def context_of(implementation):
-    from toolkit.device import _queue_for_device
+    from toolkit.opencl.device import _queue_for_device
     return _queue_for_device(implementation.device).context
 
 

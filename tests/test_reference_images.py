@@ -3,7 +3,7 @@
 The reference (256x256) is averaged over blocks to the test resolution; each test pixel is the
 mean of `spp` independent samples, whose standard error comes from the sample variance. The
 z-test combines that with the reference's standard error, Bonferroni-corrected over all
-pixel-channels at alpha = 0.01 (see toolkit/reference.py).
+pixel-channels at alpha = 0.01 (see toolkit/measure/reference.py).
 
 Resolution and sample counts: cornell_spheres lights most of the room through the mirror
 sphere, a rare, bright path for a path tracer; below ~10^4 samples per pixel its per-pixel
@@ -12,13 +12,13 @@ not valid. Larger test pixels (8x8, each a 32x32 block of the reference) with 13
 each keep the normal approximation honest (mean |z| measured at 0.80-0.86 over six seeds at half
 this count, 0.80 expected for a normal z; the image mean then varies by about 0.3%).
 BDPT finds those paths by light tracing and connections, at lower variance per sample; its
-error comes from independent passes, so its z follows Student's t (toolkit/reference.py).
+error comes from independent passes, so its z follows Student's t (toolkit/measure/reference.py).
 """
 import numpy as np
 import pytest
 
 import toolkit
-from toolkit.reference import reference_at, relative_mean_error, z_test
+from toolkit.measure.reference import reference_at, relative_mean_error, z_test
 
 from conftest import spp_for, film_error_techniques
 

@@ -8,17 +8,17 @@ import pytest
 
 import toolkit
 from conftest import film_error_techniques, scene_dirs, spp_for
-from toolkit.device_scene import DeviceScene
-from toolkit.layout import MATERIAL_TYPES
-from toolkit.same_image import SAME_DEVICE_BDPT
-from toolkit.scene import NO_LIMIT, load_scene
+from toolkit.opencl.device_scene import DeviceScene
+from toolkit.core.layout import MATERIAL_TYPES
+from toolkit.verify.same_image import SAME_DEVICE_BDPT
+from toolkit.core.scene import NO_LIMIT, load_scene
 from toolkit.techniques import TECHNIQUES
 
 
 def _same_to_rounding(a, b):
     # Both kernels compute the same samples in the same order: the only difference a compiler
     # may introduce is float32 rounding (a multiply-add fused in one build and not in the other),
-    # ~1e-7 relative per operation, so the same-device tolerance of toolkit.same_image holds (on
+    # ~1e-7 relative per operation, so the same-device tolerance of toolkit.verify.same_image holds (on
     # PoCL the images are bit-identical); a lost material or a roulette that fired would change
     # pixels by whole percents.
     np.testing.assert_allclose(a, b, *SAME_DEVICE_BDPT)

@@ -6,8 +6,8 @@ import numpy as np
 import pytest
 
 import toolkit
-from toolkit.reference import reference_at, relative_mean_error, z_test
-from toolkit.scene import Camera, Scene
+from toolkit.measure.reference import reference_at, relative_mean_error, z_test
+from toolkit.core.scene import Camera, Scene
 
 from conftest import spp_for, film_error_techniques
 

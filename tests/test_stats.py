@@ -1,10 +1,10 @@
-"""The host-side statistics in toolkit/stats.py, which the BSDF chi-square test and the render
+"""The host-side statistics in toolkit/measure/stats.py, which the BSDF chi-square test and the render
 z-test share, against closed forms."""
 import math
 
 import pytest
 
-from toolkit.stats import bonferroni, chi2_sf, gammq, normal_two_sided_p, pearson, sidak, student_t_two_sided_p
+from toolkit.measure.stats import bonferroni, chi2_sf, gammq, normal_two_sided_p, pearson, sidak, student_t_two_sided_p
 
 
 def test_gammq_matches_closed_forms():

@@ -9,8 +9,8 @@ import pyopencl as cl
 import pytest
 
 import toolkit
-from toolkit.same_image import PT_FAMILY, SAME_DEVICE
-from toolkit.simd import PhaseCounter
+from toolkit.verify.same_image import PT_FAMILY, SAME_DEVICE
+from toolkit.core.simd import PhaseCounter
 from toolkit.techniques import TECHNIQUES, VARIANTS
 
 PT = list(PT_FAMILY)
@@ -34,7 +34,7 @@ def test_the_work_group_size_does_not_change_the_image(cornell_box, technique):
     reqd_work_group_size, local arrays and in-kernel compaction scans follow it) gives the same
     image, bit for bit: random numbers are keyed by sample, not by work-item, and every sample
     adds its parts in the same order whatever the work-groups."""
-    from toolkit import program
+    from toolkit.opencl import program
     images = {}
     for size in (32, 64, 256):
         result = toolkit.render(cornell_box, technique=technique, spp=2, seed=5, resolution=(13, 7), local_size=size)
@@ -46,8 +46,8 @@ def test_the_work_group_size_does_not_change_the_image(cornell_box, technique):
     # The build really took the size: a kernel with reqd_work_group_size(LOCAL_SIZE) reports it.
     if technique == "pt_compact_regen":
         from toolkit.api import as_scene
-        from toolkit.device import get_queue
-        from toolkit.device_scene import DeviceScene
+        from toolkit.opencl.device import get_queue
+        from toolkit.opencl.device_scene import DeviceScene
         queue = get_queue()
         tech = TECHNIQUES[technique](queue, DeviceScene(queue, as_scene(cornell_box)), local_size=32)
         kernel = program.kernel(tech.program, "pt_compact_regen_extend")
@@ -57,9 +57,9 @@ def test_the_work_group_size_does_not_change_the_image(cornell_box, technique):
 
 @pytest.mark.parametrize("size", [0, 16, 48, 512, 64.0, True, "64"])
 def test_a_bad_work_group_size_is_refused_before_any_work(cornell_box, size):
-    from toolkit.compaction import Compactor
-    from toolkit.device import get_queue
-    from toolkit.validate import InputError
+    from toolkit.opencl.compaction import Compactor
+    from toolkit.opencl.device import get_queue
+    from toolkit.core.validate import InputError
     with pytest.raises(InputError, match="local_size"):
         toolkit.render(cornell_box, technique="pt_naive", spp=1, resolution=(4, 4), local_size=size)
     with pytest.raises(InputError, match="local_size"):
@@ -140,7 +140,7 @@ def test_final_drain_is_marked_from_the_step_after_the_last_sample_starts(cornel
     """64x64 at 16 spp is twice the stream: the stream stays full while samples are left to
     start, then drains. The steps marked `draining` (shaded on compare's plot) are one run to
     the end of the pass, and every step before them ran on a full stream."""
-    from toolkit.compare import drain_spans
+    from toolkit.measure.compare import drain_spans
     result = toolkit.render(cornell_box, technique=technique, spp=16, seed=0, resolution=(64, 64))
     steps = [it for it in result.iterations if it["phase"] == "extend"]
     spans = drain_spans(steps)

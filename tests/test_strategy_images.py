@@ -1,4 +1,4 @@
-"""Per-strategy images of BDPT (render --strategies, toolkit/strategies.py): the MIS-weighted
+"""Per-strategy images of BDPT (render --strategies, toolkit/measure/strategies.py): the MIS-weighted
 strategy images add up to the BDPT image, and both connect phases split it the same way."""
 import json
 import subprocess
@@ -9,7 +9,8 @@ import pytest
 
 import toolkit
 from conftest import ROOT, SCENES
-from toolkit.strategies import render_strategies, strategies, strategy_count, strategy_index
+from toolkit.measure.strategies import render_strategies
+from toolkit.techniques.strategy_images import strategies, strategy_count, strategy_index
 
 BDPT = ("bdpt_naive_connect", "bdpt_parallel_connect")
 SIZE, SPP, EDGES = (16, 16), 4, 3     # 3 edges: the sum of longer paths (most of the indirect light) is tested too

@@ -1,4 +1,4 @@
-"""The speed-accuracy study (toolkit/study.py, `python -m toolkit study`), issue 11's checks:
+"""The speed-accuracy study (toolkit/measure/study.py, `python -m toolkit study`), issue 11's checks:
 
 1. slopes: every unbiased technique's RMSE falls as time^-1/2 on cornell_box, without bias;
 2. truncation bias: max_depth = 2, 3, 4 is biased (growing as the depth falls), -1 is not;
@@ -17,8 +17,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from toolkit.stats import bonferroni, normal_two_sided_p, student_t_two_sided_p
-from toolkit.study import error_figures, fit_slope, study, time_to_target
+from toolkit.measure.stats import bonferroni, normal_two_sided_p, student_t_two_sided_p
+from toolkit.measure.study import error_figures, fit_slope, study, time_to_target
 
 ALPHA = 0.01     # chance that a correct study fails a statistical test below (with Bonferroni)
 UNBIASED = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "bdpt_naive_connect", "bdpt_parallel_connect")
@@ -49,7 +49,7 @@ def test_standard_errors_match_the_spread_over_many_simulated_studies(reps):
     variance and mse match the actual spread of those figures, and bias2 / se (no bias) stays
     within a standard normal's spread. With T studies the spread's own relative error is
     ~1 / sqrt(2 T) = 1.8%; the bounds allow for that and for the jackknife's known upward bias
-    on a quadratic figure (the docstring of toolkit/study.py: sd(z) ~0.7)."""
+    on a quadratic figure (the docstring of toolkit/measure/study.py: sd(z) ~0.7)."""
     rng = np.random.default_rng(11)
     sigma = np.full(256, 0.05)
     sigma[:4] *= math.sqrt(300)
@@ -122,7 +122,7 @@ def test_slope_and_time_to_target_on_an_exact_power_law():
 # cost would steepen the slope. Path tracers from 8 spp at 64x64 (~45 ms): from 4 spp (~25 ms) a
 # loaded machine's jitter on the small renders steepened pt_naive's slope to -0.65 in one CI run,
 # where the samples alone (the fit against spp) gave -0.55. Each point's time is the fastest
-# repetition's (toolkit/study.py), which a disturbed repetition does not move.
+# repetition's (toolkit/measure/study.py), which a disturbed repetition does not move.
 PT_STUDY = dict(spp_budgets=[8, 16, 32, 64, 128], repeats=4, resolution=(64, 64))
 BDPT_STUDY = dict(spp_budgets=[64, 128, 256, 512, 1024], repeats=6, resolution=(8, 8))
 MAX_SLOPE_SE = 0.1
@@ -317,7 +317,7 @@ def test_calibration_probes_again_until_its_last_probe_lands_near_the_target(mon
     plan's line holds where it is used. The renders here are a cost model, not the device."""
     import importlib
     from types import SimpleNamespace
-    study = importlib.import_module("toolkit.study")     # the module (toolkit.study is also the function)
+    study = importlib.import_module("toolkit.measure.study")     # the module (toolkit.measure.study is also the function)
 
     def cost(spp):      # seconds: a start that grows with spp up to 64 spp, then 1 ms per spp
         return 0.001 * spp + 0.05 * min(spp, 64)
@@ -352,7 +352,7 @@ def test_study_refuses_bad_input_with_the_reason(args, complaint, tmp_path, caps
 
 
 def test_a_failed_write_leaves_the_old_file(tmp_path):
-    from toolkit.images import write_atomically
+    from toolkit.core.images import write_atomically
     path = tmp_path / "study.json"
     path.write_text("old")
 

@@ -3,7 +3,7 @@ and two short Taylor series), checked against numpy's float64 values over a fine
 import numpy as np
 import pyopencl as cl
 
-from toolkit import program
+from toolkit.opencl import program
 
 KERNEL = """
 #include "common.h"

@@ -7,9 +7,10 @@ import pyopencl as cl
 import pytest
 
 import toolkit
-from toolkit import device
-from toolkit.compare import format_table
-from toolkit.device import choose_warp_width, device_warp_width
+from toolkit.opencl import device
+from toolkit.measure.compare import format_table
+from toolkit.opencl.device_model import choose_warp_width, device_warp_width
+from toolkit.cli import devices_report
 
 
 @pytest.mark.parametrize("description, expected", [
@@ -74,7 +75,7 @@ def test_device_properties_are_read_only_where_the_extension_is_there():
 
 def test_devices_render_and_compare_say_which_width_is_used(queue, cornell_box):
     expected, why = device_warp_width(queue.device)
-    assert f"SIMD counters: warps of {expected}" in device.report()
+    assert f"SIMD counters: warps of {expected}" in devices_report()
     result = toolkit.render(cornell_box, "pt_naive", spp=1, resolution=(8, 8), device=None)
     assert result.stats["warp_width"] == device_warp_width(device.get_queue().device)[0]
     assert result.stats["warp_width_source"] == device_warp_width(device.get_queue().device)[1]

@@ -15,8 +15,8 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from toolkit.device_scene import DeviceScene
-from toolkit.raycast import DeviceRaycaster
+from toolkit.opencl.device_scene import DeviceScene
+from toolkit.opencl.raycast import DeviceRaycaster
 
 BVHS = ("binary", "wide")
 

@@ -1,4 +1,4 @@
-"""The wide BVH (toolkit/bvh.py collapse_wide, cl/bvh.h under BVH_WIDE) against the binary one.
+"""The wide BVH (toolkit/core/bvh.py collapse_wide, cl/bvh.h under BVH_WIDE) against the binary one.
 
 Both run the same float operations lane by lane (FP_CONTRACT off) and define the closest hit
 the same way, ties included (smallest t, then lowest triangle index: cl/bvh.h `closer`), so
@@ -9,12 +9,12 @@ import numpy as np
 import pytest
 
 from toolkit import render
-from toolkit.bvh import GROUP_WORDS, NODE_WORDS
-from toolkit.crosscheck import random_rays
-from toolkit.device_scene import DeviceScene
-from toolkit.embree_ref import camera_rays
-from toolkit.layout import TRI_GROUP, WIDE_NODE, WideChild
-from toolkit.raycast import DeviceRaycaster
+from toolkit.core.bvh import GROUP_WORDS, NODE_WORDS
+from toolkit.peers.embree import random_rays
+from toolkit.opencl.device_scene import DeviceScene
+from toolkit.peers.embree import camera_rays
+from toolkit.core.layout import TRI_GROUP, WIDE_NODE, WideChild
+from toolkit.opencl.raycast import DeviceRaycaster
 
 SCENES = ["cornell_box", "cornell_spheres"]
 

@@ -11,11 +11,13 @@ import pyopencl as cl
 import pytest
 
 import toolkit
-from toolkit import device, program
-from toolkit.layout import BDPT_VERTEX
-from toolkit.validate import InputError
-from toolkit.work_sizes import (CPU_POOL_SIZE, CPU_STREAM_SIZE, INT_MAX, buffer_plan, check_fits,
+from toolkit.opencl import device
+from toolkit.opencl import program
+from toolkit.core.layout import BDPT_VERTEX
+from toolkit.core.validate import InputError
+from toolkit.opencl.work_sizes import (CPU_POOL_SIZE, CPU_STREAM_SIZE, INT_MAX, buffer_plan, check_fits,
                                 choose_work_sizes, device_work_sizes, problems)
+from toolkit.cli import devices_report
 
 GiB = 2**30
 H200 = dict(is_gpu=True, vendor="NVIDIA Corporation", vendor_id=0x10DE, name="NVIDIA H200", compute_units=132,
@@ -126,4 +128,4 @@ def test_a_given_size_is_used_and_does_not_change_the_image(cornell_box, techniq
 
 def test_devices_shows_the_sizes(queue):
     sizes = device_work_sizes(queue.device)
-    assert f"in flight: {sizes.text()}" in device.report()
+    assert f"in flight: {sizes.text()}" in devices_report()

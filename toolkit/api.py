@@ -8,12 +8,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .device import describe, get_queue
-from .device_scene import DeviceScene
-from .layout import BVH_KINDS
-from .scene import Scene, bundled_scene_dir, check_scene, load_scene
-from .techniques import get_technique
-from .validate import InputError, local_size as checked_local_size, render_args
+from toolkit.opencl.device import describe, get_queue
+from toolkit.opencl.device_scene import DeviceScene
+from toolkit.core.layout import BVH_KINDS
+from toolkit.core.scene import Scene, bundled_scene_dir, check_scene, load_scene
+from toolkit.techniques import get_technique
+from toolkit.core.validate import InputError, local_size as checked_local_size, render_args
 
 
 class DroppedSamplesWarning(UserWarning):
@@ -45,7 +45,7 @@ def _options(cls, options):
              for name, p in inspect.signature(c.__init__).parameters.items()
              if p.kind == p.KEYWORD_ONLY or (p.kind == p.POSITIONAL_OR_KEYWORD and p.default is not p.empty)}
     known -= {"warp_width", "count_simd", "extra_defines", "local_size", "general"}   # render's own arguments
-    known -= {"strategy_max_edges"}   # per-strategy images: toolkit.strategies.render_strategies
+    known -= {"strategy_max_edges"}   # per-strategy images: toolkit.measure.strategies.render_strategies
     for key in options:
         if key not in known:
             raise InputError(f"unknown option {key!r} for {cls.name} (known: {', '.join(sorted(known)) or 'none'})")
@@ -66,10 +66,10 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     kernels are built and launched with, a power of two 32 .. 256; random numbers are keyed by
     sample, not by work-item, so the image does not depend on it (tests/test_strategies.py).
     `warp_width` is the W of the SIMD-efficiency counters; None takes the device's
-    (toolkit.device.choose_warp_width: 32 on NVIDIA and on a CPU, 64 on AMD, 16 on Intel GPUs);
+    (toolkit.opencl.device_model.choose_warp_width: 32 on NVIDIA and on a CPU, 64 on AMD, 16 on Intel GPUs);
     stats["warp_width"] and ["warp_width_source"] say which. `general=True` builds the general
     kernel (every material and feature compiled in) instead of the one specialized to the scene
-    (Scene.features; toolkit/specialization.py measures what that costs): the same image.
+    (Scene.features; toolkit/measure/specialization.py measures what that costs): the same image.
     """
     # Every argument is checked before any work (kernel builds, BVH) starts.
     if not isinstance(technique, str):

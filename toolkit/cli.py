@@ -1,10 +1,18 @@
 """Command line: `python -m toolkit {render,devices,...}`. See README.md for examples."""
 import argparse
 import json
+import os
 import sys
 import warnings
 
 import numpy as np
+import pyopencl as cl
+
+from toolkit.opencl import runtimes
+from toolkit.opencl.device import (HOW_TO_GET_OPENCL, RANKING, NoOpenCLError, candidates, describe, has_gpu,
+                                   pick_device)
+from toolkit.opencl.device_model import device_warp_width
+from toolkit.opencl.work_sizes import device_work_sizes
 
 
 def _resolution(text):
@@ -43,7 +51,7 @@ def _positive(text):
 
 
 def build_parser():
-    from .techniques import TECHNIQUES
+    from toolkit.techniques import TECHNIQUES
     parser = argparse.ArgumentParser(prog="python -m toolkit", description=__doc__)
     parser.add_argument("--device", help="OpenCL device: P:D indices or a name part (overrides PYOPENCL_CTX)")
     parser.add_argument("--verbose", action="store_true", help="print every kernel build log in full")
@@ -95,7 +103,7 @@ def build_parser():
     p.add_argument("--json", action="store_true")
     bvh_option(p)
 
-    from .techniques import VARIANTS
+    from toolkit.techniques import VARIANTS
     names = ", ".join([*sorted(TECHNIQUES), *VARIANTS])
     p = sub.add_parser("compare", help="several techniques side by side: time, SIMD efficiency, error")
     device_option(p)
@@ -120,8 +128,8 @@ def build_parser():
     p = sub.add_parser("bench", help="samples/s of each technique and their ratios, measured in one run")
     device_option(p)
     p.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
-    from .bench import DEFAULT
-    from .peers import PEER_DEFAULT
+    from toolkit.measure.bench import DEFAULT
+    from toolkit.peers.mitsuba import PEER_DEFAULT
     p.add_argument("--techniques", help=f"comma-separated, from: {names} (default {','.join(DEFAULT)}; "
                                         f"with --peer mitsuba: {','.join(PEER_DEFAULT)})")
     p.add_argument("--spp", type=_positive, default=16, help="samples per pixel for path tracers (BDPT: an eighth)")
@@ -154,7 +162,7 @@ def build_parser():
     p.add_argument("--out", default="out/gpucheck.txt",
                    help="the report (text); its JSON goes beside it as .json (default out/gpucheck.txt)")
 
-    from .study import DEFAULT_BUDGETS, DEFAULT_REPEATS, DEFAULT_TARGET, DEFAULT_TECHNIQUES
+    from toolkit.measure.study import DEFAULT_BUDGETS, DEFAULT_REPEATS, DEFAULT_TARGET, DEFAULT_TECHNIQUES
     p = sub.add_parser(
         "study", help="the speed-accuracy study: error (bias^2, variance) against time per technique or knob value",
         description="Error against time for each technique, or for each value of an accuracy knob, against the "
@@ -201,7 +209,7 @@ def build_parser():
                         "build time, binary size (bench --specialization does every bundled scene)")
     bvh_option(p)
 
-    from .grade import ASSIGNMENTS, TIME_LIMIT
+    from toolkit.grading.grade import ASSIGNMENTS, TIME_LIMIT
     p = sub.add_parser("grade", help="grade a course assignment (tutorials/assignments/): score /100 per check")
     device_option(p)
     p.add_argument("assignment", choices=list(ASSIGNMENTS))
@@ -221,17 +229,16 @@ def _warning_line(message, category, filename, lineno, file=None, line=None):
 def main(argv=None):
     parser = build_parser()
     args = parser.parse_args(argv)
-    from . import program
+    from toolkit.opencl import program
     program.verbose = program.verbose or args.verbose
-    from .device import NoOpenCLError
-    from .program import KernelBuildError
-    from .scene import SceneError
+    from toolkit.opencl.device import NoOpenCLError
+    from toolkit.opencl.program import KernelBuildError
+    from toolkit.core.scene import SceneError
     shown = warnings.showwarning
     warnings.showwarning = _warning_line      # one "warning: ..." line, not file and source line
     try:
         if args.command == "devices":
-            from .device import report
-            print(report())
+            print(devices_report())
             return 0
         if args.command == "render":
             return cmd_render(args)
@@ -246,7 +253,7 @@ def main(argv=None):
         if args.command == "study":
             return cmd_study(args)
         if args.command == "grade":
-            from .grade import cmd_grade
+            from toolkit.grading.grade import cmd_grade
             return cmd_grade(args)
     except (NoOpenCLError, KernelBuildError) as error:
         # A compiler log and the list of devices with their fixes keep their lines.
@@ -263,10 +270,10 @@ def main(argv=None):
 def cmd_render(args):
     if args.strategies:
         return cmd_render_strategies(args)
-    from .api import as_scene, render
-    from .images import write_image
-    from .reference import reference_at, reference_problem, rmse
-    from .validate import check_output
+    from toolkit.api import as_scene, render
+    from toolkit.core.images import write_image
+    from toolkit.measure.reference import reference_at, reference_problem, rmse
+    from toolkit.core.validate import check_output
     if args.out:
         check_output(args.out)      # before the render: a bad --out must not cost its time
     scene = as_scene(args.scene)
@@ -303,9 +310,9 @@ def cmd_render(args):
 
 
 def cmd_render_strategies(args):
-    from .api import as_scene
-    from .strategies import format_strategies, render_strategies, write_strategies
-    from .validate import check_output
+    from toolkit.api import as_scene
+    from toolkit.measure.strategies import format_strategies, render_strategies, write_strategies
+    from toolkit.core.validate import check_output
     if args.general:
         raise ValueError("--strategies builds its own kernels; --general does not apply")
     scene = as_scene(args.scene)
@@ -323,7 +330,7 @@ def cmd_render_strategies(args):
 
 
 def _technique_list(text):
-    from .techniques import get_technique
+    from toolkit.techniques import get_technique
     names = [t.strip() for t in text.split(",") if t.strip()]
     for name in names:
         get_technique(name)   # raises a clear ValueError for an unknown name
@@ -333,7 +340,7 @@ def _technique_list(text):
 
 
 def cmd_compare(args):
-    from .compare import compare, format_table
+    from toolkit.measure.compare import compare, format_table
     table = compare(args.scene, _technique_list(args.techniques), args.spp, resolution=args.resolution,
                     seed=args.seed, warp_width=args.warp_width, out_dir=args.out, device=args.device,
                     progress=not args.no_progress, bvh=args.bvh, general=args.general)
@@ -346,8 +353,9 @@ def cmd_compare(args):
 
 
 def cmd_bench(args):
-    from .bench import DEFAULT, bench, format_bench, format_equal_time
-    from .validate import finite_number, whole_number
+    from toolkit.measure.bench import DEFAULT, bench, format_bench
+    from toolkit.measure.study import format_equal_time
+    from toolkit.core.validate import finite_number, whole_number
     whole_number("bench.repeats", args.repeats, "--repeats")
     if args.peer:
         return cmd_bench_peer(args)
@@ -355,7 +363,7 @@ def cmd_bench(args):
         return cmd_bench_specialization(args)
     if args.equal_time is not None:
         finite_number("bench.equal_time", args.equal_time, "--equal-time")
-        from .bench import equal_time
+        from toolkit.measure.study import equal_time
         scene = args.scene or "scenes/cornell_spheres"
         report = equal_time(scene, _technique_list(args.techniques or ",".join(DEFAULT)), args.equal_time,
                             resolution=args.resolution or (32, 32), device=args.device, bvh=args.bvh)
@@ -373,7 +381,7 @@ def cmd_bench(args):
 
 
 def cmd_bench_specialization(args):
-    from .specialization import DEFAULT_TECHNIQUES, format_specialization, measure_specialization
+    from toolkit.measure.specialization import DEFAULT_TECHNIQUES, format_specialization, measure_specialization
     techniques = _technique_list(args.techniques or ",".join(DEFAULT_TECHNIQUES))
     report = measure_specialization(args.scene, techniques, resolution=args.resolution or (64, 64), spp=args.spp,
                                     repeats=args.repeats, device=args.device, bvh=args.bvh,
@@ -385,9 +393,9 @@ def cmd_bench_specialization(args):
 
 
 def cmd_bench_peer(args):
-    from . import peers
-    from .api import as_scene
-    from .device import get_queue
+    from toolkit.peers.mitsuba import mitsuba as peers
+    from toolkit.api import as_scene
+    from toolkit.opencl.device import get_queue
     scene = as_scene(args.scene)
     if args.peer == "embree":
         report = peers.embree_rays(scene, repeats=args.repeats, queue=get_queue(args.device))
@@ -408,10 +416,10 @@ def cmd_bench_peer(args):
 
 
 def cmd_crosscheck(args):
-    from .api import as_scene
-    from .crosscheck import compare_with_embree, format_figures
-    from .device import get_queue
-    from .validate import whole_number
+    from toolkit.api import as_scene
+    from toolkit.verify.crosscheck import compare_with_embree, format_figures
+    from toolkit.opencl.device import get_queue
+    from toolkit.core.validate import whole_number
     whole_number("seed", args.seed, "--seed")
     whole_number("crosscheck.rays", args.rays, "--rays")
     figures = compare_with_embree(as_scene(args.scene), n_random=args.rays, seed=args.seed,
@@ -423,7 +431,7 @@ def cmd_crosscheck(args):
 
 
 def cmd_gpucheck(args):
-    from . import gpucheck
+    from toolkit.verify import gpucheck
     out = gpucheck.report_path(args.out)      # before the run: a bad --out must not cost its time
     report = gpucheck.run(device=args.device, fast=args.fast, out_dir=str(out.parent / (out.stem + "_compare")))
     text, data = gpucheck.write_report(report, out)
@@ -443,7 +451,7 @@ def _numbers(text, kind, option):
 
 
 def cmd_study(args):
-    from .study import format_study, study
+    from toolkit.measure.study import format_study, study
     spp_budgets = _numbers(args.spp_budgets, int, "--spp-budgets") if args.spp_budgets else None
     budgets = _numbers(args.budgets, float, "--budgets")
     report = study(args.scene, _technique_list(args.techniques), budgets=budgets, repeats=args.repeats,
@@ -455,3 +463,40 @@ def cmd_study(args):
     if args.json:
         print(json.dumps(report, default=str))
     return 0
+
+
+def devices_report():
+    """Text for `python -m toolkit devices`."""
+    found = candidates()
+    if not found:
+        return HOW_TO_GET_OPENCL
+    lines = ["OpenCL devices, best first (select with --device P:D or PYOPENCL_CTX=P:D):"]
+    for c in found:
+        state = "usable" if c.usable else f"NOT usable: {c.reason}"
+        lines.append(f"  {c.selector}  {c.device.name.strip()}  [{state}]")
+        lines.append(f"       implementation: {c.implementation}, compiler: {c.compiler}")
+        lines.append(f"       platform: {c.platform.name.strip()} {c.platform.version.strip()}")
+        lines.append(f"       type: {cl.device_type.to_string(c.device.type)}, compute units: "
+                     f"{c.device.max_compute_units}, max work-group: {c.device.max_work_group_size}, "
+                     f"global memory: {c.device.global_mem_size / 2**30:.1f} GiB")
+        width, why = device_warp_width(c.device)
+        lines.append(f"       SIMD counters: warps of {width} ({why}; --warp-width overrides)")
+        lines.append(f"       in flight: {device_work_sizes(c.device).text()}; options stream_size / pool_size override")
+    lines.append("Ranking of usable devices: " + " > ".join(RANKING))
+    try:
+        _, device = pick_device()
+        lines.append(f"The toolkit would pick: {describe(device)}")
+    except NoOpenCLError as error:
+        lines.append(f"The toolkit cannot pick a device: {error}")
+    for variable in ("PYOPENCL_CTX", "TOOLKIT_HIDE_PLATFORMS"):
+        if os.environ.get(variable):
+            lines.append(f"({variable}={os.environ[variable]} is set)")
+    if runtimes.registered_vendors:
+        lines.append(f"Intel's CPU runtime from pip is registered beside the system's drivers "
+                     f"(OCL_ICD_VENDORS={runtimes.registered_vendors}).")
+    elif os.environ.get("OCL_ICD_VENDORS"):
+        lines.append(f"(OCL_ICD_VENDORS={os.environ['OCL_ICD_VENDORS']} is set: the toolkit registers no runtime)")
+    if not has_gpu():
+        lines.append("No GPU found: kernels run on the CPU, where idle SIMD lanes cost less than "
+                     "on a GPU; the SIMD-efficiency counters still model a GPU warp (of 32).")
+    return "\n".join(lines)

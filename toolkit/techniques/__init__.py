@@ -1,12 +1,12 @@
 """The registry of techniques: name -> class. Each has a host module and a cl/ file of the same name."""
-from .bdpt_naive_connect import BdptNaiveConnect
-from .bdpt_parallel_connect import BdptParallelConnect
-from .mlt import Mlt
-from .pt_compact_regen import PtCompactRegen
-from .pt_inplace_regen import PtInplaceRegen
-from .pt_naive import PtNaive
+from toolkit.techniques.bdpt_naive_connect import BdptNaiveConnect
+from toolkit.techniques.bdpt_parallel_connect import BdptParallelConnect
+from toolkit.techniques.mlt import Mlt
+from toolkit.techniques.pt_compact_regen import PtCompactRegen
+from toolkit.techniques.pt_inplace_regen import PtInplaceRegen
+from toolkit.techniques.pt_naive import PtNaive
 
-__all__ = ["TECHNIQUES", "VARIANTS", "get_technique", "PtNaive", "PtInplaceRegen", "PtCompactRegen",
+__all__ = ["TECHNIQUES", "VARIANTS", "get_technique", "family", "PtNaive", "PtInplaceRegen", "PtCompactRegen",
            "BdptNaiveConnect", "BdptParallelConnect", "Mlt"]
 
 TECHNIQUES = {cls.name: cls for cls in (PtNaive, PtInplaceRegen, PtCompactRegen,
@@ -27,3 +27,8 @@ def get_technique(name):
     except KeyError:
         known = ", ".join([*TECHNIQUES, *VARIANTS])
         raise ValueError(f"unknown technique {name!r}; known: {known}") from None
+
+
+def family(name):
+    """"pt", "bdpt" or "mlt": the family of a technique or variant name (Technique.family)."""
+    return get_technique(name)[0].family

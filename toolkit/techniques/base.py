@@ -5,11 +5,11 @@ import time
 import numpy as np
 import pyopencl as cl
 
-from .. import program
-from ..film import Film, clamp_radiance
-from ..layout import LANE_COUNTS
-from ..simd import PhaseCounter
-from ..validate import InputError, local_size as checked_local_size, whole_number
+from toolkit.opencl import program
+from toolkit.core.film import Film, clamp_radiance
+from toolkit.core.layout import LANE_COUNTS
+from toolkit.core.simd import PhaseCounter
+from toolkit.core.validate import InputError, local_size as checked_local_size, whole_number
 
 
 class Technique:
@@ -23,20 +23,20 @@ class Technique:
     shadow_queue = False
     iterations = 0   # extension steps over all passes so far (for per-iteration plots)
     # Where `source` and its includes are looked up before cl/ (program.build's `directory`):
-    # the autograder (toolkit/grade.py) points it at a folder holding a student's file.
+    # the autograder (toolkit/grading/grade.py) points it at a folder holding a student's file.
     source_dir = None
 
     def __init__(self, queue, device_scene, warp_width=None, count_simd=True, extra_defines=None,
                  local_size=program.LOCAL_SIZE, general=False, pass_spp=None):
-        """`warp_width`: W of the SIMD counters; None: the device's (toolkit.device.device_warp_width).
+        """`warp_width`: W of the SIMD counters; None: the device's (toolkit.opencl.device_model.device_warp_width).
         `general`: build the general kernel (every material and feature compiled in, Scene.features)
         instead of the one specialized to the scene; both compute the same image.
         `pass_spp` (an option of every technique): samples per pixel in one pass instead of what
-        fills `target_batch`; a cost knob of the speed-accuracy study (toolkit/study.py)."""
+        fills `target_batch`; a cost knob of the speed-accuracy study (toolkit/measure/study.py)."""
         self.pass_spp = None if pass_spp is None else whole_number("technique.pass_spp", pass_spp, "pass_spp")
         # Firefly clamping (scene integrator.clamp): applied where samples reach the film.
         self.clamp = device_scene.scene.clamp
-        from ..device import resolve_warp_width
+        from toolkit.opencl.device_model import resolve_warp_width
         self.queue = queue
         self.scene = device_scene
         warp_width, self.warp_width_source = resolve_warp_width(warp_width, queue.device)
@@ -62,11 +62,11 @@ class Technique:
 
     def in_flight(self, option, given, max_vertices=64):
         """The work a stream technique keeps in flight (option "stream_size" or "pool_size"):
-        `given` (checked: the device must hold its buffers, toolkit.work_sizes.check_fits), else
+        `given` (checked: the device must hold its buffers, toolkit.opencl.work_sizes.check_fits), else
         a size the class sets (the grader's variants do), else the device's choice
-        (toolkit.work_sizes.choose_work_sizes: a GPU's resident work-items, a CPU's own sizes).
+        (toolkit.opencl.work_sizes.choose_work_sizes: a GPU's resident work-items, a CPU's own sizes).
         The pass grows with it (target_batch), so every slot still runs several samples a pass."""
-        from ..work_sizes import CPU_POOL_SIZE, CPU_STREAM_SIZE, check_fits, device_work_sizes
+        from toolkit.opencl.work_sizes import CPU_POOL_SIZE, CPU_STREAM_SIZE, check_fits, device_work_sizes
         if given is not None:
             size, why = check_fits(self.queue.device, option, given, max_vertices), "given"
         elif getattr(type(self), option) is not None:
@@ -153,7 +153,7 @@ class Technique:
         cl.enqueue_fill_buffer(self.queue, buffer, np.int32(value), 0, buffer.size)
 
     def lane_counts_buffer(self, n):
-        """One LaneCounts record per work-item (toolkit/layout.py), written when COUNT_SIMD."""
+        """One LaneCounts record per work-item (toolkit/core/layout.py), written when COUNT_SIMD."""
         return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
                          LANE_COUNTS.dtype.itemsize * self.padded(max(n, 1)))
 

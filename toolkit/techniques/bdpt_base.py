@@ -10,7 +10,7 @@ One pass, read like the talk's slides:
 Light-tracing (t = 1) contributions land on other pixels: every connection writes a record
 (pixel, value) and the host adds the records up per pixel in float64 (no float atomics on
 the device). So a pass is an image, and the standard error comes from independent passes.
-Option `pool_size`: the samples in flight (default: the device's, toolkit/work_sizes.py: 4,096
+Option `pool_size`: the samples in flight (default: the device's, toolkit/opencl/work_sizes.py: 4,096
 on a CPU); each stores MAX_VERTICES eye and light vertices.
 """
 from dataclasses import dataclass
@@ -18,13 +18,13 @@ from dataclasses import dataclass
 import numpy as np
 import pyopencl as cl
 
-from ..compaction import Compactor
-from ..layout import BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, SUBPATH, WalkCounter
-from ..scene import NO_LIMIT
-from ..simd import PhaseCounter
-from ..strategies import StrategyImages, strategy_count
-from ..work_sizes import checked_size
-from .base import Technique
+from toolkit.opencl.compaction import Compactor
+from toolkit.core.layout import BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, SUBPATH, WalkCounter
+from toolkit.core.scene import NO_LIMIT
+from toolkit.core.simd import PhaseCounter
+from toolkit.techniques.strategy_images import StrategyImages, strategy_count
+from toolkit.opencl.work_sizes import checked_size
+from toolkit.techniques.base import Technique
 
 
 @dataclass
@@ -78,7 +78,7 @@ class BdptTechnique(Technique):
     def __init__(self, queue, device_scene, regenerate_fraction=0.6, coalesced_scatter=True, pool_size=None,
                  strategy_max_edges=None, **kwargs):
         """`strategy_max_edges`: build the kernels that keep each connection strategy apart
-        (render --strategies, toolkit/strategies.py), with images for paths up to that many edges."""
+        (render --strategies, toolkit/measure/strategies.py), with images for paths up to that many edges."""
         scene = device_scene.scene
         # At least 2: the walk stores its first hit (vertex 1) before it checks the depth.
         self.max_vertices = max(2, min(self.max_vertices, scene.max_depth + 1)) if scene.max_depth >= 0 else self.max_vertices

@@ -6,9 +6,9 @@ bdpt_parallel_connect: see bdpt_base.py and cl/bdpt_walk.h."""
 import numpy as np
 import pyopencl as cl
 
-from ..simd import PhaseCounter
-from ..strategies import strategy_count, strategy_index
-from .bdpt_base import BdptTechnique
+from toolkit.core.simd import PhaseCounter
+from toolkit.techniques.strategy_images import strategy_count, strategy_index
+from toolkit.techniques.bdpt_base import BdptTechnique
 
 
 class BdptNaiveConnect(BdptTechnique):
@@ -52,7 +52,7 @@ class BdptNaiveConnect(BdptTechnique):
         return self.reduce_records(values, pixels, npix)
 
     def record_strategies(self, pool, splat_counts):
-        """The strategy index (toolkit/strategies.py) of each record, from where the kernel put it:
+        """The strategy index (toolkit/measure/strategies.py) of each record, from where the kernel put it:
         the t = 1 splats of s = 1 .. splat_counts[k] for each slot k in turn, one sum of the longer
         paths per slot, then one record per short eye-path strategy, numbered as the images are."""
         count = strategy_count(self.strategy_max_edges)

@@ -5,9 +5,9 @@ connection, whatever the lengths of the subpaths."""
 import numpy as np
 import pyopencl as cl
 
-from ..layout import BDPT_SLOT
-from ..strategies import strategy_index
-from .bdpt_base import BdptTechnique
+from toolkit.core.layout import BDPT_SLOT
+from toolkit.techniques.strategy_images import strategy_index
+from toolkit.techniques.bdpt_base import BdptTechnique
 
 
 class BdptParallelConnect(BdptTechnique):
@@ -25,7 +25,7 @@ class BdptParallelConnect(BdptTechnique):
         return self.reduce_records(values, pixels, npix)
 
     def record_strategies(self, p, counts):
-        """The strategy index (toolkit/strategies.py) of each connection record: a slot's records
+        """The strategy index (toolkit/measure/strategies.py) of each connection record: a slot's records
         are consecutive, local index k is strategy (s, t) with k + 1 = (t - 1)(n_light + 1) + s
         (connection_strategy in cl/bdpt.h)."""
         counts = self.read_ints(counts, p.pool.size)

@@ -42,7 +42,7 @@ p -> 0) it is the plain estimator above. The start's samples only go into b.
 The start. `naive` (the talk): a chain starts at one large step, distributed like a BDPT
 sample (uniform in primary sample space), not like f / b: the first mutations of every chain
 are biased towards where samples are many rather than bright (startup bias), and with many
-chains and few mutations each, that bias dominates (toolkit/mlt_bias.py measures it).
+chains and few mutations each, that bias dominates (toolkit/measure/mlt_bias.py measures it).
 `resample` (Veach 1997, sec. 11.3.3): chain c draws N candidates (large steps) and keeps one
 with probability f_k / sum_k f_k; with the weight w_c = (1/N) sum_k f_k, E[w_c g(x_c)] equals
 the integral of f g for every g, at the start and (the mutations keep f / b invariant) at every
@@ -80,7 +80,7 @@ Options (keyword arguments of toolkit.render(..., options=...)):
 spp means mutations: a render of spp samples per pixel makes spp x pixels mutations in all
 (iterations of `chains` mutations; the last may use fewer chains), fewer if `time_limit` stops it. The start's samples come
 on top. The image has no standard error of its own (one pass; MLT samples are correlated):
-compare independent runs (seeds), as tests/test_mlt.py and toolkit/mlt_bias.py do.
+compare independent runs (seeds), as tests/test_mlt.py and toolkit/measure/mlt_bias.py do.
 """
 import time
 from dataclasses import dataclass
@@ -88,11 +88,11 @@ from dataclasses import dataclass
 import numpy as np
 import pyopencl as cl
 
-from ..film import Film
-from ..layout import BDPT_SLOT, LUMINANCE_WEIGHTS, MLT_CHAIN, MLT_ITERATION, MltMode
-from ..validate import LIMITS, InputError, finite_number, whole_number
-from .bdpt_base import per_pixel_sums
-from .bdpt_parallel_connect import BdptParallelConnect
+from toolkit.core.film import Film
+from toolkit.core.layout import BDPT_SLOT, LUMINANCE_WEIGHTS, MLT_CHAIN, MLT_ITERATION, MltMode
+from toolkit.core.validate import LIMITS, InputError, finite_number, whole_number
+from toolkit.techniques.bdpt_base import per_pixel_sums
+from toolkit.techniques.bdpt_parallel_connect import BdptParallelConnect
 
 STARTS = ("naive", "resample", "pool")
 START_DIMS = 8     # rng.h: pixel, light pick, light point, emission direction (and one spare)

@@ -7,23 +7,23 @@ Kernel: cl/pt_compact_regen.cl. The stream has a fixed size; one iteration:
     regenerate  - new samples fill the end of the stream: consecutive pixels, side by side.
 With compaction="immediate" the compaction is fused into the extend kernel (one scan per
 work-group in local memory, one atomic per group); "multipass" labels, scans and gathers.
-Option `stream_size`: the paths in the stream (default: the device's, toolkit/work_sizes.py:
+Option `stream_size`: the paths in the stream (default: the device's, toolkit/opencl/work_sizes.py:
 32,768 on a CPU).
 """
 import numpy as np
 import pyopencl as cl
 
-from ..compaction import Compactor
-from ..layout import PATH_STATE, SHADOW_RAY, StreamCounter
-from ..work_sizes import checked_size
-from .base import Technique
+from toolkit.opencl.compaction import Compactor
+from toolkit.core.layout import PATH_STATE, SHADOW_RAY, StreamCounter
+from toolkit.opencl.work_sizes import checked_size
+from toolkit.techniques.base import Technique
 
 
 class PtCompactRegen(Technique):
     name = "pt_compact_regen"
     family = "pt"
     source = "pt_compact_regen.cl"
-    stream_size = None   # paths in the stream; None: the device's (toolkit/work_sizes.py)
+    stream_size = None   # paths in the stream; None: the device's (toolkit/opencl/work_sizes.py)
 
     def __init__(self, *args, compaction="immediate", stream_size=None, **kwargs):
         checked_size("stream_size", stream_size)     # its range now, before the build; the device's memory after

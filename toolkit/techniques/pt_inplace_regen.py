@@ -6,21 +6,21 @@ Kernel: cl/pt_inplace_regen.cl. Each work-item owns a slot. One iteration:
 Extension stays busy, but regeneration runs with only the terminated lanes active: the talk
 measures ~30% active threads per warp in that step.
 
-Option `stream_size`: the slots (default: the device's, toolkit/work_sizes.py: 32,768 on a CPU).
+Option `stream_size`: the slots (default: the device's, toolkit/opencl/work_sizes.py: 32,768 on a CPU).
 """
 import numpy as np
 import pyopencl as cl
 
-from ..layout import PATH_STATE
-from ..work_sizes import checked_size
-from .base import Technique
+from toolkit.core.layout import PATH_STATE
+from toolkit.opencl.work_sizes import checked_size
+from toolkit.techniques.base import Technique
 
 
 class PtInplaceRegen(Technique):
     name = "pt_inplace_regen"
     family = "pt"
     source = "pt_inplace_regen.cl"
-    stream_size = None   # slots (work-items) that stay resident; None: the device's (toolkit/work_sizes.py)
+    stream_size = None   # slots (work-items) that stay resident; None: the device's (toolkit/opencl/work_sizes.py)
 
     reads_every = 4      # iterations per blocking read of the "any path alive" flag (counters off)
 

@@ -6,7 +6,7 @@ of the loop is low (the talk reports ~33% active threads per warp).
 """
 import numpy as np
 
-from .base import Technique
+from toolkit.techniques.base import Technique
 
 
 class PtNaive(Technique):

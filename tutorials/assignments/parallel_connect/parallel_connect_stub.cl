@@ -3,7 +3,7 @@
  *     python -m toolkit grade parallel_connect --kernel THIS_FILE
  * One work-item per connection, so every lane of a warp evaluates one connection:
  *   1. each pool slot writes its number of connections (0 unless its sample terminated);
- *   2. the host scans those counts (exclusive scan, toolkit/compaction.py): firsts[i] is the
+ *   2. the host scans those counts (exclusive scan, toolkit/opencl/compaction.py): firsts[i] is the
  *      index of sample i's first connection, and the total is the number of work-items;
  *   3. work-item g finds its sample by binary search: the LAST slot whose first index is <= g
  *      (slots with no connections share their first index with the next slot); its local

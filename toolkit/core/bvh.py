@@ -1,0 +1,205 @@
+"""A binned SAH bounding-volume hierarchy built on the host with numpy, flattened for the device.
+
+Nodes are stored depth-first: an inner node's left child follows it, `first` holds the right
+child. Leaves hold at most `leaf_size` triangles, reordered so each leaf's are contiguous.
+
+`collapse_wide` turns the binary BVH into a 4-wide one (BVH_WIDTH): each wide node takes the
+binary node's two children and keeps opening its largest inner child (by surface area, the
+SAH's measure of how often a ray visits it) until it has four. Every binary leaf (at most four
+triangles) becomes one TriGroup, so both BVHs keep the same triangle order and leaves.
+"""
+import sys
+import time
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+
+from toolkit.core.layout import BVH_NODE, BVH_WIDTH, TRI_GROUP, WIDE_NODE, WideChild
+
+# Builds of this many triangles or more show a progress bar (1M triangles take about a minute).
+PROGRESS_FROM = 100_000
+
+
+@dataclass
+class Bvh:
+    nodes: np.ndarray        # BVH_NODE.dtype
+    order: np.ndarray        # triangle order: leaf slot -> scene triangle index
+    build_seconds: float
+    inner_nodes: int
+    leaf_nodes: int
+    max_depth: int
+
+    @property
+    def node_count(self):
+        return len(self.nodes)
+
+
+def _area(lo, hi):
+    d = np.maximum(hi - lo, 0.0)
+    return 2.0 * (d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0])
+
+
+def _best_split(lo, hi, centroid, bins):
+    """(cost, axis, mask_left) of the cheapest binned SAH split, or None if none exists."""
+    cmin, cmax = centroid.min(0), centroid.max(0)
+    best = None
+    for axis in range(3):
+        extent = cmax[axis] - cmin[axis]
+        if extent <= 0:
+            continue
+        b = np.minimum(((centroid[:, axis] - cmin[axis]) / extent * bins).astype(np.int64), bins - 1)
+        order = np.argsort(b, kind="stable")
+        sb = b[order]
+        starts = np.searchsorted(sb, np.arange(bins))
+        counts = np.bincount(b, minlength=bins)
+        nonempty = counts > 0
+        blo = np.full((bins, 3), np.inf)
+        bhi = np.full((bins, 3), -np.inf)
+        blo[nonempty] = np.minimum.reduceat(lo[order], starts[nonempty])
+        bhi[nonempty] = np.maximum.reduceat(hi[order], starts[nonempty])
+        # Sweeps: bounds and counts of bins [0, i] from the left and [i+1, bins) from the right.
+        llo, lhi = np.minimum.accumulate(blo), np.maximum.accumulate(bhi)
+        rlo = np.minimum.accumulate(blo[::-1])[::-1]
+        rhi = np.maximum.accumulate(bhi[::-1])[::-1]
+        lcount = np.cumsum(counts)
+        cost = (lcount[:-1] * _area(llo[:-1], lhi[:-1])
+                + (len(b) - lcount[:-1]) * _area(rlo[1:], rhi[1:]))
+        cost[(lcount[:-1] == 0) | (lcount[:-1] == len(b))] = np.inf
+        i = int(np.argmin(cost))
+        if np.isfinite(cost[i]) and (best is None or cost[i] < best[0]):
+            best = (float(cost[i]), axis, b <= i)
+    return best
+
+
+def build_bvh(tri_vertices, leaf_size=4, bins=16):
+    """Build over triangles given as (M, 3, 3) float64 vertex positions."""
+    start = time.perf_counter()
+    from tqdm.auto import tqdm
+    bar = tqdm(total=len(tri_vertices), unit="tri", desc="BVH build", file=sys.stderr, leave=False,
+               disable=len(tri_vertices) < PROGRESS_FROM, mininterval=0.5)
+    lo_all, hi_all = tri_vertices.min(1), tri_vertices.max(1)
+    centroid_all = 0.5 * (lo_all + hi_all)
+    nodes = []            # [lo, hi, first, count, axis]
+    order = []
+    depth_max = 0
+    stack = [(np.arange(len(tri_vertices)), None, 0)]  # (triangles, parent to patch, depth)
+    while stack:
+        ids, parent, depth = stack.pop()
+        depth_max = max(depth_max, depth)
+        me = len(nodes)
+        if parent is not None:
+            nodes[parent][2] = me  # this is the right child of `parent`
+        lo, hi = lo_all[ids].min(0), hi_all[ids].max(0)
+        split = None
+        if len(ids) > leaf_size:
+            split = _best_split(lo_all[ids], hi_all[ids], centroid_all[ids], bins)
+            if split is None:  # all centroids coincide: split the list in half
+                half = np.zeros(len(ids), bool)
+                half[: len(ids) // 2] = True
+                split = (0.0, 0, half)
+        if split is None:
+            nodes.append([lo, hi, len(order), len(ids), 0])
+            order.extend(ids.tolist())
+            bar.update(len(ids))      # progress: triangles placed in leaves
+            continue
+        _, axis, left = split
+        nodes.append([lo, hi, -1, 0, axis])
+        # Right pushed first so the left child is built next and lands at me + 1.
+        stack.append((ids[~left], me, depth + 1))
+        stack.append((ids[left], None, depth + 1))
+    bar.close()
+    flat = BVH_NODE.zeros(len(nodes))
+    lo = np.array([n[0] for n in nodes])
+    hi = np.array([n[1] for n in nodes])
+    # Round outwards so float32 boxes still contain the float32 triangles.
+    flat["lo"][:, :3] = np.nextafter(lo.astype(np.float32), np.float32(-np.inf))
+    flat["hi"][:, :3] = np.nextafter(hi.astype(np.float32), np.float32(np.inf))
+    flat["first"] = [n[2] for n in nodes]
+    flat["count"] = [n[3] for n in nodes]
+    flat["axis"] = [n[4] for n in nodes]
+    leaves = int((flat["count"] > 0).sum())
+    return Bvh(flat, np.asarray(order, np.int64), time.perf_counter() - start,
+               len(nodes) - leaves, leaves, depth_max)
+
+
+@dataclass
+class WideBvh:
+    """The wide BVH as one buffer of 16-byte words: WideNode records (the root first), then
+    TriGroup records. A child reference is a record's position in words, ~position for a leaf."""
+    words: np.ndarray        # (n, 4) float32: the buffer the kernels get as `nodes`
+    inner_nodes: int
+    leaf_groups: int
+    max_depth: int           # wide nodes on the longest root-to-leaf path
+    stack_needed: int        # most traversal-stack entries a ray can need (cl/bvh.h)
+
+
+NODE_WORDS = WIDE_NODE.dtype.itemsize // 16
+GROUP_WORDS = TRI_GROUP.dtype.itemsize // 16
+
+
+def collapse_wide(bvh, leaf_vertices, width=BVH_WIDTH):
+    """The wide BVH of `bvh`. `leaf_vertices`: (M, 3, 3) float32 triangle vertices in leaf order
+    (the device's triangles), copied into the TriGroups bit for bit."""
+    nodes = bvh.nodes
+    is_leaf = nodes["count"] > 0
+    if is_leaf.any() and nodes["count"].max() > width:
+        raise ValueError(f"a TriGroup holds {width} triangles; the BVH has leaves of {nodes['count'].max()}")
+    lo, hi = nodes["lo"][:, :3].astype(np.float64), nodes["hi"][:, :3].astype(np.float64)
+    area = _area(lo, hi)
+
+    # One TriGroup per binary leaf, in node order.
+    leaves = np.flatnonzero(is_leaf)
+    group_of = np.full(len(nodes), -1)
+    group_of[leaves] = np.arange(len(leaves))
+    groups = TRI_GROUP.zeros(len(leaves))
+    groups["tri"] = -1
+    first, count = nodes["first"][leaves], nodes["count"][leaves]
+    for lane in range(width):
+        has = lane < count
+        slot = first[has] + lane
+        groups["tri"][has, lane] = slot
+        for v in range(3):
+            for k, name in enumerate("xyz"):
+                # Empty lanes keep v0 = v1 = v2 = 0: a degenerate triangle the test rejects (det = 0).
+                groups[f"v{v}{name}"][has, lane] = leaf_vertices[slot, v, k]
+
+    # Wide nodes: children chosen top-down; binary node -> wide node index for inner children.
+    def children(b):
+        return [b + 1, int(nodes["first"][b])]
+
+    kids_of = []                  # per wide node: its binary children
+    depth_of = []
+    stack_of = []                 # stack entries a ray may hold on reaching this node
+    pending = deque([(0, 1, 0)])  # (binary node, depth, stack entries below it), breadth first
+    index_of = {0: 0}
+    while pending:
+        b, depth, stacked = pending.popleft()
+        kids = [b] if is_leaf[b] else children(b)
+        while len(kids) < width:
+            inner = [k for k in kids if not is_leaf[k]]
+            if not inner:
+                break
+            k = max(inner, key=lambda k: area[k])
+            i = kids.index(k)
+            kids[i:i + 1] = children(k)
+        kids_of.append(kids)
+        depth_of.append(depth)
+        stack_of.append(stacked + len(kids))    # all children pushed, before the nearest is popped
+        for k in kids:
+            if not is_leaf[k]:
+                index_of[k] = len(kids_of) + len(pending)
+                pending.append((k, depth + 1, stacked + len(kids) - 1))
+
+    wide = WIDE_NODE.zeros(len(kids_of))
+    wide["child"] = int(WideChild.EMPTY)
+    group_base = len(kids_of) * NODE_WORDS
+    for w, kids in enumerate(kids_of):
+        for lane, k in enumerate(kids):
+            for axis, name in enumerate("xyz"):
+                wide[f"lo_{name}"][w, lane] = nodes["lo"][k, axis]
+                wide[f"hi_{name}"][w, lane] = nodes["hi"][k, axis]
+            wide["child"][w, lane] = (~(group_base + int(group_of[k]) * GROUP_WORDS) if is_leaf[k]
+                                      else index_of[k] * NODE_WORDS)
+    words = np.concatenate([wide.view(np.float32).reshape(-1, 4), groups.view(np.float32).reshape(-1, 4)])
+    return WideBvh(np.ascontiguousarray(words), len(kids_of), len(leaves), max(depth_of), max(stack_of))

@@ -1,0 +1,408 @@
+"""Every layout and constant that host and device share, described once.
+
+Each `Record` gives the numpy dtype (with C's offsets: a float4 is 16-byte aligned) and the C
+struct; each group of named values (an IntEnum) gives the Python constants and C `#define`s.
+All of it is generated into `layout.h` (see `c_header()`), which every program includes
+through cl/common.h, so host and device can never disagree. `LAYOUT_CHECKS` lets a test kernel
+(cl/layout_check.cl) compare sizeof/offsetof of every struct with numpy (tests/test_layout.py).
+"""
+from enum import IntEnum, IntFlag
+
+import numpy as np
+
+# How every generated helper is declared, as every helper in cl/ (cl/common.h says why).
+HELPER = "HELPER"   # the macro of cl/common.h: static inline __attribute__((always_inline))
+
+# C type -> (numpy base type, element count, alignment in bytes). OpenCL C aligns a vector
+# type to its size; numpy's align=True would align a float32 x 4 sub-array to 4 bytes only.
+_C_TYPES = {"float": ("float32", 1, 4), "int": ("int32", 1, 4), "uint": ("uint32", 1, 4),
+            "float4": ("float32", 4, 16), "int4": ("int32", 4, 16), "uint4": ("uint32", 4, 16)}
+
+
+def _align(offset, alignment):
+    return (offset + alignment - 1) // alignment * alignment
+
+
+class Record:
+    def __init__(self, name, fields, doc=""):
+        self.name, self.fields, self.doc = name, list(fields), doc
+        offsets, offset, largest = [], 0, 1
+        for _, t in self.fields:
+            base, count, alignment = _C_TYPES[t]
+            offset = _align(offset, alignment)
+            offsets.append(offset)
+            offset += np.dtype(base).itemsize * count
+            largest = max(largest, alignment)
+        self.dtype = np.dtype({"names": [f for f, _ in self.fields],
+                               "formats": [(_C_TYPES[t][0], (_C_TYPES[t][1],)) if _C_TYPES[t][1] > 1
+                                           else _C_TYPES[t][0] for _, t in self.fields],
+                               "offsets": offsets, "itemsize": _align(offset, largest)})
+
+    def c_struct(self):
+        lines = [f"/* {self.doc} */"] if self.doc else []
+        lines.append("typedef struct {")
+        lines += [f"    {t} {f};" for f, t in self.fields]
+        lines.append(f"}} {self.name};")
+        return "\n".join(lines)
+
+    def c_soa(self):
+        """Structure-of-arrays access to records of this type, all in one global buffer of
+        `capacity` records (field after field: consecutive work-items touch consecutive words):
+        <Name>SoA, <name>_soa(memory, capacity) to find the fields, and <name>_load /
+        <name>_store to move one record in and out."""
+        lower = _snake(self.name)
+        fields = self.soa_fields
+        lines = [f"/* {self.name} as a structure of arrays: consecutive work-items touch consecutive words. */",
+                 "typedef struct {"]
+        lines += [f"    __global {t}* {f};" for f, t in fields]
+        lines.append(f"}} {self.name}SoA;")
+        lines.append("/* The fields of `capacity` records (a multiple of 4) stored one after another in `memory`. */")
+        lines.append(f"{HELPER} {self.name}SoA {lower}_soa(__global void* memory, int capacity) {{")
+        lines.append("    __global uchar* m = (__global uchar*)memory;")
+        lines.append(f"    {self.name}SoA s;")
+        for f, t in fields:
+            lines.append(f"    s.{f} = (__global {t}*)m;")
+            lines.append(f"    m += (size_t)capacity * sizeof({t});")
+        lines.append("    return s;\n}")
+        lines.append(f"{HELPER} {self.name} {lower}_load({self.name}SoA s, int i) {{")
+        lines.append(f"    {self.name} r;")
+        lines += [f"    r.{f} = s.{f}[i];" for f, _ in fields]
+        lines.append("    return r;\n}")
+        lines.append(f"{HELPER} void {lower}_store({self.name}SoA s, int i, const {self.name}* r) {{")
+        lines += [f"    s.{f}[i] = r->{f};" for f, _ in fields]
+        lines.append("}")
+        return "\n".join(lines)
+
+    def soa_offset(self, field, capacity):
+        """Byte offset of `field`'s array in a structure-of-arrays buffer of `capacity` records."""
+        offset = 0
+        for f, _ in self.soa_fields:
+            if f == field:
+                return offset
+            offset += capacity * self.dtype[f].itemsize
+        raise KeyError(field)
+
+    def soa_buffer(self, context, capacity):
+        """One device buffer that holds `capacity` records as a structure of arrays (see c_soa)."""
+        import pyopencl as cl
+        if capacity % 4:
+            raise ValueError("a structure-of-arrays capacity must be a multiple of 4 (float4 alignment)")
+        return cl.Buffer(context, cl.mem_flags.READ_WRITE, max(1, capacity) * sum(
+            self.dtype[f].itemsize for f, _ in self.soa_fields))
+
+    @property
+    def soa_fields(self):
+        """Fields stored in structure-of-arrays form (alignment padding is left out)."""
+        return [(f, t) for f, t in self.fields if not f.startswith("pad")]
+
+    def zeros(self, n):
+        return np.zeros(n, self.dtype)
+
+    def layout_checks(self):
+        """(what, C expression, value numpy expects) for sizeof and every offsetof."""
+        out = [(f"sizeof({self.name})", f"sizeof({self.name})", self.dtype.itemsize)]
+        out += [(f"offsetof({self.name}, {f})", f"__builtin_offsetof({self.name}, {f})",
+                 self.dtype.fields[f][1]) for f, _ in self.fields]
+        return out
+
+
+# float4-first layouts keep every record 16-byte aligned on host and device alike.
+BVH_NODE = Record("BvhNode", [
+    ("lo", "float4"),   # box minimum; .w unused
+    ("hi", "float4"),   # box maximum; .w unused
+    ("first", "int"),   # leaf: first triangle; inner: index of the right child (left = this + 1)
+    ("count", "int"),   # leaf: number of triangles (> 0); inner: 0
+    ("axis", "int"),    # inner: split axis, to visit the nearer child first
+    ("pad", "int"),
+], "A flattened BVH node (depth-first order), 48 bytes.")
+
+# The wide BVH (toolkit/core/bvh.py collapses the binary one): one work-item tests the four child
+# boxes of a node at once with float4 operations, so each box coordinate is a float4 holding it
+# for all four children (structure of arrays inside the node).
+WIDE_NODE = Record("WideNode", [
+    ("lo_x", "float4"), ("hi_x", "float4"),   # child boxes, one lane per child
+    ("lo_y", "float4"), ("hi_y", "float4"),
+    ("lo_z", "float4"), ("hi_z", "float4"),
+    ("child", "int4"),  # a child's reference (WideChild below): >= 0 an inner node, < 0 a leaf, or WIDE_EMPTY
+], "A node of the 4-wide BVH, 112 bytes. Records live in one buffer; a reference is the record's position in 16-byte words.")
+
+TRI_GROUP = Record("TriGroup", [
+    # The vertices of four triangles, one lane per triangle: v0 x, y, z, then v1, then v2. The
+    # three coordinates of a vertex follow each other, so the watertight test picks an axis
+    # with an index (tri_group_coord in cl/bvh.h).
+    ("v0x", "float4"), ("v0y", "float4"), ("v0z", "float4"),
+    ("v1x", "float4"), ("v1y", "float4"), ("v1z", "float4"),
+    ("v2x", "float4"), ("v2y", "float4"), ("v2z", "float4"),
+    ("tri", "int4"),    # each lane's triangle (index into the leaf-order triangles), -1: an empty lane
+], "A wide-BVH leaf: up to four triangles tested at once, 160 bytes.")
+
+TRIANGLE = Record("Triangle", [
+    ("v0", "float4"),   # .w unused
+    ("v1", "float4"),   # the vertices themselves, not edges: a shared vertex is bit-identical
+    ("v2", "float4"),   #   in every triangle, which the watertight ray test needs
+    ("material", "int"),
+    ("prim", "int"),    # index of the triangle in the scene (BVH order differs)
+    ("light_pdf", "float"),  # density per unit area with which light sampling picks a point here
+    ("light", "int"),        # index into the light array, -1: not a light
+], "A triangle in BVH leaf order, 64 bytes.")
+
+MATERIAL = Record("Material", [
+    ("reflectance", "float4"),
+    ("type", "int"),
+    ("ior", "float"),
+    ("alpha", "float"),
+    ("pad", "int"),
+], "A material of scenes/FORMAT.md; `type` is one of the MAT_* defines.")
+
+LIGHT = Record("LightTri", [
+    ("emission", "float4"),
+    ("cdf", "float"),        # inclusive cumulative selection probability
+    ("triangle", "int"),     # index into the triangle array (BVH order)
+    ("pad0", "int"),
+    ("pad1", "int"),
+], "An emitting triangle, chosen for next-event estimation in proportion to its power.")
+
+CAMERA = Record("Camera", [
+    ("origin", "float4"),
+    ("forward", "float4"),   # unit viewing direction f
+    ("right", "float4"),     # r * tx (FORMAT.md)
+    ("up", "float4"),        # u * ty
+    ("width", "int"),
+    ("height", "int"),
+    ("pad0", "int"),
+    ("pad1", "int"),
+], "The pinhole camera of scenes/FORMAT.md, for the rendered resolution.")
+
+PATH_STATE = Record("PathState", [
+    ("origin", "float4"),      # next ray origin (already offset off the surface)
+    ("dir", "float4"),         # next ray direction (unit)
+    ("throughput", "float4"),  # product of BSDF weights so far
+    ("radiance", "float4"),    # radiance gathered so far
+    ("prev_pdf", "float"),     # solid-angle pdf of the BSDF sample that chose dir (for MIS)
+    ("prev_specular", "int"),  # 1: dir came from the camera or a delta lobe
+    ("bounce", "int"),         # surface vertices so far
+    ("pixel", "int"),
+    ("sample", "int"),         # sample index within the pixel: keys the random numbers
+    ("slot", "int"),           # where the finished sample's radiance goes in this pass's output
+    ("pad1", "int"),
+    ("pad2", "int"),
+], "The state of one camera path between two extension steps, 96 bytes.")
+
+SHADOW_RAY = Record("ShadowRay", [
+    ("origin", "float4"),        # .w = length of the segment to test
+    ("dir", "float4"),
+    ("contribution", "float4"),  # radiance added to the sample if the segment is unoccluded
+    ("slot", "int"),             # the sample's slot in the pass's output
+    ("pad0", "int"),
+    ("pad1", "int"),
+    ("pad2", "int"),
+], "A next-event-estimation shadow ray waiting to be traced, 64 bytes.")
+
+BDPT_VERTEX = Record("BdptVertex", [
+    ("pos", "float4"),       # position; .w unused
+    ("normal", "float4"),    # geometric normal; .w unused
+    ("wo", "float4"),        # unit direction to the previous vertex of the subpath
+    ("beta", "float4"),      # subpath throughput up to this vertex (light paths: includes Le / pdf)
+    ("material", "int"),
+    ("flags", "int"),        # VERTEX_DELTA | VERTEX_CAMERA | VERTEX_LIGHT (VertexFlag below)
+    ("light", "int"),        # index into the light array if the vertex lies on a light, else -1
+    ("pdf_fwd", "float"),    # area density with which its own subpath generated this vertex
+    ("pdf_rev", "float"),    # area density of generating the *previous* vertex of the subpath
+                             #   from this one, in the reverse direction (0: not known yet)
+    ("pad0", "int"),
+    ("pad1", "int"),
+    ("pad2", "int"),
+], "A stored BDPT path vertex, 96 bytes (the talk's vertex is 128).")
+
+SUBPATH = Record("Subpath", [
+    ("origin", "float4"),     # next ray origin; .w = solid-angle pdf of dir (0 after a delta bounce)
+    ("dir", "float4"),        # next ray direction
+    ("beta", "float4"),       # throughput; .w = roulette normaliser (1 for eye paths)
+    ("prev_pos", "float4"),   # the last stored vertex (exact, not offset)
+    ("prev_normal", "float4"),
+    ("slot", "int"),          # the sample's slot in the sample pool
+    ("vertices", "int"),      # vertices stored so far
+    ("prev_flags", "int"),    # flags of the last stored vertex
+    ("pad", "int"),
+], "One eye or light subpath in a random-walk stream, 96 bytes.")
+
+LANE_COUNTS = Record("LaneCounts", [
+    ("work", "int"),           # the lane's work in this launch: 1 / 0 (active or not), or the
+                               #   iterations of its loop (pt_naive) or its connections (bdpt_naive_connect)
+    ("closest_steps", "int"),  # BVH nodes visited by closest-hit rays
+    ("shadow_rays", "int"),    # shadow rays traced (or queued)
+    ("shadow_steps", "int"),   # BVH nodes visited by shadow rays
+], "What one lane (work-item) did in one launch, for the SIMD-efficiency model (COUNT_SIMD).")
+
+BDPT_SLOT = Record("BdptSlot", [
+    ("live", "int"),            # SLOT_IDLE, or how many of its subpaths still walk (SlotState below)
+    ("sample_id", "int"),       # the sample in this slot: its id in the pass
+    ("eye_vertices", "int"),    # vertices stored for its eye subpath
+    ("light_vertices", "int"),  # vertices stored for its light subpath
+    ("pixel", "int"),           # the sample's own pixel, where its eye strategies (t >= 2) land
+], "One slot of the BDPT sample pool (one per sample in flight).")
+
+BDPT_PASS = Record("BdptPass", [
+    ("seed", "uint"),
+    ("sample_base", "int"),     # samples per pixel of the passes before this one
+    ("pool", "int"),            # samples in flight: slots of the pool
+    ("capacity", "int"),        # records each subpath stream holds (pool rounded up, a multiple of 4)
+    ("chains", "int"),          # mlt only: the stride of the stored primary-sample vectors (cl/mlt.h); else 0
+], "What every BDPT kernel of one pass shares.")
+
+BDPT_STEP = Record("BdptStep", [
+    ("light_path", "int"),      # 1: this launch extends the light stream, 0: the eye stream
+    ("length", "int"),          # subpaths in the stream
+], "One random-walk step over one stream (bdpt_extend).")
+
+BDPT_REGENERATION = Record("BdptRegeneration", [
+    ("count", "int"),           # terminated slots listed for regeneration
+    ("fresh", "int"),           # the first `fresh` of them start new samples; the rest go idle
+    ("first_id", "int"),        # id of the first new sample (the others follow, consecutive pixels)
+    ("eye_base", "int"),        # where the new eye subpaths go in the eye stream
+    ("light_base", "int"),      # where the new light subpaths go in the light stream
+], "One regeneration step of the BDPT pool.")
+
+MLT_CHAIN = Record("MltChain", [
+    ("f_current", "float"),     # scalar contribution (luminance of all strategies) of the current state
+    ("dims_current", "int"),    # primary-sample dimensions the current state used (a prefix: cl/mlt.h)
+    ("large_step", "int"),      # 1: this iteration's proposal was a large step (every dimension fresh)
+    ("accepted", "int"),        # 1: this iteration's proposal became the current state
+    ("acceptance", "float"),    # a = min(1, f(proposal) / f(current)): the proposal's splat weight
+    ("candidates", "float"),    # start = resample: sum of f over the candidates seen so far
+    ("pad0", "int"),
+    ("pad1", "int"),
+], "One Metropolis chain (cl/mlt.h); its primary-sample vector is stored apart, dimension-major.")
+
+MLT_ITERATION = Record("MltIteration", [
+    ("seed", "uint"),
+    ("iteration", "int"),       # keys the mutation's random numbers (start candidates count too)
+    ("chains", "int"),          # chains in all: the stride of the primary-sample vectors
+    ("active", "int"),          # chains that mutate in this iteration (the first `active`)
+    ("large_step", "float"),    # probability of a large step
+    ("mode", "int"),            # MltMode: what the accept kernel does with the proposal
+    ("pad0", "int"),
+    ("pad1", "int"),
+], "What the mutate and accept kernels of one Metropolis iteration share.")
+
+RECORDS = [BVH_NODE, WIDE_NODE, TRI_GROUP, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY, BDPT_VERTEX,
+           SUBPATH, LANE_COUNTS, BDPT_SLOT, BDPT_PASS, BDPT_STEP, BDPT_REGENERATION, MLT_CHAIN, MLT_ITERATION]
+
+
+SOA_RECORDS = [PATH_STATE, SHADOW_RAY, SUBPATH]
+
+
+# ---- named values, each group emitted as PREFIX_NAME defines --------------------------------
+
+class MaterialType(IntEnum):
+    """Material.type (scenes/FORMAT.md): MAT_DIFFUSE, ..."""
+    DIFFUSE = 0
+    MIRROR = 1
+    DIELECTRIC = 2
+    GLOSSY = 3
+
+
+MATERIAL_TYPES = {m.name.lower(): int(m) for m in MaterialType}   # the scene format's names
+
+
+class VertexFlag(IntFlag):
+    """BdptVertex.flags: VERTEX_DELTA, ..."""
+    DELTA = 1     # a specular bounce: cannot be connected
+    CAMERA = 2    # z_0, the pinhole
+    LIGHT = 4     # y_0, the point sampled on a light
+
+
+class SlotState(IntEnum):
+    """BdptSlot.live: how many of the sample's subpaths still walk, or idle (cl/bdpt_walk.h)."""
+    IDLE = -1           # no sample (the pass's budget is spent)
+    TERMINATED = 0      # both subpaths ended: the sample waits for its connections
+    ONE_WALKING = 1
+    BOTH_WALKING = 2    # just regenerated
+
+
+class WalkCounter(IntEnum):
+    """Indices into the random walk's counter buffer, read by the host once per step."""
+    EYE_SURVIVORS = 0       # eye subpaths written to the next eye stream
+    LIGHT_SURVIVORS = 1     # light subpaths written to the next light stream
+    TERMINATED_SAMPLES = 2  # samples whose second subpath ended since the last regeneration
+
+
+class StreamCounter(IntEnum):
+    """Indices into pt_compact_regen's counter buffer (lengths of the streams it writes)."""
+    PATHS = 0           # surviving paths, packed into the next stream
+    SHADOW_RAYS = 1     # queued shadow rays
+
+
+class WideChild(IntEnum):
+    """WideNode.child: a lane that holds no child (references are >= 0 for inner nodes, ~position
+    for leaves; no BVH buffer reaches 2^30 words, 16 GiB)."""
+    EMPTY = -(1 << 30)
+
+
+class MltMode(IntEnum):
+    """MltIteration.mode: how mlt_mutate proposes and mlt_accept decides (cl/mlt.h)."""
+    MUTATE = 0          # the Metropolis step: large step with probability large_step, else a small step
+    START = 1           # start = naive: one large step, always accepted
+    CANDIDATE = 2       # start = resample: a large step, kept with probability f / (sum of f so far)
+
+
+NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"),
+                (WalkCounter, ""), (StreamCounter, "STREAM_"), (MltMode, "MLT_")]
+
+# ---- single constants --------------------------------------------------------------------
+
+BVH_STACK_SIZE = 64                         # entries of a traversal stack (cl/bvh.h); deeper BVHs are refused
+BVH_WIDTH = 4                               # children of a wide-BVH node, triangles of a TriGroup (float4 lanes)
+BVH_KINDS = ("binary", "wide")              # --bvh: the traversal compiled in (BVH_WIDE for "wide")
+LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)   # Rec. 709 luminance of linear RGB
+
+# The scene as kernel arguments, in order: SCENE_PARAMS (kernel parameters), SCENE_INIT (the
+# SceneView made of them) and DeviceScene.args() (the host's values) all come from this list.
+# `nodes` is BvhNode records for the binary BVH, and for the wide one (BVH_WIDE) a buffer of
+# WideNode and TriGroup records addressed in 16-byte words (BVH_WORD).
+SCENE_ARGS = [("nodes", "__global const BVH_WORD*"), ("tris", "__global const Triangle*"),
+              ("materials", "__global const Material*"), ("lights", "__global const LightTri*"),
+              ("light_count", "const int"), ("epsilon", "const float")]
+
+
+def _snake(name):
+    return "".join("_" + c.lower() if c.isupper() and i else c.lower() for i, c in enumerate(name))
+
+
+def _c_literal(value):
+    return f"{value!r}f" if isinstance(value, float) else (f"({value})" if value < 0 else str(value))
+
+
+def c_constants():
+    lines = []
+    for group, prefix in NAMED_VALUES:
+        lines.append(f"/* {group.__doc__} */")
+        lines += [f"#define {prefix}{m.name} {_c_literal(int(m))}" for m in group]
+    lines.append(f"#define BVH_STACK_SIZE {BVH_STACK_SIZE}")
+    lines.append(f"#define BVH_WIDTH {BVH_WIDTH}")
+    lines.append("#ifdef BVH_WIDE\n#define BVH_WORD float4\n#else\n#define BVH_WORD BvhNode\n#endif")
+    lines += [f"#define LUMINANCE_{c} {_c_literal(w)}" for c, w in zip("RGB", LUMINANCE_WEIGHTS)]
+    lines.append("/* The scene as kernel parameters, and the SceneView (cl/scene.h) made of them. */")
+    lines.append("#define SCENE_PARAMS " + ", ".join(f"{t} scene_{n}" for n, t in SCENE_ARGS))
+    lines.append("#define SCENE_INIT {" + ", ".join(f".{n} = scene_{n}" for n, _ in SCENE_ARGS) + "}")
+    return "\n".join(lines)
+
+
+def layout_checks(records=RECORDS):
+    """(what, C expression, value numpy expects) for every generated struct."""
+    return [check for r in records for check in r.layout_checks()]
+
+
+def c_layout_checks(records=RECORDS):
+    checks = layout_checks(records)
+    body = " ".join(f"(out)[{i}] = (int)({expr});" for i, (_, expr, _) in enumerate(checks))
+    return (f"/* For cl/layout_check.cl: sizeof and offsetof of every struct above, in layout_checks() order. */\n"
+            f"#define LAYOUT_CHECK_COUNT {len(checks)}\n#define LAYOUT_CHECKS(out) {{ {body} }}")
+
+
+def c_header(records=RECORDS):
+    return ("/* Generated from toolkit/core/layout.py: do not edit by hand. */\n"
+            + c_constants() + "\n\n"
+            + "\n\n".join(r.c_struct() for r in records) + "\n\n"
+            + "\n\n".join(r.c_soa() for r in SOA_RECORDS) + "\n\n"
+            + c_layout_checks(records) + "\n")

@@ -1,0 +1,171 @@
+"""`python -m toolkit compare`: several techniques on one scene with the same sample budget.
+
+Prints a table (seconds, samples/s, SIMD efficiency per phase, RMSE against the reference and
+against each other) and saves plots: efficiency and stream occupancy per iteration, and an
+image strip with false-colour error images.
+"""
+from pathlib import Path
+
+import numpy as np
+
+from toolkit.api import as_scene, render
+from toolkit.core.images import to_srgb8, write_image
+from toolkit.measure.reference import hard_pixels
+from toolkit.measure.reference import reference_at, rmse
+
+PHASES = ["generate", "extend", "walk", "shadow", "compact", "connect"]
+
+
+def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, out_dir="out/compare",
+            device=None, progress=False, plots=True, bvh="wide", general=False):
+    """Render `scene` with each technique; returns {technique: figures} and writes images/plots.
+    `warp_width` None: the device's (toolkit.opencl.device_model.choose_warp_width); each row says which.
+    `general`: the general kernels instead of the scene's specialized ones (toolkit.render)."""
+    scene = as_scene(scene)
+    width, height = resolution or (scene.camera.width, scene.camera.height)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    ref, _ = reference_at(scene, width, height)
+    results, table = {}, {}
+    for name in techniques:
+        result = render(scene, technique=name, spp=spp, seed=seed, resolution=(width, height),
+                        device=device, warp_width=warp_width, progress=progress, bvh=bvh, general=general)
+        path = out_dir / f"{scene.name}_{name.replace('/', '_')}.exr"
+        write_image(path, result.image.astype(np.float32))
+        results[name] = result
+        table[name] = {
+            "seconds": result.stats["seconds"],
+            "samples_per_second": result.stats["samples_per_second"],
+            "simd_efficiency": result.stats["simd_efficiency"],
+            "traversal_efficiency": result.stats["traversal_efficiency"],
+            "traversal_steps": result.stats["traversal_steps_per_sample"].get("closest", float("nan")),
+            "bvh": bvh,
+            "warp_width": result.stats["warp_width"],
+            "warp_width_source": result.stats["warp_width_source"],
+            **{k: result.stats[k] for k in ("stream_size", "pool_size", "work_sizes_source") if k in result.stats},
+            "rmse": rmse(result.image, ref) if ref is not None else None,
+            "nonfinite": result.stats["nonfinite"],
+            "out": str(path),
+        }
+    for a in techniques:
+        table[a]["rmse_vs"] = {b: rmse(results[a].image, results[b].image) for b in techniques if b != a}
+    if plots:
+        plot_paths = save_plots(scene.name, results, ref, out_dir, next(iter(table.values()))["warp_width"])
+        for name in techniques:
+            table[name]["plots"] = plot_paths
+    return table
+
+
+def format_table(table, warp_width=None):
+    """The table as text; `warp_width` None: the W that the rows were counted with (and why)."""
+    first = next(iter(table.values()))
+    why = None
+    if warp_width is None:
+        warp_width, why = first.get("warp_width", 32), first.get("warp_width_source")
+    phases = [p for p in PHASES if any(p in row["simd_efficiency"] for row in table.values())]
+    head = f"{'technique':<28}{'seconds':>9}{'samples/s':>12}" + "".join(f"{p:>10}" for p in phases) + \
+        f"{'overall':>10}{'BVH trav':>10}{'steps':>8}{'RMSE ref':>11}"
+    lines = [f"SIMD efficiency = active lanes / lanes issued, warps of {warp_width} (an upper bound, as in the talk);",
+             "BVH trav = traversal steps per lane / the warp's longest traversal (divergence inside intersection);",
+             f"steps = BVH nodes visited by closest-hit rays per sample ({first['bvh']} BVH, --bvh)",
+             *([f"W = {warp_width}: {why} (--warp-width overrides)"] if why and why != "given" else []),
+             *in_flight_lines(table),
+             head, "-" * len(head)]
+    for name, row in table.items():
+        eff = row["simd_efficiency"]
+        cells = "".join(f"{eff[p]:>10.1%}" if p in eff else f"{'-':>10}" for p in phases)
+        r = f"{row['rmse']:>11.5f}" if row["rmse"] is not None else f"{'-':>11}"
+        trav = row["traversal_efficiency"].get("closest", float("nan"))
+        lines.append(f"{name:<28}{row['seconds']:>9.2f}{row['samples_per_second']:>12,.0f}{cells}"
+                     f"{eff.get('overall', float('nan')):>10.1%}{trav:>10.1%}{row['traversal_steps']:>8.1f}{r}")
+    names = list(table)
+    if len(names) > 1:
+        lines.append("RMSE between techniques: " + ", ".join(
+            f"{a} vs {b} {table[a]['rmse_vs'][b]:.5f}" for i, a in enumerate(names) for b in names[i + 1:]))
+    return "\n".join(lines)
+
+
+def in_flight_lines(table):
+    """One line per stream or pool size the rows ran with, and why (toolkit/opencl/work_sizes.py)."""
+    seen = {}
+    for name, row in table.items():
+        for option in ("stream_size", "pool_size"):
+            if option in row:
+                seen.setdefault((option, row[option], row.get("work_sizes_source")), []).append(name)
+    return [f"{option} = {size:,}: {why} ({', '.join(names)})" for (option, size, why), names in seen.items()]
+
+
+DRAIN_NOTE = ("Shaded, from the dashed line on: the final drain of a pass. Every sample of the budget has started, "
+              "nothing regenerates, and the stream empties.\nIts last steps trace a few long paths: one path in a "
+              "warp of 32 is 3% efficiency, but such a step issues a single warp, so the drain weighs little in the "
+              "totals of the table.")
+
+
+def drain_spans(steps):
+    """(first, last) iteration of each run of steps marked `draining` (one per pass)."""
+    spans = []
+    for it in steps:
+        if not it.get("draining"):
+            continue
+        if spans and it["iteration"] <= spans[-1][1] + 1:
+            spans[-1][1] = it["iteration"]
+        else:
+            spans.append([it["iteration"], it["iteration"]])
+    return [tuple(span) for span in spans]
+
+
+def save_plots(scene_name, results, ref, out_dir, warp_width):
+    # Figures drawn straight onto an Agg canvas: no pyplot state, and the caller's backend
+    # (e.g. inline plots in a notebook) is left alone.
+    from matplotlib.figure import Figure
+    paths = {}
+
+    fig = Figure(figsize=(12, 4.8))
+    ax1, ax2 = fig.subplots(1, 2)
+    drained = False
+    for name, result in results.items():
+        steps = [it for it in result.iterations if it["phase"] in ("extend", "walk")]
+        if not steps:
+            continue
+        x = [it["iteration"] for it in steps]
+        line, = ax1.plot(x, [100 * it["efficiency"] for it in steps], label=name, lw=1)
+        ax2.plot(x, [100 * it["active"] / it["capacity"] for it in steps], label=name, lw=1)
+        for first, last in drain_spans(steps):
+            for ax in (ax1, ax2):
+                ax.axvspan(first - 0.5, last + 0.5, color=line.get_color(), alpha=0.12, lw=0,
+                           label=None if drained else "final drain (budget spent)")
+                ax.axvline(first - 0.5, color=line.get_color(), ls="--", lw=0.8)
+            drained = True
+    ax1.set(xlabel="extension iteration", ylabel=f"SIMD efficiency of extend/walk (%), W={warp_width}",
+            title=f"{scene_name}: active lanes per issued lane", ylim=(0, 105))
+    ax2.set(xlabel="extension iteration", ylabel="stream occupancy (% of lanes with a live path)",
+            title=f"{scene_name}: live paths in the stream", ylim=(0, 105))
+    for ax in (ax1, ax2):
+        ax.legend(fontsize=8)
+        ax.grid(alpha=0.3)
+    if drained:
+        fig.text(0.01, 0.01, DRAIN_NOTE, fontsize=8, va="bottom")
+        fig.tight_layout(rect=(0, 0.1, 1, 1))
+    else:
+        fig.tight_layout()
+    paths["efficiency"] = str(out_dir / f"{scene_name}_efficiency_per_iteration.png")
+    fig.savefig(paths["efficiency"], dpi=100)
+
+    expected = ref if ref is not None else next(iter(results.values())).image
+    errors = {n: np.abs(r.image - expected).mean(-1) for n, r in results.items()}
+    vmax = max(float(np.percentile(e, 99)) for e in errors.values()) or 1.0
+    n = len(results)
+    fig = Figure(figsize=(3.2 * n, 6.4))
+    axes = fig.subplots(2, n, squeeze=False)
+    for k, (name, result) in enumerate(results.items()):
+        axes[0, k].imshow(to_srgb8(result.image.astype(np.float32)))
+        axes[0, k].set_title(name, fontsize=9)
+        im = axes[1, k].imshow(errors[name], cmap="inferno", vmin=0, vmax=vmax)
+        axes[1, k].set_title(f"|error| vs {'reference' if ref is not None else 'first'}", fontsize=9)
+        for ax in axes[:, k]:
+            ax.set_xticks([])
+            ax.set_yticks([])
+    fig.colorbar(im, ax=axes[1, :].tolist(), label="absolute error (linear radiance, mean of RGB)", shrink=0.8)
+    paths["images"] = str(out_dir / f"{scene_name}_image_strip.png")
+    fig.savefig(paths["images"], dpi=100)
+    return paths

@@ -1,0 +1,320 @@
+"""Choosing the OpenCL device: the first usable GPU, else the best usable CPU implementation.
+
+"Usable" is measured, not assumed: each device builds and runs a small probe kernel
+(`cl/probe.cl`, which uses what the toolkit's kernels use) once; the verdict is cached on disk
+per device and driver version. A device whose compiler fails (PoCL 3.0's LLVM 14 on an AMD
+Zen 5, for one) is skipped, with the compiler's first error line as the reason.
+
+Ranking among usable devices (`RANKING`): a GPU first; then PoCL (the newest version first: a
+distribution's PoCL, whose newer LLVM knows newer CPUs, before pip's 3.0); then Intel's CPU
+runtime; then any other implementation. Intel's runtime (with its vectorizer off, see
+toolkit/opencl/runtimes.py) is faster on our kernels than PoCL on a 2-core AMD EPYC (1.4x for pt_naive
+and bdpt_parallel_connect), but PoCL comes first: it is open source, it is what the project's
+figures and tests are measured on, and Intel's runtime is the fallback for CPUs that PoCL 3.0
+cannot compile for. Pick Intel's with `--device intel` for speed. Oclgrind is a simulator for
+finding memory errors, a thousand times slower: it is only used when asked for by name.
+
+`--device` / `PYOPENCL_CTX` (`P:D` indices or a part of the name) override the automatic
+choice; `TOOLKIT_HIDE_PLATFORMS` (comma-separated parts of platform names) makes platforms
+count as unusable, e.g. to run on Intel's runtime where PoCL also works.
+`python -m toolkit devices` prints every device, usable or why not, and the ranking.
+"""
+import hashlib
+import json
+import os
+import platform as host_platform
+import re
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pyopencl as cl
+
+from toolkit.opencl import runtimes  # noqa: F401  (registers pip's OpenCL runtimes before the first OpenCL call)
+
+
+class NoOpenCLError(RuntimeError):
+    pass
+
+
+HOW_TO_GET_OPENCL = (
+    "No OpenCL platform was found. Install the CPU implementation with\n"
+    "    pip install pocl-binary-distribution\n"
+    "or your GPU vendor's OpenCL driver, then run `python -m toolkit devices`."
+)
+
+RANKING = ("GPU", "PoCL (newest first)", "Intel CPU runtime", "other", "Oclgrind (only by name)")
+
+
+@dataclass
+class Candidate:
+    platform_index: int
+    device_index: int
+    platform: object
+    device: object
+    usable: bool = True
+    reason: str = ""          # why not usable; "" when usable
+
+    @property
+    def selector(self):
+        return f"{self.platform_index}:{self.device_index}"
+
+    @property
+    def is_gpu(self):
+        return bool(self.device.type & cl.device_type.GPU)
+
+    @property
+    def implementation(self):
+        """The OpenCL implementation and its version, e.g. "PoCL 3.0-rc2"."""
+        name = self.platform.name.strip()
+        if "Portable Computing Language" in name:
+            return f"PoCL {self.device.driver_version.strip()}"
+        return f"{name} {self.device.driver_version.strip()}"
+
+    @property
+    def compiler(self):
+        """The kernel compiler and its version, as far as the implementation tells."""
+        llvm = re.search(r"LLVM\s+([\d.]+)", self.platform.version)
+        if llvm:
+            return f"LLVM {llvm.group(1)}"
+        if "Intel" in self.platform.name:
+            return f"Intel OpenCL CPU compiler {self.device.driver_version.strip()}"
+        return f"driver {self.device.driver_version.strip()}"
+
+    @property
+    def rank(self):
+        """Smaller is better; see RANKING."""
+        name = self.platform.name
+        if "Oclgrind" in name:
+            return (4, 0)
+        if self.is_gpu:
+            return (0, 0)
+        if "Portable Computing Language" in name:
+            version = [int(x) for x in re.findall(r"\d+", self.device.driver_version)[:2]]
+            return (1, tuple(-v for v in version))
+        if "Intel" in name:
+            return (2, 0)
+        return (3, 0)
+
+
+def list_devices():
+    """All (platform_index, device_index, platform, device) tuples; [] if there is no platform."""
+    try:
+        platforms = cl.get_platforms()
+    except cl.Error:
+        return []
+    found = []
+    for pi, platform in enumerate(platforms):
+        try:
+            devices = platform.get_devices()
+        except cl.Error:
+            continue
+        for di, device in enumerate(devices):
+            found.append((pi, di, platform, device))
+    return found
+
+
+def _hidden(platform):
+    parts = [p.strip().lower() for p in os.environ.get("TOOLKIT_HIDE_PLATFORMS", "").split(",") if p.strip()]
+    return any(p in platform.name.lower() for p in parts)
+
+
+def candidates(probe_all=True):
+    """Every device as a Candidate, probed (usable or the reason), best first."""
+    found = [Candidate(pi, di, p, d) for pi, di, p, d in list_devices()]
+    for c in found:
+        if _hidden(c.platform):
+            c.usable, c.reason = False, "hidden by TOOLKIT_HIDE_PLATFORMS"
+        elif probe_all:
+            c.usable, c.reason = probe(c.device)
+    return sorted(found, key=lambda c: (not c.usable, c.rank, c.platform_index, c.device_index))
+
+
+# ---- the probe -------------------------------------------------------------------------------
+
+PROBE_ITEMS = 256
+
+
+def _probe_key(device):
+    from toolkit.opencl.program import expand_includes
+    text = "\0".join([device.platform.name, device.platform.version, device.name,
+                      device.driver_version, device.version, expand_includes("probe.cl"), cl.VERSION_TEXT])
+    return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+def _probe_cache_file(key):
+    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "simd-light-transport-toolkit"
+    return base / "probes" / f"{key}.json"
+
+
+_probed = {}
+
+
+def probe(device):
+    """(usable, reason) for a device: build and run cl/probe.cl and check what it wrote.
+    Cached in memory and on disk per device, driver version and probe source."""
+    key = _probe_key(device)
+    if key in _probed:
+        return _probed[key]
+    cache = _probe_cache_file(key)
+    try:
+        verdict = json.loads(cache.read_text())
+        _probed[key] = (bool(verdict["usable"]), str(verdict["reason"]))
+        return _probed[key]
+    except (OSError, ValueError, KeyError, TypeError):
+        pass
+    _probed[key] = _run_probe(device)
+    try:
+        cache.parent.mkdir(parents=True, exist_ok=True)
+        staging = cache.with_suffix(f".{os.getpid()}.tmp")
+        staging.write_text(json.dumps({"usable": _probed[key][0], "reason": _probed[key][1],
+                                       "device": device.name.strip(), "platform": device.platform.name.strip()}))
+        staging.replace(cache)
+    except OSError:
+        pass  # no cache: the probe runs again next time
+    return _probed[key]
+
+
+def _run_probe(device):
+    from toolkit.opencl.program import KernelBuildError, build, launch, kernel
+    try:
+        queue = _queue_for_device(device)
+        program = build(queue.context, "probe.cl")
+        lengths = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, PROBE_ITEMS * 4)
+        from toolkit.opencl.program import LOCAL_SIZE
+        groups = PROBE_ITEMS // LOCAL_SIZE
+        sums = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, groups * 4)
+        counter = np.zeros(1, np.int32)
+        counter_buffer = cl.Buffer(queue.context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=counter)
+        launch(queue, kernel(program, "probe"), PROBE_ITEMS, lengths, sums, counter_buffer)
+        host_lengths, host_sums = np.empty(PROBE_ITEMS, np.float32), np.empty(groups, np.int32)
+        cl.enqueue_copy(queue, host_lengths, lengths)
+        cl.enqueue_copy(queue, host_sums, sums)
+        cl.enqueue_copy(queue, counter, counter_buffer)
+        queue.finish()
+    except KernelBuildError as error:
+        return False, first_error_line(str(error))
+    except cl.Error as error:
+        return False, f"OpenCL error while probing: {str(error).splitlines()[0]}"
+    expected_sums = np.arange(PROBE_ITEMS).reshape(groups, LOCAL_SIZE).sum(axis=1)
+    if not (np.all(np.abs(host_lengths - 1) < 1e-5) and np.array_equal(host_sums, expected_sums)
+            and counter[0] == PROBE_ITEMS):
+        return False, "the probe kernel ran but computed wrong numbers"
+    return True, ""
+
+
+def first_error_line(log):
+    """The compiler's first error line of a build report (what `devices` shows as the reason)."""
+    lines = [line.strip() for line in log.split("Full compiler log:")[-1].splitlines() if line.strip()]
+    for line in lines:
+        if re.search(r"\berror\b", line, re.IGNORECASE) and "clBuildProgram failed" not in line:
+            return line
+    return lines[0] if lines else "the build failed without a log"
+
+
+# ---- picking ---------------------------------------------------------------------------------
+
+def _parse_selector(selector, found):
+    """A selector is "P:D" (indices, like PYOPENCL_CTX), "P" or a case-insensitive substring
+    of the device or platform name ("gpu" and "cpu" match the device type); among several
+    matches the best-ranked usable one wins."""
+    selector = str(selector).strip()
+    parts = selector.split(":")
+    if all(p.isdigit() for p in parts if p) and parts[0]:
+        pi = int(parts[0])
+        di = int(parts[1]) if len(parts) > 1 and parts[1] else 0
+        for c in found:
+            if c.platform_index == pi and c.device_index == di:
+                return c
+        raise NoOpenCLError(f"no OpenCL device {pi}:{di}; run `python -m toolkit devices`")
+    needle = selector.lower()
+    for c in found:  # `found` is sorted best first
+        kind = cl.device_type.to_string(c.device.type).lower()
+        if needle in c.device.name.lower() or needle in c.platform.name.lower() or needle in kind:
+            return c
+    raise NoOpenCLError(f"no OpenCL device matches {selector!r}; run `python -m toolkit devices`")
+
+
+def pick_device(selector=None):
+    """The (platform, device) the toolkit uses: selector, else PYOPENCL_CTX, else the best usable."""
+    found = candidates()
+    if not found:
+        raise NoOpenCLError(HOW_TO_GET_OPENCL)
+    selector = selector or os.environ.get("PYOPENCL_CTX") or None
+    if selector:
+        chosen = _parse_selector(selector, found)
+        if not chosen.usable:
+            raise NoOpenCLError(f"OpenCL device {chosen.selector} ({describe(chosen.device)}) cannot "
+                                f"build the toolkit's kernels: {chosen.reason}")
+        return chosen.platform, chosen.device
+    automatic = [c for c in found if c.usable and c.rank[0] < 4]
+    if not automatic:
+        raise NoOpenCLError(explain_no_usable_device(found))
+    return automatic[0].platform, automatic[0].device
+
+
+def explain_no_usable_device(found):
+    """The error when no device can build: the cause, and the fixes that apply here."""
+    lines = ["No OpenCL device can build the toolkit's kernels:"]
+    for c in found:
+        lines.append(f"  {c.selector} {describe(c.device)}, {c.implementation} ({c.compiler}): "
+                     f"{c.reason or 'a simulator, only used when selected with --device'}")
+    unknown_cpu = [c for c in found if "unknown target CPU" in c.reason]
+    if unknown_cpu:
+        c = unknown_cpu[0]
+        lines.append(f"Cause: {c.implementation}'s {c.compiler} does not know this CPU "
+                     f"({_cpu_name()}), so it cannot compile for it.")
+    lines.append("Fixes:")
+    if host_platform.system() == "Linux" and host_platform.machine() == "x86_64":
+        from toolkit.opencl.runtimes import intel_cpu_library
+        if intel_cpu_library() is None:
+            lines.append("  - pip install intel-opencl-rt intel-cmplr-lib-rt   (Intel's CPU runtime; "
+                         "the toolkit registers it by itself)")
+        lines.append("  - a distribution's PoCL with a newer LLVM, e.g. apt-get install pocl-opencl-icd")
+    lines.append("  - your GPU vendor's OpenCL driver")
+    if os.environ.get("TOOLKIT_HIDE_PLATFORMS"):
+        lines.append(f"  - TOOLKIT_HIDE_PLATFORMS={os.environ['TOOLKIT_HIDE_PLATFORMS']} hides some platforms; unset it")
+    return "\n".join(lines)
+
+
+def _cpu_name():
+    try:
+        info = Path("/proc/cpuinfo").read_text()
+        name = re.search(r"model name\s*:\s*(.+)", info)
+        family = re.search(r"cpu family\s*:\s*(\d+)", info)
+        return f"{name.group(1).strip()}, CPU family {family.group(1)}" if name and family else host_platform.processor()
+    except OSError:
+        return host_platform.processor() or "unknown CPU"
+
+
+@lru_cache(maxsize=None)
+def _context_and_queue(device):
+    # Keep the Context object alive beside its queue: Intel's runtime invalidates a context whose
+    # last Python reference is gone although a queue still holds it (queue.context then fails).
+    context = cl.Context([device])
+    return context, cl.CommandQueue(context)
+
+
+def _queue_for_device(device):
+    return _context_and_queue(device)[1]
+
+
+def get_queue(selector=None):
+    """One shared context and in-order queue per device (builds are cached per context)."""
+    _, device = pick_device(selector or os.environ.get("PYOPENCL_CTX") or None)
+    return _queue_for_device(device)
+
+
+def describe(device):
+    return f"{device.name.strip()} ({device.platform.name.strip()}, {cl.device_type.to_string(device.type)})"
+
+
+def describe_implementation(device):
+    """"PoCL 3.0-rc2, LLVM 14.0.6" for reports (pytest header, bench)."""
+    c = Candidate(0, 0, device.platform, device)
+    return f"{c.implementation}, {c.compiler}"
+
+
+def has_gpu():
+    return any(e[3].type & cl.device_type.GPU for e in list_devices())

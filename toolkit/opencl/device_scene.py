@@ -1,0 +1,125 @@
+"""A scene uploaded for the kernels: BVH, triangles in leaf order, materials, lights, camera.
+
+Precision: the host subtracts the scene's centre in float64 before converting to float32, so
+a scene translated far from the origin keeps the precision of one at the origin
+("camera-relative" / origin rebasing). Ray offsets scale with the scene's size (scene_epsilon).
+"""
+import numpy as np
+import pyopencl as cl
+
+from toolkit.core.bvh import build_bvh, collapse_wide
+from toolkit.core.layout import BVH_KINDS, BVH_STACK_SIZE, CAMERA, LIGHT, LUMINANCE_WEIGHTS, MATERIAL, MATERIAL_TYPES, SCENE_ARGS, TRIANGLE
+
+_bvh_cache = {}
+
+
+def _bvh_for(scene, tri_vertices):
+    key = (scene.name, tri_vertices.shape, hash(tri_vertices.tobytes()))
+    if key not in _bvh_cache:
+        _bvh_cache[key] = build_bvh(tri_vertices)
+    return _bvh_cache[key]
+
+
+class DeviceScene:
+    # Relative size of the ray offset: far above float32 rounding (~1e-7) of a hit point,
+    # far below any gap between surfaces in the scenes (the Cornell light hangs 0.3% below the ceiling).
+    EPSILON_RELATIVE = 1e-5
+
+    def __init__(self, queue, scene, bvh="wide"):
+        """`bvh`: "wide" (4 children per node, tested together with float4 operations) or
+        "binary" (two per node); the kernels are built for it (features())."""
+        if bvh not in BVH_KINDS:
+            raise ValueError(f"bvh must be one of {', '.join(BVH_KINDS)}, got {bvh!r}")
+        self.bvh_kind = bvh
+        self.scene = scene
+        self.queue = queue
+        lo, hi = scene.vertices.min(0), scene.vertices.max(0)
+        self.center = 0.5 * (lo + hi)
+        self.extent = float(np.linalg.norm(hi - lo))
+        self.epsilon = np.float32(self.EPSILON_RELATIVE * self.extent)
+        local = scene.vertices - self.center                    # float64 rebasing
+        tri_vertices = local[scene.triangles]
+        self.bvh = _bvh_for(scene, tri_vertices)
+        if self.bvh.max_depth >= BVH_STACK_SIZE - 1:
+            raise ValueError(f"{scene.name}: BVH depth {self.bvh.max_depth} exceeds the device stack ({BVH_STACK_SIZE})")
+        order = self.bvh.order
+        tv = tri_vertices[order].astype(np.float32)
+        self.triangles = TRIANGLE.zeros(len(order))
+        self.triangles["v0"][:, :3] = tv[:, 0]
+        self.triangles["v1"][:, :3] = tv[:, 1]
+        self.triangles["v2"][:, :3] = tv[:, 2]
+        self.triangles["material"] = scene.material_of[order]
+        self.triangles["prim"] = order
+        self.triangles["light"] = -1
+        nodes = self.bvh.nodes
+        self.wide = None
+        if bvh == "wide":
+            self.wide = collapse_wide(self.bvh, tv)
+            if self.wide.stack_needed > BVH_STACK_SIZE:
+                raise ValueError(f"{scene.name}: the wide BVH needs {self.wide.stack_needed} stack entries, "
+                                 f"more than the device stack ({BVH_STACK_SIZE})")
+            nodes = self.wide.words
+        self._build_lights(tri_vertices, order)
+        self.materials = MATERIAL.zeros(len(scene.materials))
+        for i, m in enumerate(scene.materials):
+            self.materials[i]["reflectance"][:3] = m["reflectance"]
+            self.materials[i]["type"] = MATERIAL_TYPES[m["type"]]
+            self.materials[i]["ior"] = m["ior"]
+            self.materials[i]["alpha"] = m["alpha"]
+        mf = cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR
+        ctx = queue.context
+        self.buffers = {name: cl.Buffer(ctx, mf, hostbuf=a) for name, a in
+                        (("nodes", nodes), ("tris", self.triangles), ("materials", self.materials),
+                         ("lights", self.lights))}
+
+    def _build_lights(self, tri_vertices, order):
+        """Pick lights in proportion to power: area x luminance(emission)."""
+        scene = self.scene
+        slot_of = np.empty(len(order), np.int64)
+        slot_of[order] = np.arange(len(order))
+        light_tris = scene.light_triangles
+        v = tri_vertices[light_tris]
+        area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+        emission = scene.emission_of[light_tris]
+        power = area * (emission @ np.array(LUMINANCE_WEIGHTS))
+        power = np.where(power > 0, power, area * emission.max(1))
+        prob = power / power.sum()
+        self.lights = LIGHT.zeros(len(light_tris))
+        self.lights["emission"][:, :3] = emission
+        cdf = np.cumsum(prob)
+        cdf[-1] = 1.0
+        self.lights["cdf"] = cdf
+        self.lights["triangle"] = slot_of[light_tris]
+        self.triangles["light"][slot_of[light_tris]] = np.arange(len(light_tris))
+        self.triangles["light_pdf"][slot_of[light_tris]] = prob / area
+
+    def features(self, general=False):
+        """The scene's compile-time defines (Scene.features; `general`: every code path) and the
+        BVH traversal to build (the one this scene was uploaded for: a layout, not a feature)."""
+        return dict(self.scene.features(general), BVH_WIDE=self.bvh_kind == "wide")
+
+    def bvh_stats(self):
+        """Sizes of the BVH the kernels traverse (for render stats and compare)."""
+        stats = {"kind": self.bvh_kind, "binary_nodes": self.bvh.node_count, "leaves": self.bvh.leaf_nodes,
+                 "binary_depth": self.bvh.max_depth, "build_seconds": self.bvh.build_seconds}
+        if self.wide is not None:
+            stats.update(wide_nodes=self.wide.inner_nodes, wide_depth=self.wide.max_depth,
+                         wide_stack=self.wide.stack_needed)
+        return stats
+
+    def camera(self, width, height):
+        """The Camera record for an image of width x height (same field of view as the scene's)."""
+        cam = self.scene.camera
+        forward, right, up = cam.basis(width, height)
+        rec = CAMERA.zeros(1)[0]
+        rec["origin"][:3] = cam.origin - self.center
+        rec["forward"][:3] = forward
+        rec["right"][:3] = right
+        rec["up"][:3] = up
+        rec["width"], rec["height"] = width, height
+        return rec
+
+    def args(self):
+        """The SCENE_PARAMS kernel arguments, in the order of layout.SCENE_ARGS."""
+        values = dict(self.buffers, light_count=np.int32(len(self.lights)), epsilon=self.epsilon)
+        return [values[name] for name, _ in SCENE_ARGS]

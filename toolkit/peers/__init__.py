@@ -1,0 +1,1 @@
+"""Peer renderers the toolkit is measured against: Embree (ray queries) and Mitsuba 3 (images, speed)."""

@@ -1,0 +1,243 @@
+"""Cross-check of our BVH traversal (cl/bvh.h through cl/raycast.cl) against Embree.
+
+Both intersectors answer the same float32 question: the scene's triangles in the device's
+rebased coordinates and the same float32 rays. They use different triangle tests and
+different rounding, so they may legitimately disagree where the answer is decided by
+rounding: a ray through (or within float noise of) an edge shared by two triangles, or two
+surfaces at the same distance. Such disagreements are "excused"; any other disagreement is
+"unexplained" and means a traversal bug.
+
+Excuse rule for a closest-hit disagreement (different prim, or hit against miss): the hit that
+either intersector reports lies within EDGE_BARYCENTRIC of its triangle's edge
+(min(u, v, 1 - u - v) < 1e-4), or both hit at distances equal to TIE_RELATIVE (a tie between
+coplanar or edge-sharing triangles). An any-hit (segment) disagreement is excused when, for
+the same ray, either intersector's closest hit on the segment is near an edge, or lies at the
+segment's end (within TIE_RELATIVE of tmax), or the closest-hit disagreement is excused.
+
+Two refinements of the figures (the rule above is unchanged):
+- `ties_verified`: excused ties that float64 arithmetic proves to be genuine: the ray hits both
+  reported triangles, inside, at the same distance (coplanar overlapping triangles, e.g. a
+  box's bottom face lying on the floor). Both answers are right; `excused_rounding` is the
+  count of excused rays without them, those decided by rounding alone.
+- Distance error: `max_rel_t_error` is |t_device - t_embree| / t over rays whose prims agree,
+  and `rel_t_error_above_tie` counts those rays above TIE_RELATIVE. That ratio is not what
+  float32 can promise: the distance to a plane, t = n.(v0 - o) / n.d, is perturbed by the
+  rounding of coordinates of size S (eps S) and of the direction (eps t), both divided by
+  |cos| = |n.d|. A short hit (t << S) or a grazing one (|cos| << 1) has a relative error far
+  above eps even when both intersectors are right. `max_t_error_conditioned` removes that
+  condition number: |t_device - t_embree| |cos| / max(t, |origin|_inf, |hit point|_inf), in
+  units of the coordinates' size; it should be a modest multiple of float32 eps (1.2e-7).
+"""
+import time
+from pathlib import Path
+
+import numpy as np
+
+from toolkit.opencl.device import get_queue
+from toolkit.opencl.device_scene import DeviceScene
+from toolkit.peers.embree import EmbreeIntersector, camera_rays, random_rays
+from toolkit.opencl.raycast import DeviceRaycaster
+from toolkit.core.scene import Scene, load_scene
+
+EDGE_BARYCENTRIC = 1e-4
+TIE_RELATIVE = 1e-5
+
+
+def edge_distance(u, v):
+    """min(u, v, 1 - u - v): barycentric distance of a hit to its triangle's nearest edge."""
+    u = np.asarray(u, np.float64)
+    v = np.asarray(v, np.float64)
+    return np.minimum(np.minimum(u, v), 1.0 - u - v)
+
+
+def _moller_trumbore64(o, d, tri):
+    """Float64 ray/triangle test of rays (K, 3) against triangles (K, 3, 3): (t, u, v)."""
+    o, d, tri = (np.asarray(a, np.float64) for a in (o, d, tri))
+    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    pv = np.cross(d, e2)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        inv = 1.0 / np.einsum("ij,ij->i", e1, pv)
+        tv = o - tri[:, 0]
+        u = np.einsum("ij,ij->i", tv, pv) * inv
+        qv = np.cross(tv, e1)
+        v = np.einsum("ij,ij->i", d, qv) * inv
+        t = np.einsum("ij,ij->i", e2, qv) * inv
+    return t, u, v
+
+
+def verified_ties(origins, dirs, prim_a, prim_b, triangles):
+    """Per ray: whether, in float64 on the same float32 data, the ray hits both triangles
+    (inside, barycentrics >= 0) at distances equal to TIE_RELATIVE: both answers are then
+    correct closest hits (coplanar overlapping triangles), not a rounding accident."""
+    if len(prim_a) == 0:
+        return np.zeros(0, bool)
+    ta, ua, va = _moller_trumbore64(origins, dirs, triangles[prim_a])
+    tb, ub, vb = _moller_trumbore64(origins, dirs, triangles[prim_b])
+    with np.errstate(invalid="ignore"):
+        inside = (edge_distance(ua, va) >= 0) & (edge_distance(ub, vb) >= 0) & (ta > 0) & (tb > 0)
+        return inside & (np.abs(ta - tb) <= TIE_RELATIVE * np.maximum(ta, tb))
+
+
+def _excused_closest(dev, emb):
+    """Per ray: whether a closest-hit disagreement is excused (edge or tie), see module doc."""
+    td, pd, ud, vd = dev
+    te, pe, ue, ve = emb
+    hd, he = pd >= 0, pe >= 0
+    near_d = hd & (edge_distance(ud, vd) < EDGE_BARYCENTRIC)
+    near_e = he & (edge_distance(ue, ve) < EDGE_BARYCENTRIC)
+    with np.errstate(invalid="ignore"):
+        tie = hd & he & (np.abs(td.astype(np.float64) - te) <= TIE_RELATIVE * np.maximum(td, te))
+    return near_d | near_e | tie, near_d | near_e, tie
+
+
+def compare_with_embree(scene, n_random=100_000, seed=0, resolution=None, queue=None,
+                        max_examples=5, bvh="wide"):
+    """Agreement figures of device traversal and Embree on camera and random rays.
+
+    `scene`: a Scene or a scene folder. `resolution`: None (the scene's camera), an int
+    (square) or (width, height). `bvh`: "wide" or "binary", the traversal checked. Returns a dict; `unexplained` (closest hit) and
+    `any_unexplained` (segments) must be 0."""
+    if not isinstance(scene, Scene):
+        scene = load_scene(Path(scene))
+    if resolution is None:
+        width, height = scene.camera.width, scene.camera.height
+    elif isinstance(resolution, (int, np.integer)):
+        width = height = int(resolution)
+    else:
+        width, height = (int(r) for r in resolution)
+    queue = queue or get_queue()
+    start = time.perf_counter()
+    device_scene = DeviceScene(queue, scene, bvh=bvh)
+    device = DeviceRaycaster(queue, device_scene)
+    embree = EmbreeIntersector(scene, center=device_scene.center)
+    assert np.array_equal(embree.center, device_scene.center)
+
+    rng = np.random.default_rng(seed)
+    co, cd = camera_rays(device_scene, width, height)
+    ro, rd = random_rays(device_scene, n_random, rng)
+    origins, dirs = np.concatenate([co, ro]), np.concatenate([cd, rd])
+    n = len(origins)
+
+    # Closest hit.
+    dev = device.closest(origins, dirs)
+    emb = embree.closest(origins, dirs)
+    td, pd, ud, vd = dev
+    te, pe, ue, ve = emb
+    hd, he = pd >= 0, pe >= 0
+    agree = pd == pe
+    excusable, edge, tie = _excused_closest(dev, emb)
+    disagree = ~agree
+    excused = disagree & excusable
+    unexplained = disagree & ~excusable
+    # Ties (not near an edge) whose two triangles the ray provably hits at the same distance.
+    tie_only = np.flatnonzero(disagree & tie & ~edge)
+    proven = np.zeros(n, bool)
+    proven[tie_only] = verified_ties(origins[tie_only], dirs[tie_only], pd[tie_only], pe[tie_only],
+                                     embree.triangles)
+    both = agree & hd
+    t64, e64 = td[both].astype(np.float64), te[both].astype(np.float64)
+    dt = np.abs(t64 - e64)
+    rel = dt / np.maximum(e64, 1e-30)
+    # The condition number of the distance (module doc): coordinates' size over |cos|.
+    hit_point = origins[both].astype(np.float64) + t64[:, None] * dirs[both]
+    scale = np.maximum(np.maximum(e64, np.abs(origins[both]).max(1)), np.abs(hit_point).max(1))
+    tri = embree.triangles[pe[both]].astype(np.float64)
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    cos = np.abs(np.einsum("ij,ij->i", normal, dirs[both].astype(np.float64)))
+    conditioned = dt * cos / scale
+    figures = {
+        "scene": scene.name,
+        "bvh": bvh,
+        "triangles": int(len(scene.triangles)),
+        "rays": int(n),
+        "camera_rays": int(len(co)),
+        "random_rays": int(len(ro)),
+        "resolution": (width, height),
+        "hits_device": int(hd.sum()),
+        "hits_embree": int(he.sum()),
+        "hit_miss_agree": int((hd == he).sum()),
+        "hit_miss_disagree": int((hd != he).sum()),
+        "prim_agree": int(agree.sum()),
+        "disagreements": int(disagree.sum()),
+        "excused": int(excused.sum()),
+        "excused_edge": int((disagree & edge).sum()),
+        "excused_tie": int((disagree & tie & ~edge).sum()),
+        "ties_verified": int(proven.sum()),
+        "excused_rounding": int((excused & ~proven).sum()),
+        "unexplained": int(unexplained.sum()),
+        "agreeing_hits": int(both.sum()),
+        "max_rel_t_error": float(rel.max()) if len(rel) else 0.0,
+        "rel_t_error_above_tie": int((rel > TIE_RELATIVE).sum()),
+        "max_t_error_conditioned": float(conditioned.max()) if len(dt) else 0.0,
+        "camera_disagreements": int(disagree[: len(co)].sum()),
+        "camera_unexplained": int(unexplained[: len(co)].sum()),
+    }
+
+    # Any hit on random segments: the random rays with tmax uniform in (0, scene diagonal).
+    m = len(ro)
+    tmax = (rng.random(m) * device_scene.extent).astype(np.float32)
+    tmax = np.maximum(tmax, np.float32(1e-6 * device_scene.extent))
+    bd = device.occluded(ro, rd, tmax)
+    be = embree.occluded(ro, rd, tmax)
+    sl = slice(len(co), n)
+    td_s, te_s = td[sl].astype(np.float64), te[sl].astype(np.float64)
+    on_d = hd[sl] & (td_s <= tmax * (1 + TIE_RELATIVE))
+    on_e = he[sl] & (te_s <= tmax * (1 + TIE_RELATIVE))
+    near_d = on_d & (edge_distance(ud[sl], vd[sl]) < EDGE_BARYCENTRIC)
+    near_e = on_e & (edge_distance(ue[sl], ve[sl]) < EDGE_BARYCENTRIC)
+    with np.errstate(invalid="ignore"):
+        at_end = ((hd[sl] & (np.abs(td_s - tmax) <= TIE_RELATIVE * tmax))
+                  | (he[sl] & (np.abs(te_s - tmax) <= TIE_RELATIVE * tmax)))
+    any_excusable = near_d | near_e | at_end | excused[sl]
+    any_disagree = bd != be
+    any_unexplained = any_disagree & ~any_excusable
+    # Consistency of each intersector with itself: blocked iff its closest hit is on the segment.
+    figures.update({
+        "segments": int(m),
+        "blocked_device": int(bd.sum()),
+        "blocked_embree": int(be.sum()),
+        "any_agree": int((~any_disagree).sum()),
+        "any_disagreements": int(any_disagree.sum()),
+        "any_excused": int((any_disagree & any_excusable).sum()),
+        "any_unexplained": int(any_unexplained.sum()),
+        "device_any_vs_closest_mismatch": int((bd != (hd[sl] & (td_s < tmax))).sum()),
+    })
+    figures["excused_fraction"] = figures["excused"] / max(n, 1)
+    figures["excused_rounding_fraction"] = figures["excused_rounding"] / max(n, 1)
+    figures["any_excused_fraction"] = figures["any_excused"] / max(m, 1)
+
+    examples = []
+    for i in np.flatnonzero(unexplained)[:max_examples]:
+        examples.append({"ray": int(i), "origin": origins[i].tolist(), "dir": dirs[i].tolist(),
+                         "device": (float(td[i]), int(pd[i]), float(ud[i]), float(vd[i])),
+                         "embree": (float(te[i]), int(pe[i]), float(ue[i]), float(ve[i]))})
+    for j in np.flatnonzero(any_unexplained)[:max_examples]:
+        i = len(co) + j
+        examples.append({"segment": int(j), "origin": ro[j].tolist(), "dir": rd[j].tolist(),
+                         "tmax": float(tmax[j]), "device_blocked": bool(bd[j]),
+                         "embree_blocked": bool(be[j]),
+                         "device_closest": (float(td[i]), int(pd[i])),
+                         "embree_closest": (float(te[i]), int(pe[i]))})
+    figures["unexplained_examples"] = examples
+    figures["seconds"] = time.perf_counter() - start
+    return figures
+
+
+def format_figures(f):
+    """A short human-readable summary of compare_with_embree's figures."""
+    return (f"{f['scene']} ({f['bvh']} BVH): {f['rays']} rays ({f['camera_rays']} camera + "
+            f"{f['random_rays']} random), {f['triangles']} triangles\n"
+            f"  closest: hits device/embree {f['hits_device']}/{f['hits_embree']}, "
+            f"hit/miss agree {f['hit_miss_agree']}, prim agree {f['prim_agree']}, "
+            f"disagree {f['disagreements']} (excused {f['excused']}: edge {f['excused_edge']}, "
+            f"tie {f['excused_tie']} of which {f['ties_verified']} proven coplanar ties; "
+            f"unexplained {f['unexplained']})\n"
+            f"  distance on agreeing hits: max rel error {f['max_rel_t_error']:.3g} "
+            f"({f['rel_t_error_above_tie']} of {f['agreeing_hits']} above {TIE_RELATIVE:g}: "
+            f"short or grazing hits), conditioned error {f['max_t_error_conditioned']:.3g}\n"
+            f"  any-hit: {f['segments']} segments, blocked device/embree "
+            f"{f['blocked_device']}/{f['blocked_embree']}, agree {f['any_agree']}, "
+            f"disagree {f['any_disagreements']} (excused {f['any_excused']}, "
+            f"unexplained {f['any_unexplained']})\n"
+            f"  {f['seconds']:.1f} s")

@@ -1,0 +1,229 @@
+"""`python -m toolkit gpucheck`: one run that checks and measures the toolkit on a device (a GPU
+when there is one; it runs the same on a CPU) and writes one report, text and JSON:
+
+1. the device, its warp width W and the stream and pool sizes chosen for it (toolkit/opencl/device.py,
+   toolkit/opencl/work_sizes.py);
+2. same image: the techniques of each family, work-group sizes 32/64/256, a small stream and
+   pool against the device's, and other OpenCL implementations agree to float rounding on the
+   same samples (toolkit/verify/same_image.py);
+3. our BVH traversal against Embree (toolkit/verify/crosscheck.py): no unexplained disagreement;
+4. `bench` of every technique (toolkit/measure/bench.py): samples/s, and the talk's two ratios, stream
+   over in-place path tracing (talk: 1.2x) and parallel over naive BDPT connect (talk: 1.15x);
+5. `compare` with the SIMD-efficiency figures (toolkit/measure/compare.py);
+6. GPU against CPU where the machine has both (talk: a GPU 8-18x a CPU).
+
+Checks 2, 3 and 5 are correctness: any failure makes the exit code 1. The ratios are measured
+and reported against the talk's figures, never asserted (a CPU is not a GPU).
+
+The budgets follow the device: every render holds several samples per slot of the stream or
+pool (`samples_per_slot`), so a GPU's larger streams regenerate as a CPU's do. `--fast` uses tiny
+renders (the test suite runs it on PoCL).
+"""
+import json
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+from toolkit.opencl.device_model import device_warp_width
+
+# The talk's GPU figures (van Antwerpen, HPG 2011) and the issue's GPU target.
+TALK_RATIOS = {"stream PT / in-place PT": ("pt_compact_regen", "pt_inplace_regen", 1.20),
+               "parallel / naive BDPT connect": ("bdpt_parallel_connect", "bdpt_naive_connect", 1.15)}
+GPU_OVER_CPU_TARGET = 10.0
+BENCH_TECHNIQUES = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "pt_compact_regen/multipass",
+                    "bdpt_naive_connect", "bdpt_parallel_connect", "bdpt_parallel_connect/direct_scatter", "mlt")
+COMPARE_TECHNIQUES = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "bdpt_naive_connect",
+                      "bdpt_parallel_connect")
+FAST = {"same_resolution": (16, 16), "same_spp": 8, "rays": 2000, "bench_resolution": (32, 32), "bench_spp": 8,
+        "repeats": 1, "compare_resolution": (24, 24), "compare_spp": 8, "scenes": ("cornell_box",)}
+
+
+def side_for(samples, spp, multiple=16):
+    """The side of a square image that holds `samples` at `spp`, rounded up to `multiple`."""
+    return multiple * math.ceil(math.sqrt(samples / spp) / multiple)
+
+
+def settings(sizes, fast):
+    """Render sizes for this device: FAST, or budgets of 8 samples per stream slot (bench, compare)
+    and 2 per slot (same image), at the bench's and compare's usual spp."""
+    if fast:
+        return dict(FAST)
+    per_slot = max(sizes.stream_size / 8, sizes.pool_size)     # PT at 8 spp, BDPT at 1
+    same = side_for(2 * 8 * per_slot, 8)
+    return {"same_resolution": (same, same), "same_spp": 8, "rays": 100_000,
+            "bench_resolution": (side_for(8 * sizes.stream_size, 16),) * 2, "bench_spp": 16, "repeats": 3,
+            "compare_resolution": (side_for(8 * sizes.stream_size, 64),) * 2, "compare_spp": 64,
+            "scenes": ("cornell_box", "cornell_spheres")}
+
+
+def run(device=None, fast=False, out_dir="out/gpucheck", log=None):
+    """Run every step; returns the report (a dict, see format_report)."""
+    from toolkit.opencl import device as devices
+    from toolkit.api import as_scene
+    from toolkit.measure.bench import bench
+    from toolkit.measure.compare import compare
+    from toolkit.verify.crosscheck import compare_with_embree
+    from toolkit.verify.same_image import Check, same_image_checks
+    from toolkit.core.scene import bundled_scene_dir
+    from toolkit.opencl.work_sizes import device_work_sizes
+
+    log = log or (lambda text: print(f"gpucheck: {text}", file=sys.stderr, flush=True))
+    start = time.perf_counter()
+    queue = devices.get_queue(device)
+    dev = queue.device
+    sizes = device_work_sizes(dev)
+    width, why = device_warp_width(dev)
+    is_gpu = _is_gpu(dev)
+    s = settings(sizes, fast)
+    report = {"device": {"name": devices.describe(dev), "implementation": devices.describe_implementation(dev),
+                         "gpu": is_gpu, "compute_units": dev.max_compute_units, "warp_width": width,
+                         "warp_width_source": why, "stream_size": sizes.stream_size, "pool_size": sizes.pool_size,
+                         "work_sizes_source": sizes.why},
+              "fast": fast, "settings": {k: list(v) if isinstance(v, tuple) else v for k, v in s.items()}}
+    scenes = {name: as_scene(bundled_scene_dir(name)) for name in s["scenes"]}
+    box = scenes["cornell_box"]
+    checks = []
+
+    # Other OpenCL implementations to compare images with (Oclgrind, a simulator, left out).
+    others = [c for c in devices.candidates() if c.usable and c.rank[0] < 4 and c.device.int_ptr != dev.int_ptr]
+    log(f"[1/5] same image on {devices.describe(dev)} "
+        f"({s['same_resolution'][0]}x{s['same_resolution'][1]}; also on {len(others)} other implementation(s))")
+    for check in same_image_checks(box, device, s["same_resolution"], s["same_spp"],
+                                   others=[(c.selector, c.implementation) for c in others], log=lambda t: log(f"      {t}")):
+        checks.append(("same image", check))
+
+    log(f"[2/5] Embree cross-check ({s['rays']:,} random rays per scene and BVH)")
+    try:
+        import embreex  # noqa: F401
+        for name, scene in scenes.items():
+            for bvh in ("wide", "binary"):
+                f = compare_with_embree(scene, n_random=s["rays"], resolution=32 if fast else None, queue=queue,
+                                        bvh=bvh)
+                unexplained = f["unexplained"] + f["any_unexplained"]
+                checks.append(("Embree", Check(f"{name}, {bvh} BVH: {f['rays']:,} rays", unexplained == 0,
+                                               f"{f['unexplained']} closest-hit and {f['any_unexplained']} any-hit "
+                                               f"disagreements unexplained ({f['excused']} excused)",
+                                               {k: f[k] for k in ("rays", "excused", "unexplained", "any_unexplained")})))
+    except ImportError:
+        checks.append(("Embree", Check("Embree cross-check", True, "skipped: embreex is not installed")))
+
+    res = s["bench_resolution"]
+    log(f"[3/5] bench: {len(BENCH_TECHNIQUES)} techniques, {res[0]}x{res[1]}, {s['bench_spp']} spp, "
+        f"{s['repeats']} repeat(s)")
+    report["bench"] = bench(box, BENCH_TECHNIQUES, spp=s["bench_spp"], resolution=res, repeats=s["repeats"],
+                            device=device)
+    rates = {name: row["samples_per_second"] for name, row in report["bench"]["techniques"].items()}
+    report["ratios"] = {label: {"ratio": rates[a] / rates[b], "talk": talk, "of": f"{a} / {b}"}
+                        for label, (a, b, talk) in TALK_RATIOS.items()}
+
+    res = s["compare_resolution"]
+    log(f"[4/5] compare with SIMD figures: {res[0]}x{res[1]}, {s['compare_spp']} spp")
+    table = compare(box, list(COMPARE_TECHNIQUES), s["compare_spp"], resolution=res, device=device,
+                    out_dir=out_dir, plots=not fast)
+    report["compare"] = {name: {k: row[k] for k in ("samples_per_second", "simd_efficiency", "rmse", "nonfinite")}
+                         for name, row in table.items()}
+    for name, row in table.items():
+        efficiency = row["simd_efficiency"]
+        sane = row["nonfinite"] == 0 and all(0.0 < v <= 1.0 for v in efficiency.values())
+        checks.append(("compare", Check(f"{name}: SIMD figures", sane,
+                                        f"overall {efficiency.get('overall', float('nan')):.1%}, "
+                                        f"{row['nonfinite']} non-finite pixels")))
+
+    log("[5/5] GPU against CPU")
+    report["gpu_vs_cpu"] = gpu_vs_cpu(dev, is_gpu, report["bench"], s, box, log)
+
+    report["checks"] = [{"step": step, "name": c.name, "passed": c.passed, "detail": c.detail} for step, c in checks]
+    report["passed"] = all(c.passed for _, c in checks)
+    report["seconds"] = time.perf_counter() - start
+    return report
+
+
+def _is_gpu(device):
+    import pyopencl as cl
+    return bool(device.type & cl.device_type.GPU) and not device.type & cl.device_type.CPU
+
+
+def gpu_vs_cpu(dev, is_gpu, bench_report, s, scene, log):
+    """Samples/s of the best path tracer and BDPT on a GPU and on a CPU, when both exist."""
+    from toolkit.opencl import device as devices
+    from toolkit.measure.bench import bench
+    usable = [c for c in devices.candidates() if c.usable and c.rank[0] < 4]
+    gpus = [c for c in usable if _is_gpu(c.device)]
+    cpus = [c for c in usable if not _is_gpu(c.device)]
+    if not gpus or not cpus:
+        kinds = ", ".join(f"{c.implementation} ({'GPU' if _is_gpu(c.device) else 'CPU'})" for c in usable)
+        return {"measured": False,
+                "note": f"{'only GPUs' if gpus else 'only a CPU'} here ({kinds}): no GPU against CPU figure"}
+    other = cpus[0] if is_gpu else gpus[0]
+    log(f"      bench on {devices.describe(other.device)}")
+    names = ("pt_compact_regen", "bdpt_parallel_connect")
+    there = bench(scene, names, spp=s["bench_spp"], resolution=s["bench_resolution"], repeats=s["repeats"],
+                  device=other.selector)
+    here = {n: bench_report["techniques"][n]["samples_per_second"] for n in names}
+    away = {n: there["techniques"][n]["samples_per_second"] for n in names}
+    gpu, cpu = (here, away) if is_gpu else (away, here)
+    return {"measured": True, "cpu": cpus[0].implementation if is_gpu else devices.describe_implementation(dev),
+            "gpu": devices.describe_implementation(dev) if is_gpu else gpus[0].implementation,
+            "ratios": {n: gpu[n] / cpu[n] for n in names}, "target": GPU_OVER_CPU_TARGET}
+
+
+def format_report(r):
+    d = r["device"]
+    lines = [f"gpucheck{' --fast' if r['fast'] else ''}: {d['name']}; {d['implementation']}",
+             f"  {'GPU' if d['gpu'] else 'CPU'}, {d['compute_units']} compute units; SIMD counters: warps of "
+             f"{d['warp_width']} ({d['warp_width_source']})",
+             f"  in flight: stream {d['stream_size']:,} paths, BDPT pool {d['pool_size']:,} samples "
+             f"({d['work_sizes_source']})", "", "Checks:"]
+    for c in r["checks"]:
+        lines.append(f"  {'PASS' if c['passed'] else 'FAIL'}  {c['step']}: {c['name']}: {c['detail']}")
+    b = r["bench"]
+    lines += ["", f"bench: {b['scene']} {b['resolution'][0]}x{b['resolution'][1]}, {b['spp']} spp (BDPT and mlt: "
+              f"{max(1, b['spp'] // 8)}), median of {b['repeats']}"]
+    lines += [f"  {name:<40}{row['samples_per_second']:>14,.0f} samples/s" for name, row in b["techniques"].items()]
+    lines.append("Stream against in-place (the talk's GPU figures):")
+    for label, row in r["ratios"].items():
+        verdict = "reaches" if row["ratio"] >= row["talk"] else "below"
+        lines.append(f"  {label} ({row['of']}): {row['ratio']:.2f}x, talk {row['talk']:.2f}x ({verdict})")
+    if not d["gpu"]:
+        lines.append("  (on a CPU: idle SIMD lanes cost little there, so these ratios say little about a GPU)")
+    lines.append("SIMD efficiency (compare):")
+    for name, row in r["compare"].items():
+        eff = row["simd_efficiency"]
+        lines.append(f"  {name:<26} overall {eff.get('overall', float('nan')):6.1%}  "
+                     + ", ".join(f"{k} {v:.1%}" for k, v in eff.items() if k != "overall"))
+    g = r["gpu_vs_cpu"]
+    if g["measured"]:
+        lines.append(f"GPU ({g['gpu']}) against CPU ({g['cpu']}): "
+                     + ", ".join(f"{n} {x:.1f}x" for n, x in g["ratios"].items()) + f" (target >= {g['target']:g}x)")
+    else:
+        lines.append(f"GPU against CPU: {g['note']}")
+    failed = sum(not c["passed"] for c in r["checks"])
+    lines.append(f"{'PASSED' if r['passed'] else f'FAILED: {failed} check(s)'} in {r['seconds']:.0f} s")
+    return "\n".join(lines)
+
+
+def report_path(out):
+    """`out` checked before any work: a .txt file (the JSON goes beside it) in a folder that
+    accepts new files; else an InputError that names the problem."""
+    from toolkit.core.validate import InputError, writable_file
+    path = Path(out)
+    if path.suffix.lower() != ".txt":
+        raise InputError(f"--out {path}: the report is text; give a .txt name (its JSON goes beside it)")
+    return writable_file(path)
+
+
+def write_report(report, out):
+    """The text at `out` and the JSON beside it (same name, .json); returns both paths."""
+    text_path = Path(out)
+    json_path = text_path.with_suffix(".json")
+    text_path.parent.mkdir(parents=True, exist_ok=True)
+    text_path.write_text(format_report(report) + "\n")
+    json_path.write_text(json.dumps(report, indent=1, default=_plain) + "\n")
+    return text_path, json_path
+
+
+def _plain(x):
+    return x.item() if isinstance(x, np.generic) else str(x)
