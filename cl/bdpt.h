@@ -30,17 +30,15 @@
 #include "lights.h"
 #include "materials.h"
 
-/* VERTEX_DELTA, VERTEX_CAMERA, VERTEX_LIGHT (y_0, the point sampled on a light): VertexFlag in toolkit/core/layout.py. */
+/* VERTEX_DELTA, VERTEX_CAMERA, VERTEX_LIGHT (y_0, the point sampled on a light): VertexFlag in
+ * toolkit/core/layout.py; is_delta(), is_camera(), is_light_origin() and remap0(): bdpt_vertex.h. */
+#include "bdpt_vertex.h"
 
 /* MAX_VERTICES and vertex_index: where the random walk keeps its vertices. */
 #include "vertex_memory.h"
 #ifndef STRATEGY_IMAGES
 #define STRATEGY_IMAGES 0  /* 1: connect kernels keep each strategy apart (render --strategies) */
 #endif
-
-HELPER bool is_delta(const BdptVertex* v) { return (v->flags & VERTEX_DELTA) != 0; }
-HELPER bool is_camera(const BdptVertex* v) { return (v->flags & VERTEX_CAMERA) != 0; }
-HELPER bool is_light_origin(const BdptVertex* v) { return (v->flags & VERTEX_LIGHT) != 0; }
 
 /* ---- the pinhole camera as a vertex ----------------------------------------------------- */
 
@@ -123,8 +121,6 @@ HELPER float light_emit_pdf(const BdptVertex* v, const BdptVertex* to) {
     float3 w = normalize(to->pos.xyz - v->pos.xyz);
     return to_area(fmax(0.0f, dot(v->normal.xyz, w)) * INV_PI, v->pos.xyz, to);
 }
-
-HELPER float remap0(float f) { return f != 0.0f ? f : 1.0f; }
 
 /* ---- MIS: the weight of one strategy among all that could make this path (mis.h) ---- */
 
