@@ -5,6 +5,8 @@ struct; each group of named values (an IntEnum) gives the Python constants and C
 All of it is generated into `layout.h` (see `c_header()`), which every program includes
 through cl/common.h, so host and device can never disagree. `LAYOUT_CHECKS` lets a test kernel
 (cl/layout_check.cl) compare sizeof/offsetof of every struct with numpy (tests/test_layout.py).
+The index formulas both sides compute (toolkit/core/bdpt_indices.py, sample_dims.py) and the names
+of quantities packed into a float4's .w lane (record_lanes.py) are emitted into layout.h here too.
 """
 from enum import IntEnum, IntFlag
 
