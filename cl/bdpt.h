@@ -24,23 +24,21 @@
 #define BDPT_H
 
 #include "common.h"
-#include "rng.h"
+#include "bdpt_sampler.h"
 #include "camera.h"
 #include "bvh.h"
 #include "lights.h"
 #include "materials.h"
 
-/* VERTEX_DELTA, VERTEX_CAMERA, VERTEX_LIGHT (y_0, the point sampled on a light): VertexFlag in toolkit/core/layout.py. */
+/* VERTEX_DELTA, VERTEX_CAMERA, VERTEX_LIGHT (y_0, the point sampled on a light): VertexFlag in
+ * toolkit/core/layout.py; is_delta(), is_camera(), is_light_origin() and remap0(): bdpt_vertex.h. */
+#include "bdpt_vertex.h"
 
 /* MAX_VERTICES and vertex_index: where the random walk keeps its vertices. */
 #include "vertex_memory.h"
 #ifndef STRATEGY_IMAGES
 #define STRATEGY_IMAGES 0  /* 1: connect kernels keep each strategy apart (render --strategies) */
 #endif
-
-HELPER bool is_delta(const BdptVertex* v) { return (v->flags & VERTEX_DELTA) != 0; }
-HELPER bool is_camera(const BdptVertex* v) { return (v->flags & VERTEX_CAMERA) != 0; }
-HELPER bool is_light_origin(const BdptVertex* v) { return (v->flags & VERTEX_LIGHT) != 0; }
 
 /* ---- the pinhole camera as a vertex ----------------------------------------------------- */
 
@@ -69,16 +67,16 @@ HELPER int camera_pixel(const Camera* cam, float3 w) {
 /* ---- densities ------------------------------------------------------------------------ */
 
 /* Shading frame of a surface vertex seen from direction `toward` (two-sided materials flip). */
-HELPER void vertex_frame(const SceneView* s, const BdptVertex* v, float3 toward, float3* n, float3* ts, float3* tt) {
-    *n = shading_normal(s->materials[v->material].type, v->normal.xyz, toward);
+HELPER void vertex_frame(const SceneView* scene, const BdptVertex* v, float3 toward, float3* n, float3* ts, float3* tt) {
+    *n = shading_normal(scene->materials[v->material].type, v->normal.xyz, toward);
     make_basis(*n, ts, tt);
 }
 
 /* f(wo, wi) at a surface vertex, directions in world space; wo towards where light goes. */
-HELPER float3 vertex_bsdf(const SceneView* s, const BdptVertex* v, float3 wo, float3 wi, float* pdf) {
+HELPER float3 vertex_bsdf(const SceneView* scene, const BdptVertex* v, float3 wo, float3 wi, float* pdf) {
     float3 n, ts, tt;
-    vertex_frame(s, v, wo, &n, &ts, &tt);
-    Material m = s->materials[v->material];
+    vertex_frame(scene, v, wo, &n, &ts, &tt);
+    Material m = scene->materials[v->material];
     return bsdf_eval(&m, to_local(wo, ts, tt, n), to_local(wi, ts, tt, n), pdf);
 }
 
@@ -97,7 +95,7 @@ HELPER float delta_pdf_dir(float cos_w) { return fabs(cos_w); }
 
 /* Area density at `next` of sampling it from vertex v, which was reached from `prev`
  * (prev may be 0 for the camera and the light origin, which have no predecessor). */
-HELPER float vertex_pdf(const SceneView* s, const Camera* cam, const BdptVertex* prev, const BdptVertex* v,
+HELPER float vertex_pdf(const SceneView* scene, const Camera* cam, const BdptVertex* prev, const BdptVertex* v,
                         const BdptVertex* next) {
     float3 w = normalize(next->pos.xyz - v->pos.xyz);
     float pdf_dir;
@@ -109,22 +107,20 @@ HELPER float vertex_pdf(const SceneView* s, const Camera* cam, const BdptVertex*
         pdf_dir = fmax(0.0f, dot(v->normal.xyz, w)) * INV_PI;   /* cosine-weighted emission */
     } else {
         float3 wo = normalize(prev->pos.xyz - v->pos.xyz);
-        vertex_bsdf(s, v, wo, w, &pdf_dir);
+        vertex_bsdf(scene, v, wo, w, &pdf_dir);
     }
     return to_area(pdf_dir, v->pos.xyz, next);
 }
 
 /* Area density of light sampling choosing the point of `v` (an eye vertex on a light), and
  * solid-angle density of the light emitting from there towards `to`, as an area density. */
-HELPER float light_origin_pdf(const SceneView* s, const BdptVertex* v) {
-    return v->light >= 0 ? s->tris[s->lights[v->light].triangle].light_pdf : 0.0f;
+HELPER float light_origin_pdf(const SceneView* scene, const BdptVertex* v) {
+    return v->light >= 0 ? scene->tris[scene->lights[v->light].triangle].light_pdf : 0.0f;
 }
 HELPER float light_emit_pdf(const BdptVertex* v, const BdptVertex* to) {
     float3 w = normalize(to->pos.xyz - v->pos.xyz);
     return to_area(fmax(0.0f, dot(v->normal.xyz, w)) * INV_PI, v->pos.xyz, to);
 }
-
-HELPER float remap0(float f) { return f != 0.0f ? f : 1.0f; }
 
 /* ---- MIS: the weight of one strategy among all that could make this path (mis.h) ---- */
 
@@ -153,29 +149,55 @@ typedef struct {
 #endif
 } Connection;
 
-HELPER bool visible(const SceneView* s, const BdptVertex* a, const BdptVertex* b, int* steps) {
+HELPER bool visible(const SceneView* scene, const BdptVertex* a, const BdptVertex* b, int* steps) {
     float3 d = b->pos.xyz - a->pos.xyz;
-    float3 from = is_camera(a) ? a->pos.xyz : offset_point(s, a->pos.xyz, a->normal.xyz, d);
-    float3 to = is_camera(b) ? b->pos.xyz : offset_point(s, b->pos.xyz, b->normal.xyz, -d);
+    float3 from = is_camera(a) ? a->pos.xyz : offset_point(scene, a->pos.xyz, a->normal.xyz, d);
+    float3 to = is_camera(b) ? b->pos.xyz : offset_point(scene, b->pos.xyz, b->normal.xyz, -d);
     float3 seg = to - from;
     float len = length(seg);
     if (!(len > 0.0f) || dot(seg, d) <= 0.0f) return false;
-    return !trace_any(s, from, seg / len, 0.0f, len, steps);
+    return !trace_any(scene, from, seg / len, 0.0f, len, steps);
 }
 
 /* What the light subpath's end y_{s-1} sends towards w: the emitted radiance at the light
  * origin (one-sided), otherwise its BSDF for light arriving from y_{s-2}. */
-HELPER float3 light_end_f(const SceneView* s, const BdptVertex* qs, int s_len, float3 w) {
+HELPER float3 light_end_f(const SceneView* scene, const BdptVertex* qs, int s_len, float3 w) {
     if (s_len == 1)
-        return dot(qs->normal.xyz, w) > 0.0f ? s->lights[qs->light].emission.xyz : (float3)(0.0f);
+        return dot(qs->normal.xyz, w) > 0.0f ? scene->lights[qs->light].emission.xyz : (float3)(0.0f);
     float unused;
-    return vertex_bsdf(s, qs, qs->wo.xyz, w, &unused);
+    return vertex_bsdf(scene, qs, qs->wo.xyz, w, &unused);
+}
+
+/* Strategy (s, 1), light tracing: connect y_{s-1} to the camera; the result lands on another
+ * pixel (*pixel). False when it cannot (delta vertex, outside the image, black, occluded). */
+HELPER bool connect_to_camera(const SceneView* scene, const Camera* cam, __global const BdptVertex* eye,
+                              __global const BdptVertex* light, int s_len, int* steps, float3* value,
+                              int* pixel, ConnectionPdfs* c) {
+    BdptVertex qs = light[s_len - 1], cam_v = eye[0];
+    if (is_delta(&qs)) return false;
+    float3 d = cam_v.pos.xyz - qs.pos.xyz;
+    float dist2 = dot(d, d);
+    float3 w = d * rsqrt(dist2);            /* from qs towards the camera */
+    *pixel = camera_pixel(cam, -w);
+    if (*pixel < 0) return false;
+    float3 f = light_end_f(scene, &qs, s_len, w);
+    if (is_black(f)) return false;
+    float cos_cam = dot(-w, cam->forward.xyz);
+    float we = 1.0f / (film_area(cam) * cos_cam * cos_cam * cos_cam * cos_cam);
+    *value = qs.beta.xyz * f * fabs(dot(qs.normal.xyz, w)) * we * cos_cam / dist2;
+    if (!visible(scene, &qs, &cam_v, steps)) return false;
+    c->qs_rev = to_area(camera_pdf_dir(cam, -w), cam_v.pos.xyz, &qs);
+    if (s_len > 1) {
+        BdptVertex qsm = light[s_len - 2];
+        c->qsm_rev = vertex_pdf(scene, cam, &cam_v, &qs, &qsm);
+    }
+    return true;
 }
 
 /* Evaluate strategy (s, t) of the sample whose subpaths are `eye` (t_max vertices) and `light`.
  * `own_pixel` is where eye-path strategies land. Returns value 0 / pixel -1 when the strategy
  * cannot make a path (delta endpoint, light's back side, occluded, outside the image...). */
-HELPER Connection connect_strategy(const SceneView* s, const Camera* cam, __global const BdptVertex* eye,
+HELPER Connection connect_strategy(const SceneView* scene, const Camera* cam, __global const BdptVertex* eye,
                                    __global const BdptVertex* light, int s_len, int t_len, int own_pixel,
                                    int* steps) {
     Connection out = {(float3)(0.0f), -1, 0.0f};
@@ -189,29 +211,11 @@ HELPER Connection connect_strategy(const SceneView* s, const Camera* cam, __glob
         /* The eye subpath found a light by itself. */
         BdptVertex pt = eye[t_len - 1], ptm = eye[t_len - 2];
         if (pt.light < 0 || dot(pt.normal.xyz, pt.wo.xyz) <= 0.0f) return out;
-        value = pt.beta.xyz * s->lights[pt.light].emission.xyz;
-        c.pt_rev = light_origin_pdf(s, &pt);
+        value = pt.beta.xyz * scene->lights[pt.light].emission.xyz;
+        c.pt_rev = light_origin_pdf(scene, &pt);
         c.ptm_rev = light_emit_pdf(&pt, &ptm);
     } else if (t_len == 1) {
-        /* Light tracing: connect y_{s-1} to the camera; the result lands on another pixel. */
-        BdptVertex qs = light[s_len - 1], cam_v = eye[0];
-        if (is_delta(&qs)) return out;
-        float3 d = cam_v.pos.xyz - qs.pos.xyz;
-        float dist2 = dot(d, d);
-        float3 w = d * rsqrt(dist2);            /* from qs towards the camera */
-        pixel = camera_pixel(cam, -w);
-        if (pixel < 0) return out;
-        float3 f = light_end_f(s, &qs, s_len, w);
-        if (is_black(f)) return out;
-        float cos_cam = dot(-w, cam->forward.xyz);
-        float we = 1.0f / (film_area(cam) * cos_cam * cos_cam * cos_cam * cos_cam);
-        value = qs.beta.xyz * f * fabs(dot(qs.normal.xyz, w)) * we * cos_cam / dist2;
-        if (!visible(s, &qs, &cam_v, steps)) return out;
-        c.qs_rev = to_area(camera_pdf_dir(cam, -w), cam_v.pos.xyz, &qs);
-        if (s_len > 1) {
-            BdptVertex qsm = light[s_len - 2];
-            c.qsm_rev = vertex_pdf(s, cam, &cam_v, &qs, &qsm);
-        }
+        if (!connect_to_camera(scene, cam, eye, light, s_len, steps, &value, &pixel, &c)) return out;
     } else {
         /* Connect y_{s-1} and z_{t-1} with a shadow ray. */
         BdptVertex qs = light[s_len - 1], pt = eye[t_len - 1];
@@ -219,19 +223,19 @@ HELPER Connection connect_strategy(const SceneView* s, const Camera* cam, __glob
         float3 d = pt.pos.xyz - qs.pos.xyz;
         float dist2 = dot(d, d);
         float3 w = d * rsqrt(dist2);            /* from qs towards pt */
-        float3 fq = light_end_f(s, &qs, s_len, w);
+        float3 fq = light_end_f(scene, &qs, s_len, w);
         float unused;
-        float3 fp = vertex_bsdf(s, &pt, pt.wo.xyz, -w, &unused);
+        float3 fp = vertex_bsdf(scene, &pt, pt.wo.xyz, -w, &unused);
         if (is_black(fq) || is_black(fp)) return out;
         float g = fabs(dot(qs.normal.xyz, w)) * fabs(dot(pt.normal.xyz, w)) / dist2;
         value = qs.beta.xyz * fq * g * fp * pt.beta.xyz;
-        if (!visible(s, &qs, &pt, steps)) return out;
+        if (!visible(scene, &qs, &pt, steps)) return out;
         BdptVertex ptm = eye[t_len - 2];
         BdptVertex qsm = light[max(s_len - 2, 0)];
-        c.pt_rev = vertex_pdf(s, cam, s_len > 1 ? &qsm : 0, &qs, &pt);
-        c.ptm_rev = vertex_pdf(s, cam, &qs, &pt, &ptm);
-        c.qs_rev = vertex_pdf(s, cam, &ptm, &pt, &qs);
-        if (s_len > 1) c.qsm_rev = vertex_pdf(s, cam, &pt, &qs, &qsm);
+        c.pt_rev = vertex_pdf(scene, cam, s_len > 1 ? &qsm : 0, &qs, &pt);
+        c.ptm_rev = vertex_pdf(scene, cam, &qs, &pt, &ptm);
+        c.qs_rev = vertex_pdf(scene, cam, &ptm, &pt, &qs);
+        if (s_len > 1) c.qsm_rev = vertex_pdf(scene, cam, &pt, &qs, &qsm);
     }
     out.weight = mis_weight(eye, light, s_len, t_len, &c);
     out.value = clamp_contribution(value * out.weight);
@@ -253,24 +257,7 @@ HELPER float4 connection_record(const Connection* c) {
 #endif
 }
 
-#if STRATEGY_IMAGES
-/* The per-strategy images' index of strategy (s, t): the strategies of paths with k = s + t - 1
- * edges (k = 1 .. STRATEGY_MAX_EDGES) in order of k, then of s (s = 0 .. k); STRATEGY_COUNT
- * (toolkit/measure/strategies.py: strategy_index, the same numbering) for longer paths. */
-HELPER int strategy_index(int s_len, int t_len) {
-    int k = s_len + t_len - 1;
-    return k <= STRATEGY_MAX_EDGES ? (k - 1) * (k + 2) / 2 + s_len : STRATEGY_COUNT;
-}
-#endif
-
-/* Strategies of a sample with n_light light and n_eye eye vertices: every (s, t) with
- * 0 <= s <= n_light, 1 <= t <= n_eye, except (0, 1), which would need the eye path to hit
- * the pinhole. Index k in [0, count) maps to k + 1 = (t - 1) * (n_light + 1) + s. */
-HELPER int connection_count(int n_light, int n_eye) { return (n_light + 1) * n_eye - 1; }
-HELPER void connection_strategy(int k, int n_light, int* s, int* t) {
-    int kk = k + 1;
-    *s = kk % (n_light + 1);
-    *t = kk / (n_light + 1) + 1;
-}
-
+/* Which strategies a sample has and how they are numbered (connection_count, connection_strategy),
+ * and the per-strategy images' numbering (strategy_index, strategy_count): toolkit/core/bdpt_indices.py,
+ * generated into layout.h. */
 #endif

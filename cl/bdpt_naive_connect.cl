@@ -25,11 +25,12 @@ __kernel void bdpt_naive_connect_splats(const int pool, __global const BdptSlot*
     counts[gid] = sample.live == SLOT_TERMINATED ? sample.light_vertices : 0;
 }
 
-/* Records: slot k's t = 1 splats at firsts[k] + (s - 1) (firsts: the scan of the splat counts,
- * `splats` records in all), then the sum of its eye-path strategies at splats + k (pixel -1:
+/* Records (toolkit/core/bdpt_indices.py, shared with the host): slot k's t = 1 splats at
+ * naive_splat_record(firsts[k], s) (firsts: the scan of the splat counts, `splats` records in
+ * all), then the sum of its eye-path strategies at naive_sum_record(splats, k) (pixel -1:
  * nothing; the host pre-fills). Built for per-strategy images (STRATEGY_IMAGES), the eye-path
- * strategies of paths up to STRATEGY_MAX_EDGES edges get a record each, at splats + pool
- * + k * STRATEGY_COUNT + strategy_index(s, t) (cl/bdpt.h), and the sum holds only the longer ones. */
+ * strategies of paths up to STRATEGY_MAX_EDGES edges get a record each, at naive_strategy_record
+ * (after all the sums; numbered by strategy_index), and the sum holds only the longer ones. */
 __kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool, const int splats,
                                  __global const int* firsts, __global const BdptSlot* slots,
                                  __global const BdptVertex* eye_vertices, __global const BdptVertex* light_vertices,
@@ -38,7 +39,7 @@ __kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool,
 {
     int gid = get_global_id(0);
     if (gid >= pool) return;
-    SceneView s = SCENE_INIT;
+    SceneView scene = SCENE_INIT;
     int slot = gid;
     BdptSlot sample = slots[slot];
     int connections = 0, steps = 0;
@@ -52,17 +53,18 @@ __kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool,
         for (int k = 0; k < connections; ++k) {
             int s_len, t_len;
             connection_strategy(k, n_light, &s_len, &t_len);
-            Connection c = connect_strategy(&s, &cam, eye, light, s_len, t_len, own_pixel, &steps);
+            Connection c = connect_strategy(&scene, &cam, eye, light, s_len, t_len, own_pixel, &steps);
             if (c.pixel < 0) continue;
             if (t_len == 1) {
-                record_value[firsts[gid] + s_len - 1] = connection_record(&c);
-                record_pixel[firsts[gid] + s_len - 1] = c.pixel;
+                int at = naive_splat_record(firsts[gid], s_len);
+                record_value[at] = connection_record(&c);
+                record_pixel[at] = c.pixel;
                 continue;
             }
 #if STRATEGY_IMAGES
-            int strategy = strategy_index(s_len, t_len);
+            int strategy = strategy_index(s_len, t_len, STRATEGY_MAX_EDGES);
             if (strategy < STRATEGY_COUNT) {
-                int at = splats + pool + gid * STRATEGY_COUNT + strategy;
+                int at = naive_strategy_record(splats, pool, gid, strategy, STRATEGY_COUNT);
                 record_value[at] = connection_record(&c);
                 record_pixel[at] = own_pixel;
                 continue;
@@ -71,8 +73,8 @@ __kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool,
             sum += c.value;
         }
         /* .w: the weight by which the host multiplies .xyz; 1 for a sum of weighted values */
-        record_value[splats + gid] = (float4)(sum, STRATEGY_IMAGES ? 1.0f : 0.0f);
-        record_pixel[splats + gid] = own_pixel;
+        record_value[naive_sum_record(splats, gid)] = (float4)(sum, STRATEGY_IMAGES ? 1.0f : 0.0f);
+        record_pixel[naive_sum_record(splats, gid)] = own_pixel;
     }
 #if COUNT_SIMD
     LaneCounts lane = {.work = connections, .shadow_rays = 0, .shadow_steps = steps};

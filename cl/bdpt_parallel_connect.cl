@@ -47,14 +47,14 @@ __kernel void bdpt_parallel_connect(SCENE_PARAMS, const Camera cam, const int to
 {
     int gid = get_global_id(0);
     if (gid >= total) return;
-    SceneView s = SCENE_INIT;
+    SceneView scene = SCENE_INIT;
     int slot = find_sample(firsts, pool, gid);
     int local_index = gid - firsts[slot];
     BdptSlot sample = slots[slot];
     int s_len, t_len;
     connection_strategy(local_index, sample.light_vertices, &s_len, &t_len);
     int steps = 0;
-    Connection c = connect_strategy(&s, &cam, eye_vertices + vertex_index(slot, 0),
+    Connection c = connect_strategy(&scene, &cam, eye_vertices + vertex_index(slot, 0),
                                     light_vertices + vertex_index(slot, 0), s_len, t_len,
                                     sample.pixel, &steps);
     record_value[gid] = connection_record(&c);

@@ -36,13 +36,14 @@ HELPER void store_vertex(__global BdptVertex* memory, int index, const BdptVerte
 #endif
 }
 
-/* The sampler of sample `id` of the pass (see the dimension table in rng.h). Under MLT the
- * sample is chain `id`'s proposal and pass.sample_base the iteration (toolkit/techniques/mlt.py). */
+/* The sampler of sample `id` of the pass (cl/bdpt_sampler.h; the dimension table:
+ * toolkit/core/sample_dims.py). Under MLT the sample is chain `id`'s proposal and
+ * pass.sample_base the iteration (toolkit/techniques/mlt.py). */
 #if MLT
 HELPER BdptSampler bdpt_sampler_mlt(const BdptPass* pass, int id, __global const float* primary) {
-    BdptSampler s = {mlt_mutation_sampler(pass->seed, id, pass->sample_base), primary,
-                     (uint)pass->chains, (uint)id};
-    return s;
+    BdptSampler sampler = {mlt_mutation_sampler(pass->seed, id, pass->sample_base), primary,
+                           (uint)pass->chains, (uint)id};
+    return sampler;
 }
 #define bdpt_sampler(cam, pass, id) bdpt_sampler_mlt(pass, id, mlt_primary)
 #else
@@ -66,26 +67,43 @@ HELPER int bdpt_pixel(const Camera* cam, int id, float* u, float* v) {
 #endif
 }
 
+/* Russian roulette (common.h) at vertex k, as in the path tracers, but from BDPT_RR_DEPTH, half
+ * the scene's depth rounded up (host: bdpt_base.py): two subpaths of that depth and their
+ * connection already make a path longer than the path tracer's roulette-free part, and every
+ * vertex more costs connections to all vertices of the other subpath. Light paths compare with
+ * their throughput at y_1 (SUBPATH_RR_NORMALISER, layout.h). False when the subpath stops. */
+HELPER bool subpath_roulette(Subpath* p, BdptSampler* rng, int k, bool light_path) {
+#if USE_RUSSIAN_ROULETTE
+    if (k >= BDPT_RR_DEPTH) {
+        float3 beta = p->beta.xyz;
+        float u = bdpt_sample(rng, bdpt_scatter_dim(k, light_path, BDPT_SCATTER_ROULETTE));
+        if (!roulette(&beta, SUBPATH_RR_NORMALISER(p), u)) return false;
+        p->beta.xyz = beta;
+    }
+#endif
+    return true;
+}
+
 /* Extend a subpath by one vertex: intersect, store the vertex, sample the BSDF, roulette.
  * Sets *store_at to where the new vertex goes. Returns false when the subpath has ended. */
-HELPER bool subpath_extend(const SceneView* s, Subpath* p, BdptSampler* rng, bool light_path,
+HELPER bool subpath_extend(const SceneView* scene, Subpath* p, BdptSampler* rng, bool light_path,
                            BdptVertex* v, int* store_at, int* steps) {
     float3 d = p->dir.xyz;
-    Hit h = trace_closest(s, p->origin.xyz, d, 0.0f, INFINITY, steps);
+    Hit h = trace_closest(scene, p->origin.xyz, d, 0.0f, INFINITY, steps);
     if (h.tri < 0) return false;
-    Triangle tri = s->tris[h.tri];
+    Triangle tri = scene->tris[h.tri];
     float3 ng = triangle_normal(&tri);
     float3 x = p->origin.xyz + h.t * d;
     float3 from_prev = x - p->prev_pos.xyz;
     float dist2 = dot(from_prev, from_prev);
     int k = p->vertices;
-    Material m = s->materials[tri.material];
+    Material m = scene->materials[tri.material];
     BdptVertex stored = {
         .pos = (float4)(x, 0.0f), .normal = (float4)(ng, 0.0f), .wo = (float4)(-d, 0.0f),
         .beta = (float4)(p->beta.xyz, 0.0f), .material = tri.material,
         .flags = is_specular(m.type) ? VERTEX_DELTA : 0, .light = tri.light,
         /* the density of the direction (see delta_pdf_dir after a specular bounce), as an area density here */
-        .pdf_fwd = p->origin.w * fabs(dot(ng, d)) / dist2,
+        .pdf_fwd = SUBPATH_PDF_DIR(p) * fabs(dot(ng, d)) / dist2,
         .pdf_rev = 0.0f};   /* set below once the next direction is known */
     *v = stored;
     *store_at = vertex_index(p->slot, k);
@@ -102,9 +120,9 @@ HELPER bool subpath_extend(const SceneView* s, Subpath* p, BdptSampler* rng, boo
     make_basis(n, &ts, &tt);
     float3 wo_local = to_local(-d, ts, tt, n);
     BsdfSample bs;
-    if (!bsdf_sample(&m, wo_local, bdpt_sample(rng, bdpt_scatter_dim(k, light_path, 0)),
-                     bdpt_sample(rng, bdpt_scatter_dim(k, light_path, 1)),
-                     bdpt_sample(rng, bdpt_scatter_dim(k, light_path, 2)), &bs))
+    if (!bsdf_sample(&m, wo_local, bdpt_sample(rng, bdpt_scatter_dim(k, light_path, BDPT_SCATTER_BSDF_U)),
+                     bdpt_sample(rng, bdpt_scatter_dim(k, light_path, BDPT_SCATTER_BSDF_V)),
+                     bdpt_sample(rng, bdpt_scatter_dim(k, light_path, BDPT_SCATTER_BSDF_LOBE)), &bs))
         return false;
     float3 wi = to_world(bs.wi, ts, tt, n);
     /* Reverse density: of this vertex choosing the previous one, had it arrived along wi. */
@@ -114,24 +132,13 @@ HELPER bool subpath_extend(const SceneView* s, Subpath* p, BdptSampler* rng, boo
         v->pdf_rev = pdf_rev_dir * fabs(dot(p->prev_normal.xyz, from_prev)) * rsqrt(dist2) / dist2;
 
     p->beta.xyz *= bs.weight;
-    p->origin = (float4)(offset_point(s, x, ng, wi), bs.specular ? delta_pdf_dir(bs.wi.z) : bs.pdf);
+    p->origin.xyz = offset_point(scene, x, ng, wi);
+    SUBPATH_PDF_DIR(p) = bs.specular ? delta_pdf_dir(bs.wi.z) : bs.pdf;
     p->dir = (float4)(wi, 0.0f);
     p->prev_pos = (float4)(x, 0.0f);
     p->prev_normal = (float4)(ng, 0.0f);
     p->prev_flags = v->flags;
-#if USE_RUSSIAN_ROULETTE
-    /* Russian roulette (common.h) as in the path tracers, but from BDPT_RR_DEPTH, half the
-     * scene's depth rounded up (host: bdpt_base.py): two subpaths of that depth and their
-     * connection already make a path longer than the path tracer's roulette-free part, and
-     * every vertex more costs connections to all vertices of the other subpath. Light paths
-     * compare with their throughput at y_1 (beta.w). */
-    if (k >= BDPT_RR_DEPTH) {
-        float3 beta = p->beta.xyz;
-        if (!roulette(&beta, p->beta.w, bdpt_sample(rng, bdpt_scatter_dim(k, light_path, 3)))) return false;
-        p->beta.xyz = beta;
-    }
-#endif
-    return !is_black(p->beta.xyz);
+    return subpath_roulette(p, rng, k, light_path) && !is_black(p->beta.xyz);
 }
 
 /* The walk's counters, one int buffer that the host reads once per step (one wait, not three):
@@ -161,10 +168,10 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass, const Bdpt
     Subpath p;
     /* No early return: every work-item must reach the barriers of the scatter and compaction. */
     if (gid < length) {
-        SceneView s = SCENE_INIT;
+        SceneView scene = SCENE_INIT;
         p = subpath_load(subpath_soa(in, pass.capacity), gid);
         BdptSampler rng = bdpt_sampler(&cam, &pass, slots[p.slot].sample_id);
-        alive = subpath_extend(&s, &p, &rng, light_path != 0, &v, &store_at, &steps);
+        alive = subpath_extend(&scene, &p, &rng, light_path != 0, &v, &store_at, &steps);
         if (!alive) {
             if (light_path) slots[p.slot].light_vertices = p.vertices;
             else slots[p.slot].eye_vertices = p.vertices;
@@ -195,7 +202,7 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pas
     if (gid >= r.count) return;
     int slot = slot_list[gid];
     if (gid >= r.fresh) { slots[slot].live = SLOT_IDLE; return; }
-    SceneView s = SCENE_INIT;
+    SceneView scene = SCENE_INIT;
     int id = r.first_id + gid;
     BdptSampler rng = bdpt_sampler(&cam, &pass, id);
     float3 eye_pos = cam.origin.xyz, forward = cam.forward.xyz;
@@ -208,18 +215,19 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pas
                      .beta = (float4)(1.0f, 1.0f, 1.0f, 0.0f), .material = -1, .flags = VERTEX_CAMERA,
                      .light = -1, .pdf_fwd = 1.0f, .pdf_rev = 0.0f};
     eye_vertices[vertex_index(slot, 0)] = z0;
+    /* .w lanes (layout.h): SUBPATH_PDF_DIR the camera's density of w, SUBPATH_RR_NORMALISER 1 */
     Subpath e = {.origin = (float4)(eye_pos, camera_pdf_dir(&cam, w)), .dir = (float4)(w, 0.0f),
                  .beta = (float4)(1.0f), .prev_pos = (float4)(eye_pos, 0.0f), .prev_normal = (float4)(forward, 0.0f),
                  .slot = slot, .vertices = 1, .prev_flags = VERTEX_CAMERA};
     subpath_store(subpath_soa(eye_stream, pass.capacity), r.eye_base + gid, &e);
 
     /* Light subpath: y_0 on a light (chosen by power), then a cosine-weighted direction. */
-    LightSample ls = sample_light(&s, bdpt_sample(&rng, BDPT_DIM_LIGHT_PICK),
+    LightSample ls = sample_light(&scene, bdpt_sample(&rng, BDPT_DIM_LIGHT_PICK),
                                   bdpt_sample(&rng, BDPT_DIM_LIGHT_POINT), bdpt_sample(&rng, BDPT_DIM_LIGHT_POINT + 1));
     float inv_pdf = 1.0f / ls.pdf_area;
     BdptVertex y0 = {.pos = (float4)(ls.p, 0.0f), .normal = (float4)(ls.n, 0.0f), .wo = (float4)(0.0f),
                      .beta = (float4)(inv_pdf, inv_pdf, inv_pdf, 0.0f),
-                     .material = s.tris[s.lights[ls.light].triangle].material, .flags = VERTEX_LIGHT,
+                     .material = scene.tris[scene.lights[ls.light].triangle].material, .flags = VERTEX_LIGHT,
                      .light = ls.light, .pdf_fwd = ls.pdf_area, .pdf_rev = 0.0f};
     light_vertices[vertex_index(slot, 0)] = y0;
     float3 ts, tt;
@@ -228,7 +236,8 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pas
     float3 dir = to_world(emit_local, ts, tt, ls.n);
     /* Le cos / (pdf_area * cos / pi) = Le pi / pdf_area */
     float3 beta = ls.emission * (PI * inv_pdf);
-    Subpath l = {.origin = (float4)(offset_point(&s, ls.p, ls.n, dir), emit_local.z * INV_PI),
+    /* .w lanes: SUBPATH_PDF_DIR the cosine-weighted emission's density, SUBPATH_RR_NORMALISER max(beta) */
+    Subpath l = {.origin = (float4)(offset_point(&scene, ls.p, ls.n, dir), emit_local.z * INV_PI),
                  .dir = (float4)(dir, 0.0f), .beta = (float4)(beta, max3(beta)), .prev_pos = (float4)(ls.p, 0.0f),
                  .prev_normal = (float4)(ls.n, 0.0f), .slot = slot, .vertices = 1, .prev_flags = VERTEX_LIGHT};
     subpath_store(subpath_soa(light_stream, pass.capacity), r.light_base + gid, &l);

@@ -3,7 +3,7 @@
  * each material samples the density its own eval reports. Everything is in the local frame
  * (normal +z). Build with every HAS_* define set to 1 and the MAT_* codes of toolkit.core.scene. */
 #include "materials.h"
-#include "rng.h"
+#include "philox.h"
 
 /* One sample per work-item; the random numbers are Philox block 0 of (seed, gid, 0).
  * wi_pdf: xyz = wi, w = pdf (0 for a specular choice, -1 when the sample failed);

@@ -104,7 +104,7 @@ HELPER float hit_box(__global const BvhNode* node, float3 o, float3 inv_d, float
 #ifndef BVH_WIDE
 
 /* Closest hit in (tmin, tmax). `steps` counts visited nodes (traversal divergence counter). */
-HELPER Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
+HELPER Hit trace_closest(const SceneView* scene, float3 o, float3 d, float tmin, float tmax, int* steps) {
     Hit hit = {tmax, 0.0f, 0.0f, -1};
     float3 inv_d = 1.0f / d;
     RayShear shear = ray_shear(d);
@@ -113,20 +113,20 @@ HELPER Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, flo
     int node = 0;
     int visited = 0;
     for (;;) {
-        __global const BvhNode* n = &s->nodes[node];
+        __global const BvhNode* n = &scene->nodes[node];
         ++visited;
         if (n->count > 0) {
             for (int i = n->first; i < n->first + n->count; ++i) {
                 float t, u, v;
-                if (hit_triangle(&s->tris[i], o, &shear, tmin, next_up(hit.t), &t, &u, &v)
+                if (hit_triangle(&scene->tris[i], o, &shear, tmin, next_up(hit.t), &t, &u, &v)
                     && closer(t, i, &hit)) {
                     hit.t = t; hit.u = u; hit.v = v; hit.tri = i;
                 }
             }
         } else {
             int left = node + 1, right = n->first;
-            float tl = hit_box(&s->nodes[left], o, inv_d, tmin, hit.t);
-            float tr = hit_box(&s->nodes[right], o, inv_d, tmin, hit.t);
+            float tl = hit_box(&scene->nodes[left], o, inv_d, tmin, hit.t);
+            float tr = hit_box(&scene->nodes[right], o, inv_d, tmin, hit.t);
             if (tl != INFINITY && tr != INFINITY) {
                 /* Visit the nearer child first, keep the other for later. */
                 int first = tl <= tr ? left : right;
@@ -141,7 +141,7 @@ HELPER Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, flo
         bool found = false;
         while (top > 0) {
             node = stack[--top];
-            if (hit_box(&s->nodes[node], o, inv_d, tmin, hit.t) != INFINITY) { found = true; break; }
+            if (hit_box(&scene->nodes[node], o, inv_d, tmin, hit.t) != INFINITY) { found = true; break; }
         }
         if (!found) break;
     }
@@ -150,7 +150,7 @@ HELPER Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, flo
 }
 
 /* Whether anything lies on the segment (tmin, tmax): shadow rays stop at the first hit. */
-HELPER bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
+HELPER bool trace_any(const SceneView* scene, float3 o, float3 d, float tmin, float tmax, int* steps) {
     float3 inv_d = 1.0f / d;
     RayShear shear = ray_shear(d);
     int stack[BVH_STACK_SIZE];
@@ -160,13 +160,13 @@ HELPER bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float 
     stack[top++] = 0;
     while (top > 0 && !blocked) {
         int node = stack[--top];
-        __global const BvhNode* n = &s->nodes[node];
+        __global const BvhNode* n = &scene->nodes[node];
         ++visited;
         if (hit_box(n, o, inv_d, tmin, tmax) == INFINITY) continue;
         if (n->count > 0) {
             for (int i = n->first; i < n->first + n->count; ++i) {
                 float t, u, v;
-                if (hit_triangle(&s->tris[i], o, &shear, tmin, tmax, &t, &u, &v)) { blocked = true; break; }
+                if (hit_triangle(&scene->tris[i], o, &shear, tmin, tmax, &t, &u, &v)) { blocked = true; break; }
             }
         } else {
             stack[top++] = n->first;
@@ -182,11 +182,11 @@ HELPER bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float 
 /* The wide BVH lives in one buffer of 16-byte words (s->nodes): WideNode and TriGroup records
  * (toolkit/core/layout.py), found by their position. A child reference >= 0 is an inner node,
  * < 0 is ~position of a leaf's TriGroup, WIDE_EMPTY an unused lane. */
-HELPER __global const WideNode* wide_node(const SceneView* s, int ref) {
-    return (__global const WideNode*)(s->nodes + ref);
+HELPER __global const WideNode* wide_node(const SceneView* scene, int ref) {
+    return (__global const WideNode*)(scene->nodes + ref);
 }
-HELPER __global const TriGroup* tri_group(const SceneView* s, int ref) {
-    return (__global const TriGroup*)(s->nodes + ~ref);
+HELPER __global const TriGroup* tri_group(const SceneView* scene, int ref) {
+    return (__global const TriGroup*)(scene->nodes + ~ref);
 }
 /* Coordinate k (0 x, 1 y, 2 z) of vertex v of the group's four triangles: v0x, v0y, v0z, v1x, ... follow each other. */
 HELPER float4 tri_group_coord(__global const TriGroup* g, int v, int k) {
@@ -258,7 +258,7 @@ HELPER int push_hit_children(int* stack_ref, float* stack_t, int top, int4 child
 }
 
 /* Closest hit in (tmin, tmax). `steps` counts visited nodes and leaves (traversal divergence counter). */
-HELPER Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
+HELPER Hit trace_closest(const SceneView* scene, float3 o, float3 d, float tmin, float tmax, int* steps) {
     Hit hit = {tmax, 0.0f, 0.0f, -1};
     float3 inv_d = 1.0f / d;
     RayShear shear = ray_shear(d);
@@ -273,10 +273,10 @@ HELPER Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, flo
         int ref = stack_ref[top];
         ++visited;
         if (ref >= 0) {
-            __global const WideNode* n = wide_node(s, ref);
+            __global const WideNode* n = wide_node(scene, ref);
             top = push_hit_children(stack_ref, stack_t, top, n->child, hit_boxes(n, o, inv_d, tmin, hit.t));
         } else {
-            __global const TriGroup* g = tri_group(s, ref);
+            __global const TriGroup* g = tri_group(scene, ref);
             float4 t, u, v;
             int4 mask = hit_triangles(g, o, &shear, tmin, next_up(hit.t), &t, &u, &v);
             if (any4(mask)) {
@@ -296,7 +296,7 @@ HELPER Hit trace_closest(const SceneView* s, float3 o, float3 d, float tmin, flo
 }
 
 /* Whether anything lies on the segment (tmin, tmax): shadow rays stop at the first hit. */
-HELPER bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float tmax, int* steps) {
+HELPER bool trace_any(const SceneView* scene, float3 o, float3 d, float tmin, float tmax, int* steps) {
     float3 inv_d = 1.0f / d;
     RayShear shear = ray_shear(d);
     int stack_ref[BVH_STACK_SIZE];
@@ -309,11 +309,11 @@ HELPER bool trace_any(const SceneView* s, float3 o, float3 d, float tmin, float 
         int ref = stack_ref[--top];
         ++visited;
         if (ref >= 0) {
-            __global const WideNode* n = wide_node(s, ref);
+            __global const WideNode* n = wide_node(scene, ref);
             top = push_hit_children(stack_ref, stack_t, top, n->child, hit_boxes(n, o, inv_d, tmin, tmax));
         } else {
             float4 t, u, v;
-            blocked = any4(hit_triangles(tri_group(s, ref), o, &shear, tmin, tmax, &t, &u, &v));
+            blocked = any4(hit_triangles(tri_group(scene, ref), o, &shear, tmin, tmax, &t, &u, &v));
         }
     }
     if (steps) *steps += visited;

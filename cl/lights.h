@@ -15,19 +15,19 @@ typedef struct {
     int light;        /* index into the light array */
 } LightSample;
 
-HELPER int pick_light(const SceneView* s, float u) {
-    int lo = 0, hi = s->light_count - 1;
+HELPER int pick_light(const SceneView* scene, float u) {
+    int lo = 0, hi = scene->light_count - 1;
     while (lo < hi) {               /* first light whose inclusive CDF exceeds u */
         int mid = (lo + hi) / 2;
-        if (s->lights[mid].cdf > u) hi = mid; else lo = mid + 1;
+        if (scene->lights[mid].cdf > u) hi = mid; else lo = mid + 1;
     }
     return lo;
 }
 
-HELPER LightSample sample_light(const SceneView* s, float u_pick, float u1, float u2) {
-    int index = pick_light(s, u_pick);
-    LightTri light = s->lights[index];
-    Triangle tri = s->tris[light.triangle];
+HELPER LightSample sample_light(const SceneView* scene, float u_pick, float u1, float u2) {
+    int index = pick_light(scene, u_pick);
+    LightTri light = scene->lights[index];
+    Triangle tri = scene->tris[light.triangle];
     float r = sqrt(u1);              /* uniform on the triangle (Shirley's square-root map) */
     float b1 = u2 * r, b2 = 1.0f - r;
     LightSample ls;
@@ -40,9 +40,9 @@ HELPER LightSample sample_light(const SceneView* s, float u_pick, float u1, floa
 }
 
 /* Radiance leaving triangle `tri` (normal n) towards w, pointing away from it: lights are one-sided. */
-HELPER float3 emitted(const SceneView* s, const Triangle* tri, float3 n, float3 w) {
+HELPER float3 emitted(const SceneView* scene, const Triangle* tri, float3 n, float3 w) {
     if (tri->light < 0 || dot(n, w) <= 0.0f) return (float3)(0.0f);
-    return s->lights[tri->light].emission.xyz;
+    return scene->lights[tri->light].emission.xyz;
 }
 
 #endif

@@ -1,7 +1,8 @@
 /* MIS weight of one BDPT strategy (s, t) among all the strategies that could have made the
  * same path (Veach's thesis sec. 10.3.4, pbrt-v3 sec. 16.3.4 "Multiple importance sampling").
- * Included by bdpt.h, which provides BdptVertex, remap0() and VERTEX_DELTA; it is the file
- * that course assignment 3 (tutorials/assignments/mis/) replaces with a student's own.
+ * Included by bdpt.h; compiles on its own (BdptVertex and VERTEX_DELTA come with layout.h,
+ * remap0() with bdpt_vertex.h). It is the file that course assignment 3
+ * (tutorials/assignments/mis/) replaces with a student's own.
  *
  * With p_i the area density of the path under strategy i (i = s light vertices) and p_s that
  * of the strategy evaluated, the ratios r_i = p_i / p_s follow from the stored densities, one
@@ -16,6 +17,7 @@
 #define MIS_H
 
 #include "common.h"
+#include "bdpt_vertex.h"
 
 #ifndef MIS_POWER
 #define MIS_POWER 0

@@ -1,6 +1,6 @@
 /* Metropolis light transport: many independent primary-sample-space chains (cl/mlt.h) whose
  * proposals are evaluated by bidirectional path tracing with the parallel connect phase. Built
- * with -DMLT=1, the BDPT kernels read their uniforms from the proposals (cl/rng.h): the walk
+ * with -DMLT=1, the BDPT kernels read their uniforms from the proposals (cl/bdpt_sampler.h): the walk
  * and connect code is the same code as bdpt_parallel_connect's, not a copy.
  * Kernels of one iteration, in order (toolkit/techniques/mlt.py):
  *   mlt_mutate                   cl/mlt.h                    every chain writes its proposal

@@ -2,13 +2,13 @@
  * Robust Mutation Strategy for the Metropolis Light Transport Algorithm"), as the talk's slide
  * "Metropolis Light Transport" runs it: many independent chains, one work-item per chain.
  *
- * A chain's state is a vector of uniforms u in [0, 1)^MLT_MAX_DIMS (the dimensions of rng.h's
- * table), stored at primary[mlt_index(dim, chain, chains)] (cl/rng.h: dimension-major on a
- * GPU, chain-major on a CPU). Only the first `dims` of them were used by the state's path (its
+ * A chain's state is a vector of uniforms u in [0, 1)^MLT_MAX_DIMS (the dimensions of the BDPT
+ * table, toolkit/core/sample_dims.py), stored at primary[mlt_index(dim, chain, chains)]
+ * (cl/mlt_proposals.h: dimension-major on a GPU, chain-major on a CPU). Only the first `dims` of them were used by the state's path (its
  * prefix, from the vertex counts: toolkit/techniques/mlt.py); the rest are unused, uniform noise.
  *
  * One iteration: mlt_mutate writes every chain's proposal, the BDPT kernels evaluate it
- * (cl/rng.h answers their uniforms from the proposal), the host sums each proposal's
+ * (cl/bdpt_sampler.h answers their uniforms from the proposal), the host sums each proposal's
  * contribution f (luminance of all its strategies), mlt_accept keeps or rejects it.
  *
  * The mutation (Kelemen sec. 4, the talk's variation "only mutate sample dimensions used in
@@ -28,12 +28,12 @@
  * (the kernel depends on |y_d - x_d| around the circle only), and x's extra dimensions come
  * fresh with density 1. Same product both ways. A large step is an independent uniform
  * proposal, symmetric as well; the mixture of the two is symmetric. Dimensions past
- * MLT_MAX_DIMS are fresh at every iteration (cl/rng.h): the same "fresh, density 1" case.
+ * MLT_MAX_DIMS are fresh at every iteration (cl/mlt_proposals.h): the same "fresh, density 1" case.
  *
  * Random numbers of the mutation itself come from Philox, keyed by (chain, iteration) under
- * MLT_MUTATION_KEY (cl/rng.h): dimension 0 chooses the step, 1 decides the acceptance, 2 + d
+ * MLT_MUTATION_KEY (cl/mlt_proposals.h): dimension 0 chooses the step, 1 decides the acceptance, 2 + d
  * perturbs dimension d or is its fresh value. A fresh value is not written by mlt_mutate (the
- * proposal holds the mark MLT_FRESH) but drawn where the BDPT kernels read it (cl/rng.h,
+ * proposal holds the mark MLT_FRESH) but drawn where the BDPT kernels read it (cl/mlt_proposals.h,
  * mlt_proposal_dim), and mlt_accept stores it for the dimensions the accepted path used: so a
  * mutation costs random numbers and copies for the dimensions its paths use, not for all
  * MLT_MAX_DIMS. mlt_mutate still writes every stored word (a perturbed value or the mark), a
@@ -44,7 +44,8 @@
 #define MLT_H
 
 #include "common.h"
-#include "rng.h"
+#include "philox.h"
+#include "mlt_proposals.h"
 
 #if !defined(MLT_S1) || !defined(MLT_S2)
 #error "MLT_S1 and MLT_S2 (the small step's sizes) come from the host: toolkit/techniques/mlt.py step_defines"

@@ -5,7 +5,7 @@
 #define PATH_H
 
 #include "common.h"
-#include "rng.h"
+#include "philox.h"
 #include "camera.h"
 #include "bvh.h"
 #include "lights.h"

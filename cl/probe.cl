@@ -3,7 +3,7 @@
  * barriers, global atomics), built once per device to find out whether this OpenCL
  * implementation can build and run them. The host checks every number it writes. */
 #include "common.h"
-#include "rng.h"
+#include "philox.h"
 
 __kernel void probe(__global float* lengths, __global int* group_sums, volatile __global int* counter) {
     __local int scratch[LOCAL_SIZE];

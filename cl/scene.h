@@ -6,7 +6,7 @@
 
 #include "common.h"
 
-/* A kernel takes the scene as SCENE_PARAMS and makes its view with `SceneView s = SCENE_INIT;`
+/* A kernel takes the scene as SCENE_PARAMS and makes its view with `SceneView scene = SCENE_INIT;`
  * (both generated, with the host's argument order, from SCENE_ARGS in toolkit/core/layout.py). */
 
 typedef struct {
@@ -20,14 +20,14 @@ typedef struct {
 
 /* How far to move a ray origin off a surface: relative to the scene's size and to the
  * magnitude of the point's coordinates (float32 spacing grows with distance from the origin). */
-HELPER float ray_offset(const SceneView* s, float3 p) {
+HELPER float ray_offset(const SceneView* scene, float3 p) {
     float m = fmax(fabs(p.x), fmax(fabs(p.y), fabs(p.z)));
-    return s->epsilon + m * 64.0f * FLT_EPSILON;
+    return scene->epsilon + m * 64.0f * FLT_EPSILON;
 }
 
 /* p moved off the surface with normal n to the side of direction w. */
-HELPER float3 offset_point(const SceneView* s, float3 p, float3 n, float3 w) {
-    float e = ray_offset(s, p);
+HELPER float3 offset_point(const SceneView* scene, float3 p, float3 n, float3 w) {
+    float e = ray_offset(scene, p);
     return p + (dot(n, w) >= 0.0f ? e : -e) * n;
 }
 

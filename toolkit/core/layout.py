@@ -5,13 +5,16 @@ struct; each group of named values (an IntEnum) gives the Python constants and C
 All of it is generated into `layout.h` (see `c_header()`), which every program includes
 through cl/common.h, so host and device can never disagree. `LAYOUT_CHECKS` lets a test kernel
 (cl/layout_check.cl) compare sizeof/offsetof of every struct with numpy (tests/test_layout.py).
+The index formulas both sides compute (toolkit/core/bdpt_indices.py, sample_dims.py) and the names
+of quantities packed into a float4's .w lane (record_lanes.py) are emitted into layout.h here too.
 """
 from enum import IntEnum, IntFlag
 
 import numpy as np
 
-# How every generated helper is declared, as every helper in cl/ (cl/common.h says why).
-HELPER = "HELPER"   # the macro of cl/common.h: static inline __attribute__((always_inline))
+from toolkit.core import bdpt_indices, sample_dims
+from toolkit.core.c_formula import HELPER   # how every generated helper is declared (cl/common.h)
+from toolkit.core.record_lanes import Lane
 
 # C type -> (numpy base type, element count, alignment in bytes). OpenCL C aligns a vector
 # type to its size; numpy's align=True would align a float32 x 4 sub-array to 4 bytes only.
@@ -215,9 +218,9 @@ BDPT_VERTEX = Record("BdptVertex", [
 ], "A stored BDPT path vertex, 96 bytes (the talk's vertex is 128).")
 
 SUBPATH = Record("Subpath", [
-    ("origin", "float4"),     # next ray origin; .w = solid-angle pdf of dir (0 after a delta bounce)
+    ("origin", "float4"),     # next ray origin; .w: pdf_dir (SUBPATH_LANES below)
     ("dir", "float4"),        # next ray direction
-    ("beta", "float4"),       # throughput; .w = roulette normaliser (1 for eye paths)
+    ("beta", "float4"),       # throughput; .w: rr_normaliser (SUBPATH_LANES below)
     ("prev_pos", "float4"),   # the last stored vertex (exact, not offset)
     ("prev_normal", "float4"),
     ("slot", "int"),          # the sample's slot in the sample pool
@@ -405,4 +408,28 @@ def c_header(records=RECORDS):
             + c_constants() + "\n\n"
             + "\n\n".join(r.c_struct() for r in records) + "\n\n"
             + "\n\n".join(r.c_soa() for r in SOA_RECORDS) + "\n\n"
-            + c_layout_checks(records) + "\n")
+            + c_layout_checks(records) + "\n\n"
+            + c_shared_indices() + "\n\n"
+            + c_lanes() + "\n")
+
+
+# ---- index arithmetic and sample-dimension tables (their own modules, emitted here) ----------
+
+def c_shared_indices():
+    """The sample-dimension tables (toolkit/core/sample_dims.py) and BDPT's connect-phase index
+    arithmetic (toolkit/core/bdpt_indices.py), each written once in Python, as C."""
+    return ("/* Sample dimensions (toolkit/core/sample_dims.py). */\n" + sample_dims.c_definitions() + "\n\n"
+            + "/* BDPT's connect-phase indices (toolkit/core/bdpt_indices.py). */\n" + bdpt_indices.c_definitions())
+
+
+# ---- quantities packed into the .w lane of a float4 field (toolkit/core/record_lanes.py) ---------
+
+SUBPATH_LANES = [
+    Lane(SUBPATH, "origin", "pdf_dir", "solid-angle density of dir (delta_pdf_dir after a specular bounce)"),
+    Lane(SUBPATH, "beta", "rr_normaliser", "what roulette compares the throughput with: 1 for eye paths, "
+                                           "max(beta) at y_1 for light paths (cl/bdpt_walk.h)"),
+]
+
+
+def c_lanes():
+    return "\n".join(lane.c_macro() for lane in SUBPATH_LANES)

@@ -7,7 +7,8 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.core.simd import PhaseCounter
-from toolkit.techniques.strategy_images import strategy_count, strategy_index
+from toolkit.core.bdpt_indices import (naive_record_count, naive_splat_record, naive_strategy_record,
+                                       naive_sum_record, strategy_count, strategy_index)
 from toolkit.techniques.bdpt_base import BdptTechnique
 
 
@@ -35,9 +36,8 @@ class BdptNaiveConnect(BdptTechnique):
         counts, firsts = self.reused(("splat counts", pool), lambda: (self.int_buffer(pool), self.int_buffer(pool)))
         self.launch(self.kernel("bdpt_naive_connect_splats"), pool, np.int32(pool), p.pool.slots, counts)
         firsts, splats = self.compactor.exclusive_scan(counts, pool, out=firsts)
-        n = splats + pool                      # the splats, then one eye-path sum per slot
-        if self.strategy_max_edges:   # and a record per eye-path strategy of the short paths (cl/bdpt_naive_connect.cl)
-            n += pool * strategy_count(self.strategy_max_edges)
+        # the splats, one eye-path sum per slot, and with per-strategy images a record per eye-path strategy of the short paths
+        n = naive_record_count(splats, pool, self.record_strategy_count())
         capacity = 1 << max(12, (n - 1).bit_length())   # grows by powers of two, reused
         values, pixels = self.reused(("records", capacity), lambda: (
             cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * capacity), self.int_buffer(capacity)))
@@ -51,15 +51,24 @@ class BdptNaiveConnect(BdptTechnique):
             values = self.keep_strategies(values, pixels, self.record_strategies(pool, self.read_ints(counts, pool)))
         return self.reduce_records(values, pixels, npix)
 
+    def record_strategy_count(self):
+        """Eye-path strategies with a record each: those of the per-strategy images, if any."""
+        return strategy_count(self.strategy_max_edges) if self.strategy_max_edges else 0
+
     def record_strategies(self, pool, splat_counts):
-        """The strategy index (toolkit/measure/strategies.py) of each record, from where the kernel put it:
-        the t = 1 splats of s = 1 .. splat_counts[k] for each slot k in turn, one sum of the longer
-        paths per slot, then one record per short eye-path strategy, numbered as the images are."""
-        count = strategy_count(self.strategy_max_edges)
+        """The strategy index (toolkit/measure/strategies.py) of each record, placed where the kernel
+        put it (toolkit/core/bdpt_indices.py): the t = 1 splats of s = 1 .. splat_counts[k] of each
+        slot k, one sum of the longer paths per slot, one record per short eye-path strategy."""
+        count, splats = self.record_strategy_count(), int(splat_counts.sum())
+        index = np.empty(naive_record_count(splats, pool, count), np.int64)
+        slot = np.repeat(np.arange(pool), splat_counts)
         firsts = np.cumsum(splat_counts) - splat_counts
-        splat_s = np.arange(int(splat_counts.sum())) - np.repeat(firsts, splat_counts) + 1
-        return np.concatenate([strategy_index(splat_s, 1, self.strategy_max_edges),
-                               np.full(pool, count), np.tile(np.arange(count), pool)])
+        splat_s = np.arange(splats) - firsts[slot] + 1
+        index[naive_splat_record(firsts[slot], splat_s)] = strategy_index(splat_s, 1, self.strategy_max_edges)
+        index[naive_sum_record(splats, np.arange(pool))] = count
+        slot, strategy = np.divmod(np.arange(pool * count), count)
+        index[naive_strategy_record(splats, pool, slot, strategy, count)] = strategy
+        return index
 
     def count_connect(self, p):
         if not self.count_simd:

@@ -5,6 +5,7 @@ connection, whatever the lengths of the subpaths."""
 import numpy as np
 import pyopencl as cl
 
+from toolkit.core.bdpt_indices import connection_strategy
 from toolkit.core.layout import BDPT_SLOT
 from toolkit.techniques.strategy_images import strategy_index
 from toolkit.techniques.bdpt_base import BdptTechnique
@@ -27,13 +28,12 @@ class BdptParallelConnect(BdptTechnique):
     def record_strategies(self, p, counts):
         """The strategy index (toolkit/measure/strategies.py) of each connection record: a slot's records
         are consecutive, local index k is strategy (s, t) with k + 1 = (t - 1)(n_light + 1) + s
-        (connection_strategy in cl/bdpt.h)."""
+        (connection_strategy, toolkit/core/bdpt_indices.py, as the kernel computes it)."""
         counts = self.read_ints(counts, p.pool.size)
         n_light = self.read_structs(BDPT_SLOT, p.pool.slots, p.pool.size)["light_vertices"].astype(np.int64)
         firsts = np.cumsum(counts) - counts
         slot = np.repeat(np.arange(p.pool.size), counts)
-        kk = np.arange(counts.sum()) - firsts[slot] + 1
-        s, t = kk % (n_light[slot] + 1), kk // (n_light[slot] + 1) + 1
+        s, t = connection_strategy(np.arange(counts.sum()) - firsts[slot], n_light[slot])
         return strategy_index(s, t, self.strategy_max_edges)
 
     def connection_records(self, p, count):

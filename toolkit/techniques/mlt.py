@@ -72,7 +72,7 @@ Options (keyword arguments of toolkit.render(..., options=...)):
 | `small_step` | 1/16 | the largest size of a small step, Kelemen's s2 (the smallest, s1, is s2 / 16); see SMALL_STEP |
 | `start` | `naive` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of its own `candidates` large steps, chosen in proportion to f, and weighted. `pool`: at one of all chains' candidates, chosen in proportion to f, weight 1. At equal time (30 s, 32x32, two-core CPU) pool's RMSE was 0.0064 against naive's 0.0066 on covered_lamp and 0.0091 against 0.019 on cornell_spheres, where naive chains are still biased; on cornell_box, where they are not, naive was ahead (0.0060 against 0.0072). At 10 s (3 repetitions, results/issue10_mlt.md) pool removes naive's detected bias on covered_lamp and cornell_spheres but adds variance (chains that start at the same bright candidate): RMSE 0.113 against 0.108 (covered_lamp), 0.072 against 0.128 (cornell_spheres). `naive` stays the default, as in the talk: its start is one iteration |
 | `candidates` | 16 | large steps per chain for `start = resample` or `pool` (`mlt.candidates`) |
-| `max_dims` | 128 | primary-sample dimensions a chain stores: 8 + 8 per vertex of the longer subpath, so 128 holds subpaths of 16 vertices (`mlt.max_dims`). A path that reads more gets fresh random numbers for the extra dimensions at every iteration (cl/rng.h): still correct, and counted (`overflow_proposals`) |
+| `max_dims` | 128 | primary-sample dimensions a chain stores: 8 + 8 per vertex of the longer subpath, so 128 holds subpaths of 16 vertices (`mlt.max_dims`). A path that reads more gets fresh random numbers for the extra dimensions at every iteration (cl/mlt_proposals.h): still correct, and counted (`overflow_proposals`) |
 | `combine` | true | Kelemen's combination: the large steps also splat as BDPT samples, joined with the Metropolis states by the balance heuristic (above) |
 | `time_limit` | none | seconds: stop after the iteration that passes it (the image holds the mutations made so far) |
 | BDPT options | | `pool_size` (the device's, as for bdpt_parallel_connect: with the default chains an iteration is one pool-full; a pool of a quarter of the chains, which regenerates like a BDPT pass, measured no faster on covered_lamp 64x64), `regenerate_fraction` (default 1 where the pool holds every chain: one connect phase per iteration; else 0.6 as for BDPT), `coalesced_scatter` as for bdpt_parallel_connect |
@@ -90,13 +90,12 @@ import pyopencl as cl
 
 from toolkit.core.film import Film
 from toolkit.core.layout import BDPT_SLOT, LUMINANCE_WEIGHTS, MLT_CHAIN, MLT_ITERATION, MltMode
+from toolkit.core.sample_dims import BDPT_FIRST_SCATTER_DIM, used_dims   # the dimension table the kernels read
 from toolkit.core.validate import LIMITS, InputError, finite_number, whole_number
 from toolkit.techniques.bdpt_base import per_pixel_sums
 from toolkit.techniques.bdpt_parallel_connect import BdptParallelConnect
 
 STARTS = ("naive", "resample", "pool")
-START_DIMS = 8     # rng.h: pixel, light pick, light point, emission direction (and one spare)
-DIMS_PER_VERTEX = 8
 
 
 SMALL_STEP = 1 / 16
@@ -109,12 +108,6 @@ SMALL_STEP = 1 / 16
 def step_defines(small_step):
     """The small step's sizes for cl/mlt.h: s2 = small_step, s1 = s2 / 16 (Kelemen's ratio)."""
     return {"MLT_S2": float(small_step), "MLT_S1": float(small_step) / 16}
-
-
-def used_dims(eye_vertices, light_vertices):
-    """Dimensions a BDPT sample used (a prefix, rng.h's table): vertex k >= 1 of either subpath
-    scatters with dimensions 8 + 8 (k - 1) .. 8 + 8 k - 1, and the last stored vertex may have."""
-    return START_DIMS + DIMS_PER_VERTEX * (np.maximum(eye_vertices, light_vertices) - 1)
 
 
 @dataclass
@@ -169,7 +162,7 @@ class Mlt(BdptParallelConnect):
             raise InputError("mlt renders in one pass of chains (see `chains`); pass_spp does not apply to it")
         self.small_step = finite_number("mlt.small_step", small_step, "small_step")
         defines = {"MLT": True, "MLT_MAX_DIMS": self.max_dims, **step_defines(self.small_step),
-                   # cl/rng.h mlt_index: a CPU reads a vertex's dimensions from one cache line
+                   # cl/mlt_proposals.h mlt_index: a CPU reads a vertex's dimensions from one cache line
                    "MLT_CHAIN_MAJOR": bool(queue.device.type & cl.device_type.CPU)}
         defines.update(kwargs.pop("extra_defines", None) or {})
         fraction = kwargs.pop("regenerate_fraction", None)     # None: mlt's default, below
@@ -293,7 +286,7 @@ class Mlt(BdptParallelConnect):
         """The proposals as one batch of BDPT samples (sample id = chain): their records
         (values (n, 3) float64, pixels, chains) and per chain f and the dimensions used."""
         p = self.start_pass(self.camera, self.seed, c.iteration, active, chains=c.count)
-        p.records, p.dims = [], np.full(active, START_DIMS, np.int64)
+        p.records, p.dims = [], np.full(active, BDPT_FIRST_SCATTER_DIM, np.int64)
         self.evaluate(p)
         if p.records:
             values, pixels, chain = (np.concatenate(x) for x in zip(*p.records))

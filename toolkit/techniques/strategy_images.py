@@ -1,24 +1,14 @@
 """The per-strategy accumulator of BDPT's connect phase: which (s, t) a connection belongs to
-(strategy_index) and the per-strategy sums the kernels built with STRATEGY_IMAGES add into.
+(strategy_index, toolkit/core/bdpt_indices.py) and the per-strategy sums the kernels built with STRATEGY_IMAGES add into.
 toolkit/measure/strategies.py turns them into images and a report; its docstring explains the
 strategies."""
 import numpy as np
 
 from toolkit.core.layout import LUMINANCE_WEIGHTS
+# The numbering, shared with the kernels (generated into layout.h): by path edges k = s + t - 1, then by s.
+from toolkit.core.bdpt_indices import strategy_count, strategy_index
 
 DEFAULT_MAX_EDGES = 5
-
-
-def strategy_count(max_edges):
-    """Strategies of paths with 1 .. max_edges edges (k + 1 each)."""
-    return max_edges * (max_edges + 3) // 2
-
-
-def strategy_index(s, t, max_edges):
-    """The index of strategy (s, t) (numpy arrays or ints): ordered by path edges k = s + t - 1,
-    then by s; strategy_count(max_edges) for longer paths. cl/bdpt.h's strategy_index is the same."""
-    k = np.asarray(s) + np.asarray(t) - 1
-    return np.where(k <= max_edges, (k - 1) * (k + 2) // 2 + s, strategy_count(max_edges))
 
 
 def strategies(max_edges):
