@@ -5,7 +5,8 @@ import sys
 from pathlib import Path
 
 from toolkit.cli.options import DEVICE, number
-from toolkit.grading.grade import ASSIGNMENTS, TIME_LIMIT, format_report, grade
+from toolkit.grading.grade import ASSIGNMENTS, TIME_LIMIT, grade
+from toolkit.grading.report import format_report
 
 
 def add_command(sub):
