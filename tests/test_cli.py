@@ -111,6 +111,28 @@ def test_no_command_prints_usage_without_traceback():
     assert "usage:" in result.stderr and "Traceback" not in result.stderr
 
 
+def test_every_command_is_registered_with_its_help_and_handler():
+    """toolkit/cli/: each command module adds its subparser and the function that runs it; the
+    shared options (options.py parents) keep one meaning and their place in --help."""
+    from toolkit.cli import build_parser
+    parser = build_parser()
+    commands = next(a for a in parser._actions if a.dest == "command").choices
+    assert list(commands) == ["render", "devices", "crosscheck", "compare", "bench", "gpucheck", "study", "grade"]
+    for name, p in commands.items():
+        assert callable(p.get_default("run")), name
+        options = {o for a in p._actions for o in a.option_strings}
+        assert ("--device" in options) == (name != "devices"), name
+        text = p.format_help()
+        if "--bvh" in options:   # the kernel options come last, under their heading
+            kernel = text.split("\nkernel options:\n")[1]
+            listed = [line.split()[0] for line in kernel.splitlines() if line.startswith("  --")]
+            assert listed == ["--bvh", "--general"][:2 if "--general" in options else 1], name
+    args = parser.parse_args(["--device", "0:0", "render", "--bvh", "binary"])
+    assert (args.device, args.bvh, args.general, args.run.__name__) == ("0:0", "binary", False, "cmd_render")
+    assert parser.parse_args(["compare", "--device", "1:0"]).device == "1:0"
+    assert parser.parse_args(["grade", "mis", "--stub"]).device is None
+
+
 def test_render_from_python_returns_image_stderr_and_stats():
     import toolkit
     result = toolkit.render(None, technique="pt_naive", spp=2, seed=1, resolution=(24, 16))

@@ -1,0 +1,43 @@
+"""`python -m toolkit grade`: the autograder of the course assignments (toolkit/grading/grade.py
+explains how a submission is graded; tutorials/assignments/README.md is the students' side)."""
+import json
+import sys
+from pathlib import Path
+
+from toolkit.cli.options import DEVICE, number
+from toolkit.grading.grade import ASSIGNMENTS, TIME_LIMIT, grade
+from toolkit.grading.report import format_report
+
+
+def add_command(sub):
+    p = sub.add_parser("grade", help="grade a course assignment (tutorials/assignments/): score /100 per check",
+                       parents=[DEVICE])
+    p.add_argument("assignment", choices=list(ASSIGNMENTS))
+    p.add_argument("--kernel", nargs="+", metavar="PATH", help="your file(s), built in place of the toolkit's")
+    p.add_argument("--solution", action="store_true", help="grade the toolkit's own kernel (the reference solution)")
+    p.add_argument("--stub", action="store_true", help="print the assignment's starting file")
+    p.add_argument("--json", action="store_true", help="one JSON line per graded file")
+    p.add_argument("--time-limit", type=number, default=TIME_LIMIT, metavar="SECONDS",
+                   help=f"per check (default {TIME_LIMIT}); a kernel that runs longer loses the check")
+    p.set_defaults(run=cmd_grade)
+
+
+def cmd_grade(args):
+    """--stub prints the student's starting file; otherwise every file given is graded, in order."""
+    a = ASSIGNMENTS[args.assignment]
+    if args.stub:
+        sys.stdout.write((a.folder / a.stub).read_text())
+        return 0
+    if not args.solution and not args.kernel:
+        raise ValueError(f"give --kernel PATH (your file; start from `python -m toolkit grade {a.name} --stub`) "
+                         "or --solution")
+    if args.time_limit <= 0:
+        raise ValueError("--time-limit must be a positive number of seconds")
+    files = [None] if args.solution else args.kernel
+    for path in files:
+        if path is not None and not Path(path).is_file():
+            raise ValueError(f"no such kernel file: {path}")
+    for path in files:
+        result = grade(a.name, path, solution=args.solution, time_limit=args.time_limit, device=args.device)
+        print(json.dumps(result) if args.json else format_report(result), flush=True)
+    return 0

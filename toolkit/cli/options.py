@@ -1,0 +1,89 @@
+"""What the commands share: the types of their arguments (a bad value gets argparse's usage, the
+reason and exit code 2) and the options that mean the same in every command, as argparse parents
+(`sub.add_parser(..., parents=[DEVICE, BVH])`)."""
+import argparse
+
+from toolkit.techniques import TECHNIQUES, VARIANTS, get_technique
+
+DEVICE_HELP = "OpenCL device: P:D indices or a name part (overrides PYOPENCL_CTX)"
+# What --techniques accepts, for the help of the commands that run several (compare, bench, study).
+TECHNIQUE_NAMES = ", ".join([*sorted(TECHNIQUES), *VARIANTS])
+KERNEL_OPTIONS = "kernel options"   # the heading of --bvh and --general in a command's --help
+
+
+def resolution(text):
+    try:
+        w, h = (int(x) for x in text.lower().split("x"))
+        if w < 1 or h < 1:
+            raise ValueError
+        return w, h
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WIDTHxHEIGHT like 64x64, got {text!r}") from None
+
+
+def number(text):
+    """A float, checked for range later (validate.py), so the message names the limit."""
+    try:
+        return float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+
+
+def whole(text):
+    try:
+        return int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a whole number, got {text!r}") from None
+
+
+def positive(text):
+    value = whole(text)
+    if value < 1:
+        raise argparse.ArgumentTypeError("must be at least 1")
+    return value
+
+
+def technique_list(text):
+    """'a,b' -> ["a", "b"], each a known technique (or variant)."""
+    names = [t.strip() for t in text.split(",") if t.strip()]
+    for name in names:
+        get_technique(name)   # raises a clear ValueError for an unknown name
+    if not names:
+        raise ValueError("no technique given")
+    return names
+
+
+def numbers(text, kind, option):
+    """'1,2' -> [kind(1), kind(2)]; a ValueError that names `option` otherwise."""
+    try:
+        values = [kind(v) for v in text.split(",") if v.strip()]
+    except ValueError:
+        raise ValueError(f"{option} must be comma-separated numbers, got {text!r}") from None
+    if not values:
+        raise ValueError(f"{option}: no value given")
+    return values
+
+
+def _parent():
+    return argparse.ArgumentParser(add_help=False)   # a parent adds its options, not a second -h
+
+
+# Also accepted after the command; SUPPRESS keeps a value given before it (the main parser's --device).
+DEVICE = _parent()
+DEVICE.add_argument("--device", default=argparse.SUPPRESS, help=DEVICE_HELP)
+
+BVH = _parent()
+BVH.add_argument_group(KERNEL_OPTIONS).add_argument(
+    "--bvh", choices=["binary", "wide"], default="wide",
+    help="wide: 4 children per node tested with float4 operations (SIMD inside one ray); "
+         "binary: the SAH BVH it is collapsed from (default wide)")
+
+GENERAL = _parent()
+GENERAL.add_argument_group(KERNEL_OPTIONS).add_argument(
+    "--general", action="store_true",
+    help="build the general kernel (every material and feature compiled in) instead of "
+         "the one specialized to the scene; the same image (bench --specialization "
+         "measures the difference)")
+
+SCENE = _parent()
+SCENE.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")

@@ -1,0 +1,68 @@
+"""What an assignment is to the grader: the toolkit file a submission replaces, the student's stub
+(in tutorials/assignments/<name>/), the grader's own kernels beside it, and its checks, each worth
+points. A check is a function of a Context (context.py) that raises CheckFailed to lose them."""
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from toolkit.core.package_data import data_dir
+
+
+def assignments_dir():
+    """The folder of the assignments (installed data package toolkit.assignments, or the checkout)."""
+    return data_dir("toolkit.assignments", "tutorials/assignments", "README.md")
+
+
+class CheckFailed(Exception):
+    """A check's one-line reason for losing its points."""
+
+
+@dataclass
+class Check:
+    name: str
+    points: int
+    what: str
+    run: object
+
+
+@dataclass
+class Assignment:
+    name: str
+    title: str
+    replaces: str          # the toolkit file (in cl/) that a submission is built in place of
+    stub: str              # the student's starting file, in tutorials/assignments/<name>/
+    helpers: tuple = ()    # grader kernels in that folder, copied beside the submission
+    run_first: tuple = ()  # checks that run before the others (the report keeps the checks' order)
+    checks: list = field(default_factory=list)
+    build: object = None   # the "build" step: builds what every check builds (see builds())
+
+    @property
+    def folder(self):
+        return assignments_dir() / self.name
+
+    def check(self, name, points, what):
+        """Decorator: the function is check `name`, worth `points`; `what` is its line in the report.
+        The report lists the checks in the order they are declared."""
+        def register(function):
+            self.checks.append(Check(name, points, what, function))
+            return function
+        return register
+
+    def builds(self, function):
+        """Decorator: the function builds everything the checks build, the student's programs and the
+        toolkit's reference ones. The build step has BUILD_LIMIT seconds (a cold compiler cache), a
+        check only its time limit (runner.py)."""
+        self.build = function
+        return function
+
+
+def same_image(image, expected, whom, rtol=1e-5, atol=1e-7):
+    """Raise CheckFailed, naming the first pixel, unless `image` equals `expected` (from `whom`)."""
+    if image.shape != expected.shape:
+        raise CheckFailed(f"the image is {image.shape}, {whom} gives {expected.shape}")
+    close = np.isclose(image, expected, rtol=rtol, atol=atol).all(-1)
+    if not close.all():
+        y, x = np.argwhere(~close)[0]
+        raise CheckFailed(f"the image differs from {whom} in {int((~close).sum())} of {close.size} pixels; first at "
+                          f"(x={x}, y={y}): {np.round(image[y, x], 5).tolist()} instead of "
+                          f"{np.round(expected[y, x], 5).tolist()}")

@@ -1,0 +1,9 @@
+"""The checks of each course assignment, one module per assignment, named after its folder in
+tutorials/assignments/ (where the student's stub is). They are Python modules of the toolkit, not
+files in that folder: there they would be importable only from an installed copy (as the data
+package toolkit.assignments), and students would find the grader among their handouts."""
+from toolkit.grading.checks import compaction, inplace_regen, mis, parallel_connect
+
+# In the order of the course (tutorials/assignments/README.md).
+ASSIGNMENTS = {a.name: a for a in (compaction.ASSIGNMENT, parallel_connect.ASSIGNMENT, mis.ASSIGNMENT,
+                                   inplace_regen.ASSIGNMENT)}

@@ -1,0 +1,45 @@
+"""What a check works with: the device queue, the folder holding the submission, the bundled
+scenes on the device, and the techniques built from the submission or from the toolkit's files."""
+import numpy as np
+import pyopencl as cl
+
+from toolkit.core.scene import bundled_scene_dir, load_scene
+from toolkit.opencl import program
+from toolkit.opencl.device import get_queue
+from toolkit.opencl.device_scene import DeviceScene
+
+
+class Context:
+    """What a check works with: the device queue and the folder holding the submission."""
+
+    def __init__(self, folder, device=None, shown="compact.h"):
+        self.folder = folder
+        self.shown = shown   # the name of the student's file, for messages
+        self.queue = get_queue(device)
+        self._scenes = {}
+
+    def scene(self, name="cornell_box"):
+        if name not in self._scenes:
+            scene = load_scene(bundled_scene_dir(name))
+            self._scenes[name] = (scene, DeviceScene(self.queue, scene))
+        return self._scenes[name]
+
+    def technique(self, cls, student=True, scene="cornell_box", **attributes):
+        """An instance of technique `cls` built from the submission (or the toolkit's own files)."""
+        if student:
+            attributes["source_dir"] = self.folder
+        variant = type(cls.__name__, (cls,), attributes)
+        return variant(self.queue, self.scene(scene)[1])
+
+    def build(self, name, defines=None):
+        return program.build(self.queue.context, name, defines, directory=self.folder)
+
+    def buffer(self, array):
+        return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR,
+                         hostbuf=np.ascontiguousarray(array))
+
+    def read(self, buffer, dtype, n, offset=0):
+        out = np.empty(n, dtype)
+        if n:
+            cl.enqueue_copy(self.queue, out, buffer, src_offset=offset)
+        return out

@@ -1,0 +1,13 @@
+"""The text report of one graded file: its score, then each check's points and reason."""
+
+
+def format_report(result):
+    lines = [f"{result['assignment']}: {result['file']}: {result['score']}/{result['max']}"]
+    width = max(len(r["name"]) for r in result["checks"])
+    for r in result["checks"]:
+        line = f"  {r['earned']:3d}/{r['points']:<3d} {r['name']:<{width}}  {r['what']}"
+        if r["reason"]:
+            line += f"\n            -> {r['reason']}"
+        lines.append(line)
+    lines.append(f"  graded in {result['seconds']:.1f} s")
+    return "\n".join(lines)
