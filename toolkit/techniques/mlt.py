@@ -5,7 +5,8 @@ cl/bdpt_parallel_connect.cl built with -DMLT=1 read their uniforms from the chai
 
 One iteration, read like the slide:
     mutate every chain (large step with probability `large_step`, else a small step);
-    evaluate all proposals as one batch of BDPT samples (compacted walks, parallel connect);
+    evaluate all proposals as one batch of BDPT samples (BDPT's evaluator, bdpt_evaluator.py:
+        compacted walks, parallel connect; the records go to the chains, not to an image);
     accept or reject per chain;
     splat the proposal with weight a and the current state with weight 1 - a.
 
