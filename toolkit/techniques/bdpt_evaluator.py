@@ -87,8 +87,8 @@ class Connections:
     """The records of one connect phase, read back: what a sink adds up."""
     values: np.ndarray               # (n, 4) float32: RGB, and with STRATEGY_IMAGES the MIS weight (RGB unweighted)
     pixels: np.ndarray               # (n,) int32: the pixel each record lands on; -1: none (memory left unwritten)
-    strategy: np.ndarray = None      # (n,) each record's strategy (strategy_images.strategy_index), with STRATEGY_IMAGES
-    slots: np.ndarray = None         # BdptSlot[pool] as connected (sample ids, vertex counts), where the phase reads them
+    strategy: np.ndarray = None      # (n,) each record's strategy (strategy_index), with STRATEGY_IMAGES
+    slots: np.ndarray = None         # BdptSlot[pool] as connected (sample ids, vertex counts), if the phase reads them
     slot_records: np.ndarray = None  # (pool,) records each slot wrote, consecutive in slot order, likewise
 
     @classmethod
