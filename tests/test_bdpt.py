@@ -164,3 +164,39 @@ def test_every_pixel_gets_its_samples_and_no_nan(cornell_spheres):
         r = toolkit.render(cornell_spheres, technique=t, spp=6, seed=2, resolution=(13, 7))
         assert r.stats["samples_per_pixel"] == [6, 6]
         assert r.stats["nonfinite_samples"] == 0 and np.isfinite(r.image).all()
+
+
+class KeepConnections:
+    """A sink of the caller's own: it keeps every connect phase's Connections."""
+
+    def __init__(self):
+        self.phases = []
+
+    def add(self, connections):
+        self.phases.append(connections)
+
+
+def test_the_evaluator_hands_every_connect_phase_to_the_callers_sink(queue, cornell_box):
+    """BdptEvaluator.evaluate gives each connect phase's records to the sink it is given (mlt's
+    chains, bdpt's ImageSink): a sink that keeps them gets the records of every sample of the
+    pass, each with its slot's sample id, and their sum per pixel is the image that ImageSink
+    adds up from the same samples."""
+    from toolkit.techniques.bdpt_base import ImageSink
+    from toolkit.techniques.bdpt_evaluator import BdptEvaluator, per_pixel_sums
+    from toolkit.techniques.bdpt_parallel_connect import ParallelConnect
+    tech = BdptParallelConnect(queue, DeviceScene(queue, cornell_box), count_simd=False, pool_size=64)
+    evaluator = BdptEvaluator(tech, ParallelConnect(tech, read_slots=True), tech.pool_size, 0.6, tech.max_vertices)
+    camera, pixels, budget = tech.scene.camera(8, 8), 64, 64 * 4
+    kept, image = KeepConnections(), ImageSink(pixels)
+    for sink in (kept, image):
+        evaluator.evaluate(evaluator.start_pass(camera, np.uint32(3), 0, budget), sink)
+    assert len(kept.phases) > budget // 64            # the pool of 64 connects several times
+    samples = np.concatenate([np.repeat(c.slots["sample_id"], c.slot_records) for c in kept.phases
+                              if c.slots is not None])
+    assert set(np.unique(samples)) <= set(range(budget)) and len(np.unique(samples)) > 0.9 * budget
+    values = np.concatenate([c.values for c in kept.phases])
+    at = np.concatenate([c.pixels for c in kept.phases])
+    assert len(samples) == len(at)                     # one sample id per record
+    ours = per_pixel_sums(values[at >= 0, :3], at[at >= 0], pixels)
+    assert image.image.sum() > 0
+    np.testing.assert_allclose(ours, image.image, rtol=1e-12, atol=0)   # float64 sums in another order

@@ -1,5 +1,6 @@
-"""Per-strategy images of BDPT (render --strategies, toolkit/measure/strategies.py): the MIS-weighted
-strategy images add up to the BDPT image, and both connect phases split it the same way."""
+"""Per-strategy images of BDPT (toolkit.render(..., strategy_images=K), render --strategies,
+toolkit/measure/strategies.py): the MIS-weighted strategy images add up to the BDPT image, and
+both connect phases split it the same way."""
 import json
 import subprocess
 import sys
@@ -9,7 +10,7 @@ import pytest
 
 import toolkit
 from conftest import ROOT, SCENES
-from toolkit.measure.strategies import render_strategies
+from toolkit.core.validate import InputError
 from toolkit.techniques.strategy_images import strategies, strategy_count, strategy_index
 
 BDPT = ("bdpt_naive_connect", "bdpt_parallel_connect")
@@ -18,13 +19,17 @@ SIZE, SPP, EDGES = (16, 16), 4, 3     # 3 edges: the sum of longer paths (most o
 
 @pytest.fixture(scope="module")
 def split():
-    """{technique: (BDPT image of the normal kernels, strategy render's image, StrategyImages)}, same seed."""
+    """{technique: (BDPT image of the normal kernels, strategy render's image, StrategyImages)}, same seed.
+    The strategy renders count SIMD figures and the normal ones do not: neither changes the image."""
     out = {}
     for technique in BDPT:
         normal = toolkit.render(SCENES / "cornell_box", technique=technique, spp=SPP, resolution=SIZE,
-                                count_simd=False).image
-        out[technique] = (normal, *render_strategies(SCENES / "cornell_box", technique, spp=SPP, resolution=SIZE,
-                                                     max_edges=EDGES))
+                                count_simd=False)
+        assert normal.strategy_images is None       # only when asked for
+        split = toolkit.render(SCENES / "cornell_box", technique=technique, spp=SPP, resolution=SIZE,
+                               strategy_images=EDGES)
+        assert split.strategy_images.spp == SPP and split.strategy_images.max_edges == EDGES
+        out[technique] = (normal.image, split.image, split.strategy_images)
     return out
 
 
@@ -68,6 +73,19 @@ def test_unweighted_images_hold_more_than_their_weighted_part(split):
         assert np.all(weighted <= unweighted * (1 + 1e-6) + 1e-12)
     weighted, unweighted = images[(0, 3)]
     assert weighted.sum() < 0.1 * unweighted.sum()
+
+
+@pytest.mark.parametrize("technique, edges, error", [
+    ("pt_naive", 3, "bidirectional"), ("mlt", 3, "bidirectional"), ("bdpt_parallel_connect", 0, "1 .. 10"),
+    ("bdpt_parallel_connect", 11, "1 .. 10"), ("bdpt_naive_connect", 2.0, "whole number"),
+    ("bdpt_naive_connect", True, "whole number")])
+def test_strategy_images_are_refused_where_they_do_not_apply(technique, edges, error):
+    """Checked before any work: a technique without connection strategies, or a bad K."""
+    with pytest.raises(InputError, match=error):
+        toolkit.render(SCENES / "cornell_box", technique=technique, spp=1, resolution=(4, 4), strategy_images=edges)
+    with pytest.raises(InputError, match="unknown option"):      # not an option: render's own argument
+        toolkit.render(SCENES / "cornell_box", technique="bdpt_naive_connect", spp=1, resolution=(4, 4),
+                       options={"strategy_max_edges": 3})
 
 
 def test_render_strategies_command_writes_images_and_json(tmp_path):

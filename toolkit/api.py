@@ -13,6 +13,7 @@ from toolkit.opencl.device_scene import DeviceScene
 from toolkit.core.layout import BVH_KINDS
 from toolkit.core.scene import Scene, bundled_scene_dir, check_scene, load_scene
 from toolkit.techniques import get_technique
+from toolkit.techniques.strategy_images import StrategyImages
 from toolkit.core.validate import InputError, local_size as checked_local_size, render_args
 
 
@@ -26,6 +27,7 @@ class RenderResult:
     stderr: np.ndarray     # (H, W, 3) per-pixel standard error of the mean
     stats: dict = field(default_factory=dict)
     iterations: list = field(default_factory=list)   # per-iteration SIMD figures, for plots
+    strategy_images: StrategyImages = None   # per-strategy images (render(..., strategy_images=K)), else None
 
 
 def as_scene(scene):
@@ -37,6 +39,12 @@ def as_scene(scene):
     return load_scene(bundled_scene_dir() if scene is None else scene)
 
 
+# Constructor keywords that render sets from its own arguments: not options.
+RENDER_ARGUMENTS = {"warp_width", "count_simd", "extra_defines", "local_size", "general",
+                    "strategy_max_edges"}   # the last: render(..., strategy_images=K)
+MAX_STRATEGY_EDGES = 10     # strategy_images: (K + 1)(K + 2) / 2 images per render at most
+
+
 def _options(cls, options):
     """Technique options must be keyword parameters of the technique's constructors."""
     if not isinstance(options, dict):
@@ -44,17 +52,29 @@ def _options(cls, options):
     known = {name for c in cls.__mro__ if "__init__" in vars(c)
              for name, p in inspect.signature(c.__init__).parameters.items()
              if p.kind == p.KEYWORD_ONLY or (p.kind == p.POSITIONAL_OR_KEYWORD and p.default is not p.empty)}
-    known -= {"warp_width", "count_simd", "extra_defines", "local_size", "general"}   # render's own arguments
-    known -= {"strategy_max_edges"}   # per-strategy images: toolkit.measure.strategies.render_strategies
+    known -= RENDER_ARGUMENTS
     for key in options:
         if key not in known:
             raise InputError(f"unknown option {key!r} for {cls.name} (known: {', '.join(sorted(known)) or 'none'})")
     return options
 
 
+def _strategy_images(cls, technique, max_edges):
+    """render's `strategy_images`, checked: None or the longest paths (edges) with images of their own."""
+    if max_edges is None:
+        return None
+    if cls.family != "bdpt":
+        raise InputError(f"per-strategy images need a bidirectional technique (bdpt_naive_connect or "
+                         f"bdpt_parallel_connect), not {technique}")
+    if isinstance(max_edges, bool) or not isinstance(max_edges, int) or not 1 <= max_edges <= MAX_STRATEGY_EDGES:
+        raise InputError(f"strategy_images must be a whole number 1 .. {MAX_STRATEGY_EDGES} (edges of the longest "
+                         f"paths with images of their own), got {max_edges!r}")
+    return max_edges
+
+
 def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, device=None,
            warp_width=None, count_simd=True, progress=False, options=None, bvh="wide", local_size=64,
-           general=False):
+           general=False, strategy_images=None):
     """Render a scene (a Scene, a folder, a scene.json or None for the bundled Cornell box).
 
     `resolution` (width, height) keeps the scene's camera and field of view. `technique` is a
@@ -70,19 +90,13 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     stats["warp_width"] and ["warp_width_source"] say which. `general=True` builds the general
     kernel (every material and feature compiled in) instead of the one specialized to the scene
     (Scene.features; toolkit/measure/specialization.py measures what that costs): the same image.
+    `strategy_images=K` (bdpt_* only) also keeps one image per connection strategy (s, t) of the
+    paths up to K edges, with and without its MIS weight, in result.strategy_images (a
+    StrategyImages; toolkit/measure/strategies.py writes them and each strategy's share of the
+    variance); the kernels are built for it, and the image stays the same.
     """
     # Every argument is checked before any work (kernel builds, BVH) starts.
-    if not isinstance(technique, str):
-        raise InputError(f"technique must be a name, got {technique!r}")
-    cls, variant_options = get_technique(technique)
-    options = _options(cls, options if options is not None else {})
-    if resolution is not None and (isinstance(resolution, (str, bytes)) or not hasattr(resolution, "__len__")
-                                   or len(resolution) != 2):
-        raise InputError(f"resolution must be (width, height), got {resolution!r}")
-    if bvh not in BVH_KINDS:
-        raise InputError(f"bvh must be one of {', '.join(BVH_KINDS)}, got {bvh!r}")
-    if device is not None and not isinstance(device, str):
-        raise InputError(f"device must be a string like '0:0' or a name part, got {device!r}")
+    cls, options, strategy_max_edges = _checked(technique, options, strategy_images, resolution, bvh, device)
     scene = as_scene(scene)
     width, height = resolution or (scene.camera.width, scene.camera.height)
     spp, seed, width, height = render_args(spp, seed, width, height, warp_width)
@@ -90,27 +104,62 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     queue = get_queue(device)
     device_scene = DeviceScene(queue, scene, bvh=bvh)
     tech = cls(queue, device_scene, warp_width=warp_width, count_simd=count_simd, local_size=local_size,
-               general=bool(general), **{**variant_options, **options})
+               general=bool(general), **options,
+               **({"strategy_max_edges": strategy_max_edges} if strategy_max_edges else {}))
+    film, seconds = _run(tech, f"{technique} {scene.name} {width}x{height}", width, height, spp, seed, progress)
+    image, stderr = film.image(), film.stderr()
+    stats = {"scene": scene.name, "technique": technique, "spp": spp, "resolution": [width, height],
+             **_stats(tech, film, image, seconds), "bvh": device_scene.bvh_stats(),
+             "triangles": int(len(scene.triangles)), "degrees_of_freedom": film.degrees_of_freedom,
+             **tech.extra_stats()}
+    if film.nonfinite_samples:
+        # A non-finite sample is a bug to fix where it comes from; never only inside the stats.
+        warnings.warn(f"{technique} on {scene.name}: {film.nonfinite_samples} non-finite sample(s) "
+                      "were dropped from the image", DroppedSamplesWarning, stacklevel=2)
+    return RenderResult(image, stderr, stats, tech.simd.per_iteration if count_simd else [],
+                        tech.strategy_images if strategy_max_edges else None)
+
+
+def _checked(technique, options, strategy_images, resolution, bvh, device):
+    """render's arguments that need no scene, checked: (technique class, its options with the
+    variant's, strategy_max_edges or None)."""
+    if not isinstance(technique, str):
+        raise InputError(f"technique must be a name, got {technique!r}")
+    cls, variant_options = get_technique(technique)
+    options = _options(cls, options if options is not None else {})
+    strategy_max_edges = _strategy_images(cls, technique, strategy_images)
+    if resolution is not None and (isinstance(resolution, (str, bytes)) or not hasattr(resolution, "__len__")
+                                   or len(resolution) != 2):
+        raise InputError(f"resolution must be (width, height), got {resolution!r}")
+    if bvh not in BVH_KINDS:
+        raise InputError(f"bvh must be one of {', '.join(BVH_KINDS)}, got {bvh!r}")
+    if device is not None and not isinstance(device, str):
+        raise InputError(f"device must be a string like '0:0' or a name part, got {device!r}")
+    return cls, {**variant_options, **options}, strategy_max_edges
+
+
+def _run(tech, what, width, height, spp, seed, progress):
+    """(the film, seconds) of tech's render, with a progress bar (named `what`) if asked."""
     bar = None
     if progress:
-        from tqdm.auto import tqdm
-        bar = tqdm(total=spp, unit="spp", desc=f"{technique} {scene.name} {width}x{height}",
-                   file=sys.stderr, leave=False)
+        from tqdm.auto import tqdm    # only with a progress bar
+        bar = tqdm(total=spp, unit="spp", desc=what, file=sys.stderr, leave=False)
     start = time.perf_counter()
     film = tech.render(width, height, spp, seed=seed, progress=bar)
     seconds = time.perf_counter() - start
     if bar is not None:
         bar.close()
-    image, stderr = film.image(), film.stderr()
-    stats = {
-        "scene": scene.name,
-        "technique": technique,
-        "spp": spp,
-        "resolution": [width, height],
+    return film, seconds
+
+
+def _stats(tech, film, image, seconds):
+    """The render's figures: speed, device, image, SIMD and traversal efficiency, the kernels."""
+    count_simd = tech.count_simd
+    return {
         "local_size": tech.local_size,
         "seconds": seconds,
         "samples_per_second": film.samples / seconds if seconds > 0 else float("inf"),
-        "device": describe(queue.device),
+        "device": describe(tech.queue.device),
         "mean": image.reshape(-1, 3).mean(0).tolist(),
         "nonfinite": int(np.count_nonzero(~np.isfinite(image).all(-1))),
         "nonfinite_samples": film.nonfinite_samples,
@@ -124,13 +173,4 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
                                        if count_simd and film.samples else {}),
         "build_seconds": tech.build_seconds,
         "kernels": "general" if tech.general else "specialized",
-        "bvh": device_scene.bvh_stats(),
-        "triangles": int(len(scene.triangles)),
-        "degrees_of_freedom": film.degrees_of_freedom,
-        **tech.extra_stats(),
     }
-    if film.nonfinite_samples:
-        # A non-finite sample is a bug to fix where it comes from; never only inside the stats.
-        warnings.warn(f"{technique} on {scene.name}: {film.nonfinite_samples} non-finite sample(s) "
-                      "were dropped from the image", DroppedSamplesWarning, stacklevel=2)
-    return RenderResult(image, stderr, stats, tech.simd.per_iteration if count_simd else [])

@@ -9,7 +9,7 @@ from toolkit.cli.options import BVH, DEVICE, GENERAL, SCENE, positive, resolutio
 from toolkit.core.images import write_image
 from toolkit.core.validate import check_output
 from toolkit.measure.reference import reference_at, reference_problem, rmse
-from toolkit.measure.strategies import format_strategies, render_strategies, write_strategies
+from toolkit.measure.strategies import format_strategies, write_strategies
 from toolkit.techniques import TECHNIQUES
 
 
@@ -75,10 +75,10 @@ def cmd_render_strategies(args):
         raise ValueError("--strategies builds its own kernels; --general does not apply")
     scene = as_scene(args.scene)
     check_output(f"{args.strategies}/full.exr")     # before the render: a bad folder must not cost its time
-    image, result = render_strategies(scene, args.technique, spp=args.spp, seed=args.seed,
-                                      resolution=args.resolution, device=args.device, max_edges=args.strategy_edges,
-                                      bvh=args.bvh, progress=not args.no_progress)
-    report = write_strategies(args.strategies, image, result, scene.name, args.technique)
+    result = render(scene, technique=args.technique, spp=args.spp, seed=args.seed, resolution=args.resolution,
+                    device=args.device, count_simd=False, progress=not args.no_progress, bvh=args.bvh,
+                    strategy_images=args.strategy_edges)
+    report = write_strategies(args.strategies, result.image, result.strategy_images, scene.name, args.technique)
     print(format_strategies(report))
     print(f"  wrote {len(report['strategies'])} x 2 strategy images, longer_weighted.exr, full.exr and "
           f"strategies.json to {args.strategies}")

@@ -5,7 +5,8 @@ cl/bdpt_parallel_connect.cl built with -DMLT=1 read their uniforms from the chai
 
 One iteration, read like the slide:
     mutate every chain (large step with probability `large_step`, else a small step);
-    evaluate all proposals as one batch of BDPT samples (compacted walks, parallel connect);
+    evaluate all proposals as one batch of BDPT samples (BDPT's evaluator, bdpt_evaluator.py:
+        compacted walks, parallel connect; the records go to the chains, not to an image);
     accept or reject per chain;
     splat the proposal with weight a and the current state with weight 1 - a.
 
@@ -60,7 +61,7 @@ above, with no weights to add variance. A bright candidate may start several cha
 with their first mutations.
 
 Splats (pixel, value) are added on the host in float64, like the t = 1 records of BDPT
-(bdpt_base.per_pixel_sums): no float atomics. Each chain's current state keeps its records
+(bdpt_evaluator.per_pixel_sums): no float atomics. Each chain's current state keeps its records
 on the host until it is replaced.
 
 Options (keyword arguments of toolkit.render(..., options=...)):
@@ -83,17 +84,20 @@ on top. The image has no standard error of its own (one pass; MLT samples are co
 compare independent runs (seeds), as tests/test_mlt.py and toolkit/measure/mlt_bias.py do.
 """
 import time
-from dataclasses import dataclass
 
 import numpy as np
 import pyopencl as cl
 
 from toolkit.core.film import Film
-from toolkit.core.layout import BDPT_SLOT, LUMINANCE_WEIGHTS, MLT_CHAIN, MLT_ITERATION, MltMode
-from toolkit.core.sample_dims import BDPT_FIRST_SCATTER_DIM, used_dims   # the dimension table the kernels read
+from toolkit.core.layout import MLT_CHAIN, MLT_ITERATION, MltMode
 from toolkit.core.validate import LIMITS, InputError, finite_number, whole_number
-from toolkit.techniques.bdpt_base import per_pixel_sums
-from toolkit.techniques.bdpt_parallel_connect import BdptParallelConnect
+from toolkit.opencl.compaction import Compactor
+from toolkit.opencl.work_sizes import checked_size
+from toolkit.techniques.base import Technique
+from toolkit.techniques.bdpt_evaluator import BdptEvaluator, per_pixel_sums, walk_defines
+from toolkit.techniques.bdpt_parallel_connect import ParallelConnect
+from toolkit.techniques.mlt_chains import (ChainRecords, Chains, ProposalSink, records_of_picks,
+                                           systematic_picks)
 
 STARTS = ("naive", "resample", "pool")
 
@@ -110,39 +114,46 @@ def step_defines(small_step):
     return {"MLT_S2": float(small_step), "MLT_S1": float(small_step) / 16}
 
 
-@dataclass
-class Chains:
-    """The chains' device memory and the host's view of their current states."""
-    count: int
-    current: cl.Buffer       # float[max_dims][count]: the current states' primary-sample vectors
-    proposal: cl.Buffer      # float[max_dims][count]: this iteration's proposals
-    records: cl.Buffer       # MltChain[count]
-    f_proposal: cl.Buffer    # float[count], written by the host
-    dims_proposal: cl.Buffer  # int[count], written by the host
-    iteration: int = 0
-    f_current: np.ndarray = None        # float64 f of each current state
-    cur_values: np.ndarray = None       # the current states' records: (n, 3) float64 values,
-    cur_pixels: np.ndarray = None       #   their pixels
-    cur_chain: np.ndarray = None        #   and their chains
-    splats: np.ndarray = None           # (pixels, 3) float64 sum of the Metropolis splats (times b at the end)
-    large_splats: np.ndarray = None     # (pixels, 3) float64 sum of the large steps' own splats (combine)
-    candidate_sum: np.ndarray = None    # start = resample: sum of f over each chain's candidates
-    weight: np.ndarray = None           # each chain's splat weight: 1, or w_c / mean(w) (resample)
-    large_sum: float = 0.0              # sum of f over the large steps (for b)
-    large_count: int = 0
-    accepted: int = 0
-    mutations: int = 0
-    overflow: int = 0                   # proposals that read more than max_dims dimensions
-    nonfinite: int = 0
-
-
-class Mlt(BdptParallelConnect):
+class Mlt(Technique):
+    """Metropolis chains whose proposals BDPT's evaluator (bdpt_evaluator.py) evaluates with the
+    parallel connect phase; the records go to the chains (ProposalSink), not to an image."""
     name = "mlt"
     source = "mlt.cl"
     family = "mlt"
+    pool_size = None            # BDPT samples in flight; None: the device's (as bdpt_parallel_connect)
+    target_batch = 1 << 14      # as BDPT's (Technique.in_flight scales it); mlt renders one pass
+    max_vertices = 64           # per subpath when the depth is unbounded, as BDPT's
 
     def __init__(self, queue, device_scene, chains=None, large_step=0.3, start="naive", candidates=16,
-                 max_dims=128, combine=True, time_limit=None, small_step=SMALL_STEP, **kwargs):
+                 max_dims=128, combine=True, time_limit=None, small_step=SMALL_STEP, pool_size=None,
+                 regenerate_fraction=None, coalesced_scatter=True, **kwargs):
+        self.check_options(device_scene.scene, chains, large_step, start, candidates, max_dims, combine,
+                           time_limit, small_step, kwargs)
+        self.max_vertices, defines = walk_defines(device_scene.scene, self.max_vertices, coalesced_scatter)
+        defines.update({"MLT": True, "MLT_MAX_DIMS": self.max_dims, **step_defines(self.small_step),
+                        # cl/mlt_proposals.h mlt_index: a CPU reads a vertex's dimensions from one cache line
+                        "MLT_CHAIN_MAJOR": bool(queue.device.type & cl.device_type.CPU)})
+        defines.update(kwargs.pop("extra_defines", None) or {})
+        checked_size("pool_size", pool_size)         # its range now, before the build; the device's memory after
+        super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
+        self.pool_size = self.in_flight("pool_size", pool_size, self.max_vertices)
+        self.compactor = Compactor(queue, local_size=self.local_size)
+        if self.chain_count is None:   # one chain per slot of the BDPT pool, within the chains' limit
+            self.chain_count = min(self.pool_size, LIMITS["mlt.chains"][1])
+        if regenerate_fraction is None:
+            # One connect phase per iteration, after its last proposal has terminated: when the
+            # pool holds every chain's proposal, no slot is regenerated before the chains accept,
+            # so connecting the early finishers sooner frees nothing and only adds connect phases
+            # (8 per iteration instead of 1 on covered_lamp 64x64; 1.65 -> 1.43 BDPT samples per mutation).
+            # Else BDPT's 0.6.
+            regenerate_fraction = 1.0 if self.chain_count <= self.pool_size else 0.6
+        self.bdpt = BdptEvaluator(self, ParallelConnect(self, read_slots=True), self.pool_size,
+                                  regenerate_fraction, self.max_vertices)
+        self.last_chains = None   # the chains of the last render, for its stats
+
+    def check_options(self, scene, chains, large_step, start, candidates, max_dims, combine, time_limit,
+                      small_step, kwargs):
+        """Every option checked (InputError) and kept, before the build."""
         self.chain_count = whole_number("mlt.chains", chains, "chains") if chains is not None else None
         self.large_step = finite_number("mlt.large_step", large_step, "large_step")
         if start not in STARTS:
@@ -154,39 +165,22 @@ class Mlt(BdptParallelConnect):
             raise InputError(f"combine must be true or false, got {combine!r}")
         self.combine = bool(combine)
         self.time_limit = None if time_limit is None else finite_number("mlt.time_limit", time_limit, "time_limit")
-        if device_scene.scene.clamp is not None:
+        if scene.clamp is not None:
             raise InputError("mlt does not clamp (scene integrator.clamp is set): every Metropolis splat already has "
                              "the same brightness b / M, so there are no fireflies to cap, and a capped f would only "
                              "change the distribution the chains sample; remove integrator.clamp for mlt")
         if kwargs.get("pass_spp") is not None:
             raise InputError("mlt renders in one pass of chains (see `chains`); pass_spp does not apply to it")
         self.small_step = finite_number("mlt.small_step", small_step, "small_step")
-        defines = {"MLT": True, "MLT_MAX_DIMS": self.max_dims, **step_defines(self.small_step),
-                   # cl/mlt_proposals.h mlt_index: a CPU reads a vertex's dimensions from one cache line
-                   "MLT_CHAIN_MAJOR": bool(queue.device.type & cl.device_type.CPU)}
-        defines.update(kwargs.pop("extra_defines", None) or {})
-        fraction = kwargs.pop("regenerate_fraction", None)     # None: mlt's default, below
-        if fraction is not None:
-            kwargs["regenerate_fraction"] = fraction
-        super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
-        if self.chain_count is None:   # one chain per slot of the BDPT pool, within the chains' limit
-            self.chain_count = min(self.pool_size, LIMITS["mlt.chains"][1])
-        if fraction is None and self.chain_count <= self.pool_size:
-            # One connect phase per iteration, after its last proposal has terminated: when the
-            # pool holds every chain's proposal, no slot is regenerated before the chains accept,
-            # so connecting the early finishers sooner frees nothing and only adds connect phases
-            # (8 per iteration instead of 1 on covered_lamp 64x64; 1.65 -> 1.43 BDPT samples per mutation).
-            self.regenerate_fraction = 1.0
 
     # --- the render: start the chains, then iterate ------------------------------------------
 
     def render(self, width, height, spp, seed=0, progress=None):
         film = Film(width, height)
-        camera = self.scene.camera(width, height)
         pixels = width * height
         total = pixels * spp
         start = time.perf_counter()
-        c = self.begin(camera, np.uint32(seed), min(self.chain_count, total))
+        c = self.begin(self.scene.camera(width, height), np.uint32(seed), min(self.chain_count, total))
         shown = 0
         while c.mutations < total and not self.out_of_time(start, c):
             self.iterate(c, min(c.count, total - c.mutations), MltMode.MUTATE)
@@ -206,17 +200,17 @@ class Mlt(BdptParallelConnect):
         """The chains' memory and their first states (`start`)."""
         ctx, n = self.queue.context, self.padded(count)
         vectors = 4 * n * self.max_dims
-        c = Chains(count, cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
+        c = Chains(count, seed, camera, cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
                    cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
                    cl.Buffer(ctx, cl.mem_flags.READ_WRITE, MLT_CHAIN.dtype.itemsize * n),
                    cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n), self.int_buffer(count))
         cl.enqueue_fill_buffer(self.queue, c.records, np.int32(0), 0, MLT_CHAIN.dtype.itemsize * n)
         c.f_current = np.zeros(count)
         c.candidate_sum, c.weight = np.zeros(count), np.ones(count)
-        c.cur_values, c.cur_pixels, c.cur_chain = np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64)
+        c.current_records = ChainRecords.empty()
         c.splats = np.zeros((int(camera["width"] * camera["height"]), 3))
         c.large_splats = np.zeros_like(c.splats)
-        self.camera, self.seed, self.last_chains = camera, seed, c
+        self.last_chains = c
         if self.start == "naive":
             self.iterate(c, count, MltMode.START)
         elif self.start == "pool":
@@ -231,49 +225,38 @@ class Mlt(BdptParallelConnect):
         return c
 
     def iterate(self, c, active, mode):
-        """One iteration of the first `active` chains: mutate, evaluate, accept, splat."""
+        """One iteration of the first `active` chains, as on the slide; returns its Proposals."""
         it = MLT_ITERATION.zeros(1)[0]
-        it["seed"], it["iteration"], it["chains"], it["active"] = self.seed, c.iteration, c.count, active
+        it["seed"], it["iteration"], it["chains"], it["active"] = c.seed, c.iteration, c.count, active
         it["large_step"], it["mode"] = self.large_step, int(mode)
-        self.mutate(c, it)
-        values, pixels, chain, f, dims = self.evaluate_proposals(c, active)
-        records = self.accept(c, it, f, dims)
-        self.splat(c, records, values, pixels, chain, f, mode)
+        self.mutate(c, it)                               # every chain proposes (large or small step)
+        proposals = self.evaluate_proposals(c, active)   # all proposals as one batch of BDPT samples
+        decisions = self.accept(c, it, proposals)        # accept or reject per chain
+        self.splat(c, decisions, proposals, mode)        # proposal with weight a, current state with 1 - a
         c.iteration += 1
-        return values, pixels, chain, f, dims
+        return proposals
 
     def start_from_pool(self, c, candidates, first):
         """start = pool: every chain's first state drawn from all the chains' candidates (large
-        steps: `candidates` iterations from iteration `first`, each as returned by iterate) in
-        proportion to f, by systematic resampling (one uniform offset, `count` evenly spaced
-        points on the cumulative f); each chain's splat weight stays 1."""
+        steps: `candidates` iterations from iteration `first`, each the Proposals of iterate) in
+        proportion to f, by systematic resampling; each chain's splat weight stays 1."""
         count = c.count
-        f = np.concatenate([x[3] for x in candidates])          # entry k * count + chain
+        f = np.concatenate([x.f for x in candidates])           # entry k * count + chain
         if not f.sum() > 0:
             return                                               # no light found: keep the naive start
-        rng = np.random.default_rng([int(self.seed), 0x706f6f6c])
-        cdf = np.cumsum(f)
-        pick = np.searchsorted(cdf, (rng.random() + np.arange(count)) / count * cdf[-1], side="right")
-        pick = np.minimum(pick, len(f) - 1)
-        dims = np.concatenate([x[4] for x in candidates])[pick]
+        pick = systematic_picks(f, count, np.random.default_rng([int(c.seed), 0x706f6f6c]))
+        dims = np.concatenate([x.dims for x in candidates])[pick]
         src_chain, src_iteration = pick % count, first + pick // count
         ctx, flags = self.queue.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR
         it = MLT_ITERATION.zeros(1)[0]
-        it["seed"], it["chains"], it["active"] = self.seed, count, count
+        it["seed"], it["chains"], it["active"] = c.seed, count, count
         self.launch(self.kernel("mlt_start_from"), count, it, c.current, c.records,
                     *(cl.Buffer(ctx, flags, hostbuf=np.ascontiguousarray(x, dtype)) for x, dtype in
                       ((src_chain, np.int32), (src_iteration, np.int32), (f[pick], np.float32), (dims, np.int32))))
         c.f_current = f[pick].astype(np.float64)
-        # The chosen candidates' records become the chains' current records (a candidate picked
-        # by several chains is copied to each).
-        key = np.concatenate([k * count + x[2] for k, x in enumerate(candidates)])
-        order = np.argsort(key, kind="stable")
-        lo, hi = np.searchsorted(key[order], pick, "left"), np.searchsorted(key[order], pick, "right")
-        n = hi - lo
-        rows = order[np.repeat(lo - np.cumsum(n) + n, n) + np.arange(n.sum())]
-        c.cur_values = np.concatenate([x[0] for x in candidates])[rows]
-        c.cur_pixels = np.concatenate([x[1] for x in candidates])[rows]
-        c.cur_chain = np.repeat(np.arange(count), n)
+        c.current_records = records_of_picks(candidates, pick, count)   # the chosen candidates' records
+
+    # --- the stages of an iteration, one kernel (or one BDPT evaluation) each ------------------
 
     def mutate(self, c, it):
         """mlt_mutate: every active chain writes its proposal (cl/mlt.h)."""
@@ -283,104 +266,76 @@ class Mlt(BdptParallelConnect):
             self.simd.add_stream_step("mutate", int(it["active"]))
 
     def evaluate_proposals(self, c, active):
-        """The proposals as one batch of BDPT samples (sample id = chain): their records
-        (values (n, 3) float64, pixels, chains) and per chain f and the dimensions used."""
-        p = self.start_pass(self.camera, self.seed, c.iteration, active, chains=c.count)
-        p.records, p.dims = [], np.full(active, BDPT_FIRST_SCATTER_DIM, np.int64)
-        self.evaluate(p)
-        if p.records:
-            values, pixels, chain = (np.concatenate(x) for x in zip(*p.records))
-        else:
-            values, pixels, chain = np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64)
-        finite = np.isfinite(values).all(1)
-        if not finite.all():     # a bug to report (DroppedSamplesWarning), never a NaN in the chain
-            c.nonfinite += int((~finite).sum())
-            values, pixels, chain = values[finite], pixels[finite], chain[finite]
-        f = np.bincount(chain, values @ np.asarray(LUMINANCE_WEIGHTS), minlength=active)
-        c.overflow += int((p.dims > self.max_dims).sum())
-        return values, pixels, chain, np.maximum(f, 0.0), np.minimum(p.dims, self.max_dims)
+        """The proposals as one batch of BDPT samples (sample id = chain, random numbers from the
+        proposals' vectors): their records stay with their chains (ProposalSink)."""
+        p = self.bdpt.start_pass(c.camera, c.seed, c.iteration, active, sampler_args=(c.proposal,),
+                                 vector_stride=c.count)
+        sink = ProposalSink(active)
+        self.bdpt.evaluate(p, sink)
+        proposals, nonfinite, overflow = sink.proposals(self.max_dims)
+        c.nonfinite += nonfinite
+        c.overflow += overflow
+        return proposals
 
-    def connect(self, p, count):
-        """The parallel connect phase; its records stay with their chains (p.records) instead of
-        going to the image; p.dims gets each terminated sample's used dimensions."""
-        records = self.connection_records(p, count)
-        if records is not None:
-            values, pixels, counts_buffer = records
-            counts = self.read_ints(counts_buffer, p.pool.size)
-            slots = self.read_structs(BDPT_SLOT, p.pool.slots, p.pool.size)
-            done = counts > 0
-            ids = slots["sample_id"][done]
-            p.dims[ids] = used_dims(slots["eye_vertices"][done], slots["light_vertices"][done])
-            chain = np.repeat(ids, counts[done])
-            ok = pixels >= 0
-            p.records.append((values[ok, :3].astype(np.float64), pixels[ok], chain[ok]))
-        return 0.0
-
-    def accept(self, c, it, f, dims):
-        """mlt_accept (cl/mlt.h) with the proposals' f and dimensions; returns the chain records."""
+    def accept(self, c, it, proposals):
+        """mlt_accept (cl/mlt.h) with the proposals' f and dimensions; returns the chain records
+        (MltChain: acceptance, accepted, large_step of each chain)."""
         active = int(it["active"])
-        cl.enqueue_copy(self.queue, c.f_proposal, f.astype(np.float32))
-        cl.enqueue_copy(self.queue, c.dims_proposal, dims.astype(np.int32))
+        cl.enqueue_copy(self.queue, c.f_proposal, proposals.f.astype(np.float32))
+        cl.enqueue_copy(self.queue, c.dims_proposal, proposals.dims.astype(np.int32))
         self.launch(self.kernel("mlt_accept"), active, it, c.current, c.proposal, c.records,
                     c.f_proposal, c.dims_proposal)
         if self.count_simd:
             self.simd.add_stream_step("accept", active)
         return self.read_structs(MLT_CHAIN, c.records, active)
 
-    def splat(self, c, records, values, pixels, chain, f, mode):
-        """Expected-value splats (MUTATE only), the large steps' f for b, and the new current records.
-        With `combine`, a sample z (proposal or current) is weighted 1 / (f(z) + p b') instead of
-        1 / f(z), and a large step's proposal adds b' / (f(y) + p b') to the large steps' own sum
-        (Kelemen's combination; module docstring); b' is b as estimated before this iteration."""
-        active = len(records)
-        large = records["large_step"] != 0
-        b_before = c.large_sum / max(c.large_count, 1)
-        c.large_sum += float(f[large].sum())
+    def splat(self, c, decisions, proposals, mode):
+        """Expected-value splats (MUTATE only), the large steps' f for b, and the new current states."""
+        large = decisions["large_step"] != 0
+        b_before = c.b
+        c.large_sum += float(proposals.f[large].sum())
         c.large_count += int(large.sum())
-        a = records["acceptance"].astype(np.float64)
-        accepted = records["accepted"] != 0
+        accepted = decisions["accepted"] != 0
         if mode == MltMode.CANDIDATE:
-            c.candidate_sum[:active] += f
+            c.candidate_sum[:len(decisions)] += proposals.f
         if mode == MltMode.MUTATE:
-            weight = c.weight[:active]
-            mix = self.large_step * b_before if self.combine else 0.0   # p b': the large steps' density, in f's units
-            d_prop, d_cur = f + mix, c.f_current[:active] + mix
-            w_prop = np.divide(a * weight, d_prop, out=np.zeros(active), where=d_prop > 0)
-            w_cur = np.divide((1.0 - a) * weight, d_cur, out=np.zeros(active), where=d_cur > 0)
-            mine = c.cur_chain < active
-            v = np.concatenate([values * w_prop[chain][:, None], c.cur_values[mine] * w_cur[c.cur_chain[mine]][:, None]])
-            c.splats += per_pixel_sums(v, np.concatenate([pixels, c.cur_pixels[mine]]), len(c.splats))
-            if self.combine:
-                w_large = np.divide(b_before * large, d_prop, out=np.zeros(active), where=d_prop > 0)
-                ours = large[chain]
-                c.large_splats += per_pixel_sums(values[ours] * w_large[chain[ours]][:, None], pixels[ours],
-                                                 len(c.splats))
-            c.mutations += active
+            self.splat_mutation(c, decisions["acceptance"].astype(np.float64), large, proposals, b_before)
+            c.mutations += len(decisions)
             c.accepted += int(accepted.sum())
-        replaced = np.zeros(c.count, bool)
-        replaced[:active] = accepted
-        keep, new = ~replaced[c.cur_chain], replaced[chain]
-        c.cur_values = np.concatenate([c.cur_values[keep], values[new]])
-        c.cur_pixels = np.concatenate([c.cur_pixels[keep], pixels[new]])
-        c.cur_chain = np.concatenate([c.cur_chain[keep], chain[new]])
-        c.f_current[:active][accepted] = f[accepted]
+        c.replace_accepted(accepted, proposals)
+
+    def splat_mutation(self, c, a, large, proposals, b_before):
+        """The proposal splats with weight a, the current state with 1 - a (times the chain's
+        weight). With `combine`, a sample z (proposal or current) is weighted 1 / (f(z) + p b')
+        instead of 1 / f(z), and a large step's proposal adds b' / (f(y) + p b') to the large
+        steps' own sum (Kelemen's combination; module docstring); b' is b as estimated before
+        this iteration."""
+        active, f, records = len(a), proposals.f, proposals.records
+        weight = c.weight[:active]
+        mix = self.large_step * b_before if self.combine else 0.0   # p b': the large steps' density, in f's units
+        d_prop, d_cur = f + mix, c.f_current[:active] + mix
+        w_prop = np.divide(a * weight, d_prop, out=np.zeros(active), where=d_prop > 0)
+        w_cur = np.divide((1.0 - a) * weight, d_cur, out=np.zeros(active), where=d_cur > 0)
+        current = c.current_records.where(c.current_records.chain < active)
+        v = np.concatenate([records.values * w_prop[records.chain][:, None],
+                            current.values * w_cur[current.chain][:, None]])
+        c.splats += per_pixel_sums(v, np.concatenate([records.pixels, current.pixels]), len(c.splats))
+        if self.combine:
+            w_large = np.divide(b_before * large, d_prop, out=np.zeros(active), where=d_prop > 0)
+            ours = records.where(large[records.chain])
+            c.large_splats += per_pixel_sums(ours.values * w_large[ours.chain][:, None], ours.pixels,
+                                             len(c.splats))
 
     def image(self, c):
         """P / M * (b * the Metropolis splats + the large steps' splats): the estimator of the module docstring."""
-        b = c.large_sum / max(c.large_count, 1)
-        return (c.splats * b + c.large_splats) * (len(c.splats) / max(c.mutations, 1))
+        return (c.splats * c.b + c.large_splats) * (len(c.splats) / max(c.mutations, 1))
 
     # --- measuring --------------------------------------------------------------------------
 
-    def sampler_args(self):
-        return (self.last_chains.proposal,)
-
     def extra_stats(self):
-        stats = super().extra_stats()
         c = self.last_chains
-        stats["mlt"] = {"chains": c.count, "start": self.start, "large_step": self.large_step, "combine": self.combine,
+        return {**super().extra_stats(), **self.bdpt.stats(),
+                "mlt": {"chains": c.count, "start": self.start, "large_step": self.large_step, "combine": self.combine,
                         "mutations": c.mutations, "mutations_per_chain": c.mutations / c.count,
-                        "acceptance_rate": c.accepted / max(c.mutations, 1),
-                        "b": c.large_sum / max(c.large_count, 1), "large_steps": c.large_count,
-                        "max_dims": self.max_dims, "overflow_proposals": c.overflow}
-        return stats
+                        "acceptance_rate": c.accepted / max(c.mutations, 1), "b": c.b, "large_steps": c.large_count,
+                        "max_dims": self.max_dims, "overflow_proposals": c.overflow}}

@@ -1,0 +1,273 @@
+"""BDPT's estimator over a pool of samples in flight: the random walk over compacted eye and
+light streams with postponed regeneration (cl/bdpt_walk.h), and a connect phase whose records
+go to a sink that the caller picks. bdpt_base.BdptTechnique gives the records to an image
+(ImageSink); mlt keeps them with its chains.
+
+One pass, read like the talk's slides:
+    regenerate all samples;
+    repeat:
+        extend the eye stream and the light stream by one vertex each (compacted at once);
+        when enough samples have terminated (default 60%):
+            connect their subpaths (the connect phase), hand the records to the sink,
+            then regenerate them.
+Light-tracing (t = 1) contributions land on other pixels: every connection writes a record
+(pixel, value) and the host adds the records up per pixel in float64 (no float atomics on
+the device).
+"""
+from dataclasses import dataclass, field
+
+import numpy as np
+import pyopencl as cl
+
+from toolkit.core.layout import BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, SUBPATH, WalkCounter
+from toolkit.core.scene import NO_LIMIT
+from toolkit.core.simd import PhaseCounter
+
+
+def walk_defines(scene, longest, coalesced_scatter):
+    """(MAX_VERTICES, the defines of the walk's kernels) for `scene`: subpaths of at most
+    `longest` vertices when its depth is unbounded."""
+    # At least 2: the walk stores its first hit (vertex 1) before it checks the depth.
+    max_vertices = max(2, min(longest, scene.max_depth + 1)) if scene.max_depth >= 0 else longest
+    # Subpath roulette from half the scene's rr_depth (cl/bdpt_walk.h); never without one (a
+    # general kernel has the roulette compiled in for every scene: Scene.features).
+    rr_depth = (scene.rr_depth + 1) // 2 if scene.rr_depth >= 0 else NO_LIMIT
+    return max_vertices, {"MAX_VERTICES": max_vertices, "COALESCED_SCATTER": bool(coalesced_scatter),
+                          "BDPT_RR_DEPTH": rr_depth}
+
+
+@dataclass
+class SubpathStream:
+    """One of the random walk's two streams: the subpaths still walking, packed at the start
+    of `current` (a Subpath structure of arrays); each step compacts the survivors into `spare`."""
+    is_light: int
+    current: cl.Buffer
+    spare: cl.Buffer
+    vertices: cl.Buffer       # BdptVertex[pool][MAX_VERTICES]: every vertex stored so far
+    length: int = 0
+
+    def advance(self, survivors):
+        """After a step: the survivors, compacted into `spare`, are the stream."""
+        if self.length:
+            self.current, self.spare, self.length = self.spare, self.current, int(survivors)
+
+
+@dataclass
+class SamplePool:
+    """The device memory of a pool of samples in flight (made once per pool size)."""
+    size: int
+    capacity: int             # records per stream (size padded to the local size)
+    eye: SubpathStream
+    light: SubpathStream
+    slots: cl.Buffer          # BdptSlot[size]: live state, sample id and vertex counts of each slot
+    terminated: cl.Buffer     # int[size]: 1 where a sample waits for its connections (compaction flags)
+    counters: cl.Buffer       # int[len(WalkCounter)]: survivors of each stream, terminated samples
+    lane_counts: cl.Buffer    # LaneCounts[size]: one walk step or connect phase (COUNT_SIMD)
+    all_slots: cl.Buffer      # 0 .. size - 1: the slot list of the first regeneration
+
+
+@dataclass
+class PassState:
+    """One pass: the pool, the kernel arguments every launch shares, and the sample budget."""
+    pool: SamplePool
+    camera: np.void           # Camera record
+    args: np.void             # BdptPass record (seed, sample_base, pool, capacity)
+    budget: int               # samples in this pass
+    sampler_args: tuple = ()  # extra arguments of the kernels that draw random numbers (BDPT_SAMPLER_PARAM)
+    next_id: int = 0          # next sample to start
+    in_flight: int = 0        # slots whose sample is not connected yet
+
+    @property
+    def pixels(self):
+        return int(self.camera["width"] * self.camera["height"])
+
+
+@dataclass
+class Connections:
+    """The records of one connect phase, read back: what a sink adds up."""
+    values: np.ndarray               # (n, 4) float32: RGB, and with STRATEGY_IMAGES the MIS weight (RGB unweighted)
+    pixels: np.ndarray               # (n,) int32: the pixel each record lands on; -1: none (memory left unwritten)
+    strategy: np.ndarray = None      # (n,) each record's strategy (strategy_index), with STRATEGY_IMAGES
+    slots: np.ndarray = None         # BdptSlot[pool] as connected (sample ids, vertex counts), if the phase reads them
+    slot_records: np.ndarray = None  # (pool,) records each slot wrote, consecutive in slot order, likewise
+
+    @classmethod
+    def none(cls):
+        """A connect phase without records (no sample had terminated)."""
+        return cls(np.zeros((0, 4), np.float32), np.zeros(0, np.int32))
+
+
+@dataclass
+class BdptEvaluator:
+    """The walk of `tech`'s BDPT kernels (tech builds and launches them) and a connect phase:
+    `connect(p, count)` evaluates the connections of the `count` terminated samples of pass `p`
+    and returns their Connections."""
+    tech: object               # the Technique whose program holds the kernels
+    connect: object            # the connect phase: (PassState, count) -> Connections
+    pool_size: int             # samples in flight
+    regenerate_fraction: float  # connect (and regenerate) once this share of the samples in flight has terminated
+    max_vertices: int          # per subpath (MAX_VERTICES)
+    last_pass: PassState = None   # kept for inspection (tests, notebooks): the vertex memory of the last samples
+    uncompacted: PhaseCounter = field(init=False)   # the walk as it would be without compaction
+
+    def __post_init__(self):
+        if not 0.0 < self.regenerate_fraction <= 1.0:
+            raise ValueError("regenerate_fraction must be in (0, 1]")
+        self.uncompacted = PhaseCounter(self.tech.warp_width)
+
+    def evaluate(self, p, sink):
+        """Every sample of the pass's budget, through the pool; `sink.add` gets each connect phase's records."""
+        self.regenerate(p, p.pool.all_slots, p.pool.size)        # every slot starts a sample
+        while p.in_flight > 0:
+            terminated = self.walk(p)                             # one vertex more on every subpath
+            if terminated >= self.regenerate_fraction * p.in_flight or p.pool.eye.length == p.pool.light.length == 0:
+                slots, count = self.terminated_slots(p)           # postponed regeneration:
+                sink.add(self.connect(p, count))                  #   connect the terminated samples,
+                self.regenerate(p, slots, count)                  #   then start new ones in their slots
+
+    # --- the stages of a pass, one kernel each ---------------------------------------------
+
+    def start_pass(self, camera, seed, sample_base, budget, sampler_args=(), vector_stride=0):
+        """The pass's state for `budget` samples; every slot of the pool starts terminated
+        (nothing in flight). Kernels built with a sampler that reads stored primary-sample
+        vectors (cl/mlt_proposals.h) take them as `sampler_args`, with their stride `vector_stride`
+        (BdptPass.chains); plain BDPT has neither."""
+        tech = self.tech
+        pool = self.sample_pool(min(self.pool_size, budget))
+        args = BDPT_PASS.zeros(1)[0]
+        args["seed"], args["sample_base"], args["pool"], args["capacity"] = seed, sample_base, pool.size, pool.capacity
+        args["chains"] = vector_stride
+        cl.enqueue_fill_buffer(tech.queue, pool.counters, np.int32(0), 0, 4 * len(WalkCounter))
+        pool.eye.length = pool.light.length = 0
+        # every slot "terminated", nothing to connect
+        self.last_pass = PassState(pool, camera, args, budget, tuple(sampler_args), in_flight=pool.size)
+        return self.last_pass
+
+    def sample_pool(self, size):
+        """The streams, the vertex memory (tens of MB) and the per-slot arrays, made once per pool size."""
+        tech = self.tech
+        ctx, capacity = tech.queue.context, tech.stream_capacity(size)
+        tech.compactor.reserve(size)   # its scratch memory too, once: no walk step or connect allocates
+        vertex_bytes = BDPT_VERTEX.dtype.itemsize * size * self.max_vertices
+
+        def stream(is_light):
+            return SubpathStream(is_light, tech.soa_buffer(SUBPATH, size), tech.soa_buffer(SUBPATH, size),
+                                 cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes))
+        return tech.reused(("pool", size), lambda: SamplePool(
+            size, capacity, stream(0), stream(1),
+            slots=cl.Buffer(ctx, cl.mem_flags.READ_WRITE, BDPT_SLOT.dtype.itemsize * tech.padded(size)),
+            terminated=tech.int_buffer(size), counters=tech.int_buffer(len(WalkCounter)),
+            lane_counts=tech.lane_counts_buffer(size),
+            all_slots=cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                                hostbuf=np.arange(size, dtype=np.int32))))
+
+    def regenerate(self, p, slots, count):
+        """bdpt_regenerate: the `count` terminated slots listed in `slots` start the next
+        samples of the budget (the rest go idle); the new subpaths join the end of the streams."""
+        tech = self.tech
+        fresh = min(count, p.budget - p.next_id)
+        if count:
+            r = BDPT_REGENERATION.zeros(1)[0]
+            r["count"], r["fresh"], r["first_id"] = count, fresh, p.next_id
+            r["eye_base"], r["light_base"] = p.pool.eye.length, p.pool.light.length
+            tech.launch(tech.kernel("bdpt_regenerate"), count, *tech.scene.args(), p.camera,
+                        p.args, r, slots, p.pool.eye.current, p.pool.light.current, p.pool.eye.vertices,
+                        p.pool.light.vertices, p.pool.slots, *p.sampler_args)
+        cl.enqueue_fill_buffer(tech.queue, p.pool.counters, np.int32(0), 4 * WalkCounter.TERMINATED_SAMPLES, 4)
+        p.pool.eye.length += fresh
+        p.pool.light.length += fresh
+        p.next_id += fresh
+        p.in_flight += fresh - count
+        if tech.count_simd and fresh:
+            tech.simd.add_stream_step("generate", fresh)
+
+    def walk(self, p):
+        """One random-walk step of both streams (bdpt_extend, compacted at once); returns the
+        samples that have terminated since the last regeneration."""
+        cl.enqueue_fill_buffer(self.tech.queue, p.pool.counters, np.int32(0), 0, 4 * WalkCounter.TERMINATED_SAMPLES)
+        for stream in (p.pool.eye, p.pool.light):
+            if stream.length:
+                self.extend(p, stream)
+        counters = self.tech.read_ints(p.pool.counters, len(WalkCounter))
+        p.pool.eye.advance(counters[WalkCounter.EYE_SURVIVORS])
+        p.pool.light.advance(counters[WalkCounter.LIGHT_SURVIVORS])
+        return int(counters[WalkCounter.TERMINATED_SAMPLES])
+
+    def extend(self, p, stream):
+        """bdpt_extend: one vertex more on every subpath of `stream`, survivors into its spare."""
+        tech = self.tech
+        step = BDPT_STEP.zeros(1)[0]
+        step["light_path"], step["length"] = stream.is_light, stream.length
+        tech.launch(tech.kernel("bdpt_extend"), stream.length, *tech.scene.args(), p.camera,
+                    p.args, step, stream.current, stream.spare, p.pool.counters, stream.vertices,
+                    p.pool.slots, p.pool.lane_counts, *p.sampler_args)
+        self.count_walk_step(p, stream)
+
+    def terminated_slots(self, p):
+        """bdpt_mark_terminated, then compaction: (the list of terminated slots, its length)."""
+        tech = self.tech
+        tech.launch(tech.kernel("bdpt_mark_terminated"), p.pool.size, np.int32(p.pool.size),
+                    p.pool.slots, p.pool.terminated)
+        listed = tech.reused(("terminated_list", p.pool.size), lambda: tech.int_buffer(p.pool.size))
+        return tech.compactor.compact_indices(p.pool.terminated, p.pool.size, method="immediate", out=listed)
+
+    # --- measuring and inspecting ------------------------------------------------------------
+
+    def count_walk_step(self, p, stream):
+        """SIMD counters of one walk step over `stream` (a no-op unless count_simd)."""
+        tech = self.tech
+        if not tech.count_simd:
+            return
+        lanes = tech.read_lane_counts(p.pool.lane_counts, stream.length)
+        tech.simd.add_stream_step("walk", stream.length, iteration=tech.iterations, capacity=p.pool.size,
+                                  draining=p.next_id == p.budget)
+        tech.iterations += 1
+        tech.simd.add_stream_step("compact", stream.length)
+        tech.traversal.add_warp_loops("closest", lanes["closest_steps"])
+        slots = np.empty(stream.length, np.int32)
+        cl.enqueue_copy(tech.queue, slots, stream.current, src_offset=SUBPATH.soa_offset("slot", p.pool.capacity))
+        mask = np.zeros(p.pool.size, bool)      # without compaction each path keeps its slot's lane
+        mask[slots] = True
+        self.uncompacted.add_stream_step("walk", mask)
+
+    def stats(self):
+        """The walk's figures for the render stats."""
+        if not self.tech.count_simd:
+            return {}
+        return {"walk_efficiency_without_compaction": self.uncompacted.efficiency().get("walk")}
+
+    def read_vertices(self):
+        """The vertex memory of the last samples of the last pass, as numpy:
+        (eye vertices, eye counts, light vertices, light counts), vertices shaped (pool, MAX_VERTICES)."""
+        pool = self.last_pass.pool
+        slots = self.tech.read_structs(BDPT_SLOT, pool.slots, pool.size)
+        out = []
+        for stream, counts in ((pool.eye, slots["eye_vertices"]), (pool.light, slots["light_vertices"])):
+            v = np.empty(pool.size * self.max_vertices, BDPT_VERTEX.dtype)
+            cl.enqueue_copy(self.tech.queue, v, stream.vertices)
+            out += [v.reshape(pool.size, self.max_vertices), counts.copy()]
+        return tuple(out)
+
+
+def read_records(tech, value_buffer, pixel_buffer, n):
+    """n connection records (values (n, 4) float32, pixels (n,) int32) from the device."""
+    values = np.empty((n, 4), np.float32)
+    pixels = np.empty(n, np.int32)
+    if n:
+        cl.enqueue_copy(tech.queue, values, value_buffer)
+        cl.enqueue_copy(tech.queue, pixels, pixel_buffer)
+    return values, pixels
+
+
+def record_buffers(tech, n, *more):
+    """Device memory for n records (float4 values, int pixels, and `more(capacity)` buffers);
+    it grows by powers of two and is reused by the next connect phases."""
+    capacity = 1 << max(12, (n - 1).bit_length())
+    return tech.reused(("records", capacity), lambda: (
+        cl.Buffer(tech.queue.context, cl.mem_flags.READ_WRITE, 16 * capacity), tech.int_buffer(capacity),
+        *(make(capacity) for make in more)))
+
+
+def per_pixel_sums(values, pixels, npix):
+    """(npix, 3) float64 sums of RGB `values` by pixel index."""
+    return np.stack([np.bincount(pixels, values[:, k], minlength=npix) for k in range(3)], axis=1)
