@@ -4,7 +4,7 @@
  * for the sample with the longest paths, and lanes whose sample is still walking wait too
  * (the talk: ~17% active threads). The random walk is shared with bdpt_parallel_connect
  * (bdpt_walk.h).
- * Kernels this technique launches, in the order of one pass (toolkit/techniques/bdpt_base.py):
+ * Kernels this technique launches, in the order of one pass (toolkit/techniques/bdpt_evaluator.py):
  *   bdpt_regenerate        cl/bdpt_walk.h   start samples in free pool slots
  *   bdpt_extend            cl/bdpt_walk.h   one random-walk step of the eye or the light stream
  *   bdpt_mark_terminated   cl/bdpt_walk.h   flag the slots that wait for their connections

@@ -10,7 +10,7 @@
  *   comes before); local indices 0, 1, 2.  g = 3, 4: slot 3, local 0, 1.
  *   With n_light = 1 (only y_0) and n_eye = 2 (z_0, z_1), slot 1's 3 strategies are
  *   local 0 -> (s, t) = (1, 1), local 1 -> (0, 2), local 2 -> (1, 2)   (k + 1 = (t - 1)(n_light + 1) + s).
- * Kernels this technique launches, in the order of one pass (toolkit/techniques/bdpt_base.py):
+ * Kernels this technique launches, in the order of one pass (toolkit/techniques/bdpt_evaluator.py):
  *   bdpt_regenerate              cl/bdpt_walk.h   start samples in free pool slots
  *   bdpt_extend                  cl/bdpt_walk.h   one random-walk step of the eye or the light stream
  *   bdpt_mark_terminated         cl/bdpt_walk.h   flag the slots that wait for their connections

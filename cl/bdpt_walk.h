@@ -2,7 +2,7 @@
  * an eye-path stream and a light-path stream, each extended by one vertex per step and
  * compacted at once (cl/compact.h); vertices go to pre-allocated per-sample memory.
  * A sample terminates when both of its subpaths have; regeneration is postponed until a
- * fraction of the samples has terminated (host: toolkit/techniques/bdpt_base.py). */
+ * fraction of the samples has terminated (host: toolkit/techniques/bdpt_evaluator.py). */
 #ifndef BDPT_WALK_H
 #define BDPT_WALK_H
 
@@ -68,7 +68,7 @@ HELPER int bdpt_pixel(const Camera* cam, int id, float* u, float* v) {
 }
 
 /* Russian roulette (common.h) at vertex k, as in the path tracers, but from BDPT_RR_DEPTH, half
- * the scene's depth rounded up (host: bdpt_base.py): two subpaths of that depth and their
+ * the scene's depth rounded up (host: bdpt_evaluator.py): two subpaths of that depth and their
  * connection already make a path longer than the path tracer's roulette-free part, and every
  * vertex more costs connections to all vertices of the other subpath. Light paths compare with
  * their throughput at y_1 (SUBPATH_RR_NORMALISER, layout.h). False when the subpath stops. */

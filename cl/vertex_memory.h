@@ -9,7 +9,7 @@
 #include "common.h"
 
 #ifndef MAX_VERTICES
-#define MAX_VERTICES 64  /* per subpath; set by the host (toolkit/techniques/bdpt_base.py) */
+#define MAX_VERTICES 64  /* per subpath; set by the host (toolkit/techniques/bdpt_evaluator.py) */
 #endif
 
 #define VERTEX_WORDS ((int)(sizeof(BdptVertex) / sizeof(uint)))

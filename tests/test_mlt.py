@@ -158,7 +158,7 @@ def test_every_stream_phase_is_at_least_97_percent_efficient(cornell_box):
 # -- (e) more dimensions than a chain stores -------------------------------------------------------
 
 def test_paths_longer_than_the_stored_dimensions_use_fresh_numbers_and_stay_unbiased(cornell_box):
-    """max_dims 16 stores the start and the first scattering of each subpath (rng.h): every
+    """max_dims 16 stores the start and the first scattering of each subpath (toolkit/core/sample_dims.py): every
     longer path reads fresh numbers for the rest, at every iteration. The image still agrees
     with the reference (mean, and regions over 11 seeds). With combine = False: the plain
     estimator (no large-step splats) is held here, the combined one by the agreement tests."""

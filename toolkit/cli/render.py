@@ -11,6 +11,7 @@ from toolkit.core.validate import check_output
 from toolkit.measure.reference import reference_at, reference_problem, rmse
 from toolkit.measure.strategies import format_strategies, write_strategies
 from toolkit.techniques import TECHNIQUES
+from toolkit.techniques.strategy_images import DEFAULT_MAX_EDGES
 
 
 def add_command(sub):
@@ -26,7 +27,7 @@ def add_command(sub):
                    help="bdpt_* only, instead of one image: an image per connection strategy (s, t), with and "
                         "without its MIS weight (Veach's figure 10.3), into DIR with strategies.json and a table "
                         "of each strategy's share of the image and of the variance")
-    p.add_argument("--strategy-edges", type=positive, default=5, metavar="K",
+    p.add_argument("--strategy-edges", type=positive, default=DEFAULT_MAX_EDGES, metavar="K",
                    help="with --strategies: strategies of paths up to K edges get images, longer paths one "
                         "summed image (default 5)")
     p.set_defaults(run=cmd_render)

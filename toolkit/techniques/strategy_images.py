@@ -8,7 +8,7 @@ from toolkit.core.layout import LUMINANCE_WEIGHTS
 # The numbering, shared with the kernels (generated into layout.h): by path edges k = s + t - 1, then by s.
 from toolkit.core.bdpt_indices import strategy_count, strategy_index
 
-DEFAULT_MAX_EDGES = 5
+DEFAULT_MAX_EDGES = 5   # `render --strategies`: paths of up to 5 edges get images of their own
 
 
 def strategies(max_edges):
@@ -33,7 +33,7 @@ class StrategyImages:
         used = pixels >= 0      # the others are unwritten memory
         values, pixels, index = values[used], pixels[used], index[used]
         weighted = values[:, :3] * values[:, 3:]                          # float32, as on the device
-        ok = np.isfinite(values).all(1) & np.isfinite(weighted).all(1)    # as reduce_records drops them
+        ok = np.isfinite(values).all(1) & np.isfinite(weighted).all(1)    # as ImageSink.per_pixel drops them
         values, weighted, pixels, index = values[ok], weighted[ok].astype(np.float64), pixels[ok], index[ok]
         unweighted = values[:, :3].astype(np.float64)
         shape = self.luminance_sq.shape                 # (strategies, pixels)
