@@ -1,4 +1,4 @@
-"""The speed-accuracy study (toolkit/measure/study.py, `python -m toolkit study`), issue 11's checks:
+"""The speed-accuracy study (toolkit/measure/study/, `python -m toolkit study`), issue 11's checks:
 
 1. slopes: every unbiased technique's RMSE falls as time^-1/2 on cornell_box, without bias;
 2. truncation bias: max_depth = 2, 3, 4 is biased (growing as the depth falls), -1 is not;
@@ -49,7 +49,7 @@ def test_standard_errors_match_the_spread_over_many_simulated_studies(reps):
     variance and mse match the actual spread of those figures, and bias2 / se (no bias) stays
     within a standard normal's spread. With T studies the spread's own relative error is
     ~1 / sqrt(2 T) = 1.8%; the bounds allow for that and for the jackknife's known upward bias
-    on a quadratic figure (the docstring of toolkit/measure/study.py: sd(z) ~0.7)."""
+    on a quadratic figure (the docstring of toolkit/measure/study/__init__.py: sd(z) ~0.7)."""
     rng = np.random.default_rng(11)
     sigma = np.full(256, 0.05)
     sigma[:4] *= math.sqrt(300)
@@ -122,7 +122,7 @@ def test_slope_and_time_to_target_on_an_exact_power_law():
 # cost would steepen the slope. Path tracers from 8 spp at 64x64 (~45 ms): from 4 spp (~25 ms) a
 # loaded machine's jitter on the small renders steepened pt_naive's slope to -0.65 in one CI run,
 # where the samples alone (the fit against spp) gave -0.55. Each point's time is the fastest
-# repetition's (toolkit/measure/study.py), which a disturbed repetition does not move.
+# repetition's (toolkit/measure/study/figures.py), which a disturbed repetition does not move.
 PT_STUDY = dict(spp_budgets=[8, 16, 32, 64, 128], repeats=4, resolution=(64, 64))
 BDPT_STUDY = dict(spp_budgets=[64, 128, 256, 512, 1024], repeats=6, resolution=(8, 8))
 MAX_SLOPE_SE = 0.1
@@ -315,21 +315,20 @@ def test_calibration_probes_again_until_its_last_probe_lands_near_the_target(mon
     candidates grow with the chains until every chain runs): the first guesses undershoot, and
     the calibration keeps probing until the last probe takes 0.7 .. 1.4 of its target, so the
     plan's line holds where it is used. The renders here are a cost model, not the device."""
-    import importlib
     from types import SimpleNamespace
-    study = importlib.import_module("toolkit.measure.study")     # the module (toolkit.measure.study is also the function)
+    from toolkit.measure.study import calibration
 
     def cost(spp):      # seconds: a start that grows with spp up to 64 spp, then 1 ms per spp
         return 0.001 * spp + 0.05 * min(spp, 64)
 
-    monkeypatch.setattr(study, "_render", lambda job, spp, seed: SimpleNamespace(stats={"seconds": cost(spp)}))
+    monkeypatch.setattr(calibration, "render_job", lambda job, spp, seed: SimpleNamespace(stats={"seconds": cost(spp)}))
     job = SimpleNamespace(seed=0, run=SimpleNamespace(resolution=(8, 8)))
-    cal = study.calibrate(job, 10.0)
+    cal = calibration.calibrate(job, 10.0)
     last_spp, last_seconds = cal["probes"][-1]
     assert len(cal["probes"]) > 3 and 0.7 <= last_seconds / 10.0 <= 1.4
     # With only its first probes (49 and 196 spp, on the start's ramp) the line would have
     # given a 20 s budget 2,917 spp, which take 6.1 s; the calibrated line gives what takes 20 s.
-    spp = study.plan(cal, [20.0])[0]
+    spp = calibration.plan(cal, [20.0])[0]
     assert cost(spp) == pytest.approx(20.0, rel=0.05)
 
 

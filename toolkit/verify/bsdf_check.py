@@ -15,10 +15,9 @@ directions against the pdf that `bsdf_eval` reports, after Mitsuba's `chi2.py` (
 - cells with expected count below 5 are pooled (Mitsuba's rule: sorted by expected count,
   the smallest are merged until the pooled cell reaches 5);
 - the statistic sum (O - E)^2 / E has (cells - 1) degrees of freedom; its p-value is the
-  regularized upper incomplete gamma function Q(dof / 2, chi2 / 2). The statistic, the
-  p-value and the Sidak correction are in `toolkit/measure/stats.py`, shared with the render z-test.
-
-Only numpy and the standard library are used on the host (no scipy).
+  chi-square distribution's tail, the regularized upper incomplete gamma function
+  Q(dof / 2, chi2 / 2) (from scipy). The statistic with its pooling, the tail and the Sidak
+  correction are in `toolkit/measure/stats.py`, shared with the render z-test.
 """
 import math
 from dataclasses import dataclass, field
