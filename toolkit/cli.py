@@ -393,7 +393,7 @@ def cmd_bench_specialization(args):
 
 
 def cmd_bench_peer(args):
-    from toolkit.peers.mitsuba import mitsuba as peers
+    from toolkit.peers import mitsuba as peers
     from toolkit.api import as_scene
     from toolkit.opencl.device import get_queue
     scene = as_scene(args.scene)

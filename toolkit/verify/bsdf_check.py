@@ -27,6 +27,7 @@ import pyopencl as cl
 import pyopencl.cltypes as cltypes
 
 from toolkit.opencl import program
+from toolkit.opencl.device import get_queue
 from toolkit.core.layout import MATERIAL, MATERIAL_TYPES
 from toolkit.measure.stats import chi2_sf, pearson
 
@@ -76,10 +77,7 @@ class BsdfChecker:
     """cl/bsdf_test.cl built once for a queue (all materials); sample and evaluate on it."""
 
     def __init__(self, queue=None):
-        if queue is None:
-            from toolkit.opencl.device import get_queue
-            queue = get_queue()
-        self.queue = queue
+        self.queue = queue if queue is not None else get_queue()
         self.program = program.build(queue.context, SOURCE, defines())
         self._sample = program.kernel(self.program, "bsdf_test_sample")
         self._eval = program.kernel(self.program, "bsdf_test_eval")

@@ -11,7 +11,7 @@ from toolkit.measure.study.report import slope_text
 def save_plots(report, renders, scene, out_dir):
     """The three plots of `report` in `out_dir`: {"rmse_vs_time", "bias_variance", "image_strip"}: paths
     (bias_variance only where every run has a bias^2). `renders` as in report.run_report."""
-    # matplotlib only here: it takes a second to import, and only a study written to disk plots.
+    # Imported here: matplotlib takes ~0.5 s to import, and only a study written to disk plots.
     from matplotlib.figure import Figure
     out_dir.mkdir(parents=True, exist_ok=True)
     name = report["scene"]
