@@ -53,14 +53,15 @@ there the errors are the jackknife of the whole-image figures over the repetitio
     hard           = the same over the 10% hardest pixels (reference.hard_pixels), relative to
                      their own mean.
 
-The package, one module a step: knobs.py (the runs and their knob values), workers.py (where the
-renders run: here or on a Dask cluster), calibration.py (a time budget becomes a sample count),
-figures.py (the figures above), report.py (the report and its table), plots.py, runs.py (study()
-itself, its steps in order) and equal_time.py (the study with one budget). `toolkit.study` is
-study(); import the rest from here (`from toolkit.measure.study import format_study`).
+The package, one module a step: knobs.py (the runs and their knob values), workers.py (where
+the renders run: here or on a Dask cluster), calibration.py (a time budget becomes a sample
+count), figures.py (the figures above), report.py (the report and its table), plots.py, runs.py
+(study() itself, its steps in order) and at_equal_time.py (equal_time: the study with one
+budget). `toolkit.study` is study(); import the rest from here
+(`from toolkit.measure.study import format_study`).
 """
 from toolkit.measure.study.calibration import CALIBRATION_SECONDS, calibrate, fit_cost, plan
-from toolkit.measure.study.equal_time import equal_time, format_equal_time
+from toolkit.measure.study.at_equal_time import equal_time, format_equal_time
 from toolkit.measure.study.figures import (MIN_PIXEL_TEST_SAMPLES, error_figures, fit_slope, pixel_test,
                                            point_figures, time_to_target)
 from toolkit.measure.study.knobs import DEFAULT_RESOLUTION, INTEGRATOR_KNOBS, Repetition, Run, make_runs, \
