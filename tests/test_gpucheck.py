@@ -7,6 +7,7 @@ import json
 import numpy as np
 import pytest
 
+import toolkit.api
 from toolkit.verify import gpucheck
 
 from toolkit.verify import same_image
@@ -60,7 +61,6 @@ def test_a_failed_check_fails_the_run(fast_run, monkeypatch, capsys):
 def test_a_sample_scheduling_bug_fails_the_same_image_check(cornell_box, monkeypatch):
     """One pixel of pt_compact_regen's image off by one sample of radiance 1 (a sample counted
     twice, say): the checks that compare that image fail, and only they."""
-    import toolkit.api
     real = toolkit.api.render
 
     def render(*args, **kwargs):

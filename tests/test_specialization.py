@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import toolkit
+from toolkit.cli import main
 from conftest import film_error_techniques, scene_dirs, spp_for
 from toolkit.opencl.device_scene import DeviceScene
 from toolkit.core.layout import MATERIAL_TYPES
@@ -92,7 +93,6 @@ def test_general_kernel_renders_a_glossy_scene(queue):
 def test_bench_specialization_measures_both_kernels(capsys):
     """`bench --specialization`: both kernels built afresh (not answered by a cache) and measured;
     the general kernel carries more code, so its program binary is larger."""
-    from toolkit.cli import main
     assert main(["bench", "--specialization", str(scene_dirs()[0].parent / "cornell_box"), "--techniques",
                  "pt_naive", "--resolution", "8x8", "--spp", "1", "--repeats", "1", "--json"]) == 0
     out = capsys.readouterr().out

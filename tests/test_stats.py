@@ -1,22 +1,32 @@
 """The host-side statistics in toolkit/measure/stats.py, which the BSDF chi-square test and the render
-z-test share, against closed forms."""
+z-test share, against closed forms and known values (the tails themselves are scipy.stats')."""
 import math
 
 import pytest
 
-from toolkit.measure.stats import bonferroni, chi2_sf, gammq, normal_two_sided_p, pearson, sidak, student_t_two_sided_p
+from toolkit.measure.stats import bonferroni, chi2_sf, normal_two_sided_p, pearson, sidak, student_t_two_sided_p
 
 
-def test_gammq_matches_closed_forms():
-    # Q(n, x) = exp(-x) sum_{k<n} x^k / k! for integer n; Q(1/2, x) = erfc(sqrt(x)).
-    for n in (1, 2, 5, 50, 400):
-        for x in (0.1, 1.0, 4.5, 0.5 * n, n, 1.3 * n + 7.0):
-            exact = sum(math.exp(-x + k * math.log(x) - math.lgamma(k + 1)) for k in range(n))
-            assert gammq(n, x) == pytest.approx(exact, rel=1e-10, abs=1e-300), (n, x)
-    for x in (1e-4, 0.3, 1.0, 2.5, 10.0):
-        assert gammq(0.5, x) == pytest.approx(math.erfc(math.sqrt(x)), rel=1e-10)
-    # chi-square with dof 2: sf = exp(-x/2); large dof: the Wilson-Hilferty approximation.
+def test_normal_p_values_match_known_values():
+    # the two-sided 5% and 1% points of the normal, both signs, and the erfc form of the tail
+    assert normal_two_sided_p(1.959963984540054) == pytest.approx(0.05, rel=1e-12)
+    assert normal_two_sided_p(-2.5758293035489004) == pytest.approx(0.01, rel=1e-12)
+    for z in (0.0, 0.3, 1.0, 4.0, 8.0, 30.0):
+        assert normal_two_sided_p(z) == pytest.approx(math.erfc(z / math.sqrt(2.0)), rel=1e-12, abs=1e-300)
+    assert normal_two_sided_p([1.0, -1.0]).shape == (2,)
+
+
+def test_chi2_tail_matches_closed_forms():
+    # dof 2: sf = exp(-x/2); even dof 2n: exp(-x/2) sum_{k<n} (x/2)^k / k!; dof 1: erfc(sqrt(x/2));
+    # large dof: the Wilson-Hilferty approximation.
     assert chi2_sf(7.0, 2) == pytest.approx(math.exp(-3.5), rel=1e-12)
+    for n in (1, 2, 5, 50, 400):
+        for x in (0.2, 2.0, 9.0, n, 2.0 * n, 2.6 * n + 14.0):
+            exact = sum(math.exp(-x / 2 + k * math.log(x / 2) - math.lgamma(k + 1)) for k in range(n))
+            assert chi2_sf(x, 2 * n) == pytest.approx(exact, rel=1e-10, abs=1e-300), (n, x)
+    for x in (2e-4, 0.6, 2.0, 5.0, 20.0):
+        assert chi2_sf(x, 1) == pytest.approx(math.erfc(math.sqrt(x / 2)), rel=1e-10)
+    assert chi2_sf(0.0, 3) == 1.0 and chi2_sf(-1.0, 3) == 1.0
     for dof, x in ((3000, 3000.0), (3000, 3250.0), (4000, 3800.0)):
         h = 2.0 / (9.0 * dof)
         zscore = ((x / dof) ** (1.0 / 3.0) - (1.0 - h)) / math.sqrt(h)

@@ -1,4 +1,4 @@
-"""The speed-accuracy study (toolkit/measure/study.py, `python -m toolkit study`), issue 11's checks:
+"""The speed-accuracy study (toolkit/measure/study/, `python -m toolkit study`), issue 11's checks:
 
 1. slopes: every unbiased technique's RMSE falls as time^-1/2 on cornell_box, without bias;
 2. truncation bias: max_depth = 2, 3, 4 is biased (growing as the depth falls), -1 is not;
@@ -13,12 +13,15 @@ on the seeds, and the tests stay short. Times are still measured, as the slopes 
 import json
 import math
 from pathlib import Path
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 
+from toolkit.cli import build_parser, main
+from toolkit.core.images import write_atomically
 from toolkit.measure.stats import bonferroni, normal_two_sided_p, student_t_two_sided_p
-from toolkit.measure.study import error_figures, fit_slope, study, time_to_target
+from toolkit.measure.study import calibration, error_figures, fit_slope, study, time_to_target
 
 ALPHA = 0.01     # chance that a correct study fails a statistical test below (with Bonferroni)
 UNBIASED = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "bdpt_naive_connect", "bdpt_parallel_connect")
@@ -49,7 +52,7 @@ def test_standard_errors_match_the_spread_over_many_simulated_studies(reps):
     variance and mse match the actual spread of those figures, and bias2 / se (no bias) stays
     within a standard normal's spread. With T studies the spread's own relative error is
     ~1 / sqrt(2 T) = 1.8%; the bounds allow for that and for the jackknife's known upward bias
-    on a quadratic figure (the docstring of toolkit/measure/study.py: sd(z) ~0.7)."""
+    on a quadratic figure (the docstring of toolkit/measure/study/__init__.py: sd(z) ~0.7)."""
     rng = np.random.default_rng(11)
     sigma = np.full(256, 0.05)
     sigma[:4] *= math.sqrt(300)
@@ -122,7 +125,7 @@ def test_slope_and_time_to_target_on_an_exact_power_law():
 # cost would steepen the slope. Path tracers from 8 spp at 64x64 (~45 ms): from 4 spp (~25 ms) a
 # loaded machine's jitter on the small renders steepened pt_naive's slope to -0.65 in one CI run,
 # where the samples alone (the fit against spp) gave -0.55. Each point's time is the fastest
-# repetition's (toolkit/measure/study.py), which a disturbed repetition does not move.
+# repetition's (toolkit/measure/study/figures.py), which a disturbed repetition does not move.
 PT_STUDY = dict(spp_budgets=[8, 16, 32, 64, 128], repeats=4, resolution=(64, 64))
 BDPT_STUDY = dict(spp_budgets=[64, 128, 256, 512, 1024], repeats=6, resolution=(8, 8))
 MAX_SLOPE_SE = 0.1
@@ -243,7 +246,6 @@ def test_a_dask_cluster_gives_exactly_the_numbers_of_a_local_run(scenes):
 # -- check 7: the command line -----------------------------------------------------------------
 
 def study_parser():
-    from toolkit.cli import build_parser
     parser = build_parser()
     sub = next(a for a in parser._actions if a.dest == "command")
     return sub.choices["study"]
@@ -263,7 +265,6 @@ def test_study_help_explains_every_option():
 
 
 def test_study_command_end_to_end(tmp_path, capsys):
-    from toolkit.cli import main
     out = tmp_path / "study"
     rc = main(["study", "--techniques", "pt_naive,bdpt_parallel_connect", "--spp-budgets", "4,8", "--repeats", "3",
                "--resolution", "8x8", "--out", str(out), "--json", "--no-progress"])
@@ -282,7 +283,6 @@ def test_study_command_end_to_end(tmp_path, capsys):
 def test_study_reports_what_specialization_buys(tmp_path, capsys):
     """Issue 11 check 4: the study reports the specialized / general samples/s ratio for its
     scene and techniques (the images' equality is tests/test_specialization.py's)."""
-    from toolkit.cli import main
     rc = main(["study", "--techniques", "pt_naive", "--spp-budgets", "2", "--repeats", "2",
                "--resolution", "8x8", "--out", str(tmp_path), "--json", "--no-progress", "--specialization"])
     printed = capsys.readouterr().out
@@ -297,7 +297,6 @@ def test_study_reports_what_specialization_buys(tmp_path, capsys):
 def test_time_budgets_become_a_plan_by_calibration(tmp_path, capsys):
     """Seconds in, a plan of sample counts out (in the JSON), growing with the budget; the
     warm-up is reported apart; a knob sweep runs through the same command."""
-    from toolkit.cli import main
     rc = main(["study", "--techniques", "pt_naive", "--budgets", "0.02,0.08", "--repeats", "2", "--resolution", "8x8",
                "--knob", "max_depth=2,-1", "--out", str(tmp_path), "--json", "--no-progress"])
     assert rc == 0
@@ -315,21 +314,18 @@ def test_calibration_probes_again_until_its_last_probe_lands_near_the_target(mon
     candidates grow with the chains until every chain runs): the first guesses undershoot, and
     the calibration keeps probing until the last probe takes 0.7 .. 1.4 of its target, so the
     plan's line holds where it is used. The renders here are a cost model, not the device."""
-    import importlib
-    from types import SimpleNamespace
-    study = importlib.import_module("toolkit.measure.study")     # the module (toolkit.measure.study is also the function)
 
     def cost(spp):      # seconds: a start that grows with spp up to 64 spp, then 1 ms per spp
         return 0.001 * spp + 0.05 * min(spp, 64)
 
-    monkeypatch.setattr(study, "_render", lambda job, spp, seed: SimpleNamespace(stats={"seconds": cost(spp)}))
+    monkeypatch.setattr(calibration, "render_job", lambda job, spp, seed: SimpleNamespace(stats={"seconds": cost(spp)}))
     job = SimpleNamespace(seed=0, run=SimpleNamespace(resolution=(8, 8)))
-    cal = study.calibrate(job, 10.0)
+    cal = calibration.calibrate(job, 10.0)
     last_spp, last_seconds = cal["probes"][-1]
     assert len(cal["probes"]) > 3 and 0.7 <= last_seconds / 10.0 <= 1.4
     # With only its first probes (49 and 196 spp, on the start's ramp) the line would have
     # given a 20 s budget 2,917 spp, which take 6.1 s; the calibrated line gives what takes 20 s.
-    spp = study.plan(cal, [20.0])[0]
+    spp = calibration.plan(cal, [20.0])[0]
     assert cost(spp) == pytest.approx(20.0, rel=0.05)
 
 
@@ -344,7 +340,6 @@ def test_calibration_probes_again_until_its_last_probe_lands_near_the_target(mon
     (["--techniques", "mlt", "--knob", "clamp=1"], "mlt does not clamp"),
 ])
 def test_study_refuses_bad_input_with_the_reason(args, complaint, tmp_path, capsys):
-    from toolkit.cli import main
     rc = main(["study", "--spp-budgets", "2", "--repeats", "2", "--resolution", "8x8", "--no-progress",
                "--out", str(tmp_path), *args])
     err = capsys.readouterr().err
@@ -352,7 +347,6 @@ def test_study_refuses_bad_input_with_the_reason(args, complaint, tmp_path, caps
 
 
 def test_a_failed_write_leaves_the_old_file(tmp_path):
-    from toolkit.core.images import write_atomically
     path = tmp_path / "study.json"
     path.write_text("old")
 

@@ -5,6 +5,8 @@ the same way, ties included (smallest t, then lowest triangle index: cl/bvh.h `c
 they must agree bit for bit: the same t, u, v and triangle for every ray, and the same image.
 Only the order of visiting nodes differs, and the number of nodes visited.
 """
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -82,7 +84,6 @@ def test_pt_naive_images_are_bit_identical(request, name):
 
 def test_a_scene_of_one_leaf(queue, cornell_box):
     """Four triangles or fewer: the binary root is a leaf, the wide root has one child."""
-    from dataclasses import replace
     keep = cornell_box.light_triangles[:2]      # a scene needs a light
     small = replace(cornell_box, triangles=cornell_box.triangles[keep], material_of=cornell_box.material_of[keep],
                     emission_of=cornell_box.emission_of[keep], name="two triangles")

@@ -14,6 +14,7 @@ from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
+from tqdm.auto import tqdm
 
 from toolkit.core.layout import BVH_NODE, BVH_WIDTH, TRI_GROUP, WIDE_NODE, WideChild
 
@@ -75,7 +76,6 @@ def _best_split(lo, hi, centroid, bins):
 def build_bvh(tri_vertices, leaf_size=4, bins=16):
     """Build over triangles given as (M, 3, 3) float64 vertex positions."""
     start = time.perf_counter()
-    from tqdm.auto import tqdm
     bar = tqdm(total=len(tri_vertices), unit="tri", desc="BVH build", file=sys.stderr, leave=False,
                disable=len(tri_vertices) < PROGRESS_FROM, mininterval=0.5)
     lo_all, hi_all = tri_vertices.min(1), tri_vertices.max(1)
@@ -145,10 +145,24 @@ def collapse_wide(bvh, leaf_vertices, width=BVH_WIDTH):
     is_leaf = nodes["count"] > 0
     if is_leaf.any() and nodes["count"].max() > width:
         raise ValueError(f"a TriGroup holds {width} triangles; the BVH has leaves of {nodes['count'].max()}")
-    lo, hi = nodes["lo"][:, :3].astype(np.float64), nodes["hi"][:, :3].astype(np.float64)
-    area = _area(lo, hi)
+    groups, group_of = _tri_groups(nodes, is_leaf, leaf_vertices, width)
+    kids_of, index_of, depth_of, stack_of = _wide_children(nodes, is_leaf, width)
+    wide = WIDE_NODE.zeros(len(kids_of))
+    wide["child"] = int(WideChild.EMPTY)
+    group_base = len(kids_of) * NODE_WORDS
+    for w, kids in enumerate(kids_of):
+        for lane, k in enumerate(kids):
+            for axis, name in enumerate("xyz"):
+                wide[f"lo_{name}"][w, lane] = nodes["lo"][k, axis]
+                wide[f"hi_{name}"][w, lane] = nodes["hi"][k, axis]
+            wide["child"][w, lane] = (~(group_base + int(group_of[k]) * GROUP_WORDS) if is_leaf[k]
+                                      else index_of[k] * NODE_WORDS)
+    words = np.concatenate([wide.view(np.float32).reshape(-1, 4), groups.view(np.float32).reshape(-1, 4)])
+    return WideBvh(np.ascontiguousarray(words), len(kids_of), len(groups), max(depth_of), max(stack_of))
 
-    # One TriGroup per binary leaf, in node order.
+
+def _tri_groups(nodes, is_leaf, leaf_vertices, width):
+    """One TriGroup per binary leaf, in node order: (groups, binary node -> its group or -1)."""
     leaves = np.flatnonzero(is_leaf)
     group_of = np.full(len(nodes), -1)
     group_of[leaves] = np.arange(len(leaves))
@@ -163,14 +177,20 @@ def collapse_wide(bvh, leaf_vertices, width=BVH_WIDTH):
             for k, name in enumerate("xyz"):
                 # Empty lanes keep v0 = v1 = v2 = 0: a degenerate triangle the test rejects (det = 0).
                 groups[f"v{v}{name}"][has, lane] = leaf_vertices[slot, v, k]
+    return groups, group_of
 
-    # Wide nodes: children chosen top-down; binary node -> wide node index for inner children.
+
+def _wide_children(nodes, is_leaf, width):
+    """The wide nodes' children, chosen top-down (the inner child of largest surface area opens
+    first): (binary children per wide node, binary node -> wide node index for inner children,
+    depth per wide node, stack entries a ray may hold on reaching it)."""
+    lo, hi = nodes["lo"][:, :3].astype(np.float64), nodes["hi"][:, :3].astype(np.float64)
+    area = _area(lo, hi)
+
     def children(b):
         return [b + 1, int(nodes["first"][b])]
 
-    kids_of = []                  # per wide node: its binary children
-    depth_of = []
-    stack_of = []                 # stack entries a ray may hold on reaching this node
+    kids_of, depth_of, stack_of = [], [], []
     pending = deque([(0, 1, 0)])  # (binary node, depth, stack entries below it), breadth first
     index_of = {0: 0}
     while pending:
@@ -190,16 +210,4 @@ def collapse_wide(bvh, leaf_vertices, width=BVH_WIDTH):
             if not is_leaf[k]:
                 index_of[k] = len(kids_of) + len(pending)
                 pending.append((k, depth + 1, stacked + len(kids) - 1))
-
-    wide = WIDE_NODE.zeros(len(kids_of))
-    wide["child"] = int(WideChild.EMPTY)
-    group_base = len(kids_of) * NODE_WORDS
-    for w, kids in enumerate(kids_of):
-        for lane, k in enumerate(kids):
-            for axis, name in enumerate("xyz"):
-                wide[f"lo_{name}"][w, lane] = nodes["lo"][k, axis]
-                wide[f"hi_{name}"][w, lane] = nodes["hi"][k, axis]
-            wide["child"][w, lane] = (~(group_base + int(group_of[k]) * GROUP_WORDS) if is_leaf[k]
-                                      else index_of[k] * NODE_WORDS)
-    words = np.concatenate([wide.view(np.float32).reshape(-1, 4), groups.view(np.float32).reshape(-1, 4)])
-    return WideBvh(np.ascontiguousarray(words), len(kids_of), len(leaves), max(depth_of), max(stack_of))
+    return kids_of, index_of, depth_of, stack_of

@@ -4,11 +4,11 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+import OpenImageIO as oiio
 
 
 def read_exr(path):
     """(H, W, 3) float32 pixels; OSError naming the problem for a missing, truncated or corrupt file."""
-    import OpenImageIO as oiio
     file = oiio.ImageInput.open(str(path))
     if file is None:
         raise OSError(f"{path}: {oiio.geterror() or 'cannot open the image'}")
@@ -31,7 +31,6 @@ def write_image(path, image):
     Each file is written to a temporary file in the same folder, every result checked, then
     renamed over the old one: a failed write (disk full, no permission) raises OSError naming
     the reason and leaves any old file untouched."""
-    import OpenImageIO as oiio
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in (".exr", ".png"):

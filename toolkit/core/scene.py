@@ -10,14 +10,16 @@ from pathlib import Path
 
 import numpy as np
 
+from toolkit.core.images import read_exr
+from toolkit.core.layout import MATERIAL_TYPES
 from toolkit.core.obj import ObjError, read_obj
 from toolkit.core.package_data import data_dir
 from toolkit.core.validate import LIMITS, InputError, check_keys, finite_number, in_range, json_depth, \
     regular_file_inside, whole_number
 
 FORMAT = "toolkit-scene/1"
-# Material type codes, shared with the kernels as MAT_*: MaterialType in toolkit/core/layout.py.
-from toolkit.core.layout import MATERIAL_TYPES  # noqa: E402
+# The parameters of each material type (MATERIAL_TYPES: the codes shared with the kernels as MAT_*,
+# MaterialType in toolkit/core/layout.py).
 MATERIAL_PARAMS = {"diffuse": {"reflectance"}, "mirror": {"reflectance"},
                    "dielectric": {"ior"}, "glossy": {"reflectance", "alpha"}}
 # The keys of each object in scene.json (a free-form "notes" is allowed in every one).
@@ -233,6 +235,30 @@ def _load_scene(path):
     if not path.exists() and not path.is_symlink():
         raise SceneError(f"{path}: scene file not found")
     where = str(path)
+    data = _read_json(path, where)
+    camera = _parse_camera(where, data.get("camera"))
+    materials_in = data.get("materials")
+    if not isinstance(materials_in, dict) or not materials_in:
+        _fail(where, "'materials' must be a non-empty object")
+    materials = [_parse_material(where, name, m) for name, m in materials_in.items()]
+    vertices, triangles, material_of, emission_of = _parse_shapes(where, path, data.get("shapes"),
+                                                                  {m["name"]: i for i, m in enumerate(materials)})
+    max_depth, rr_depth, clamp = _parse_integrator(where, data.get("integrator", {}))
+    scene = Scene(
+        name=path.parent.name, camera=camera,
+        vertices=vertices, triangles=triangles, material_of=material_of, emission_of=emission_of,
+        materials=materials,
+        max_depth=max_depth, rr_depth=rr_depth, clamp=clamp,
+        path=path, info={"notes": data.get("notes", "")})
+    scene = drop_degenerate(scene, where)
+    check_scene(scene, where)
+    scene.reference, scene.reference_stderr, problem = _load_reference(path.parent, camera)
+    scene.info.update(problem)
+    return scene
+
+
+def _read_json(path, where):
+    """scene.json's top-level object, its format and keys checked (a SceneError that names the problem)."""
     regular_file_inside(path, path.parent, "scene file", "scene.json.bytes")
     try:
         data = json.loads(path.read_text(encoding="utf-8"), object_pairs_hook=_no_duplicates)
@@ -250,13 +276,11 @@ def _load_scene(path):
     if data.get("format") != FORMAT:
         _fail(where, f"'format' must be {FORMAT!r}, got {_short(data.get('format'))}")
     check_keys(where, data, TOP_KEYS, "the top level")
-    camera = _parse_camera(where, data.get("camera"))
-    materials_in = data.get("materials")
-    if not isinstance(materials_in, dict) or not materials_in:
-        _fail(where, "'materials' must be a non-empty object")
-    materials = [_parse_material(where, name, m) for name, m in materials_in.items()]
-    index_of = {m["name"]: i for i, m in enumerate(materials)}
-    shapes = data.get("shapes")
+    return data
+
+
+def _parse_shapes(where, path, shapes, index_of):
+    """The shapes' meshes joined: (vertices, triangles, material of each triangle, emission of each)."""
     if not isinstance(shapes, list) or not shapes:
         _fail(where, "'shapes' must be a non-empty list")
     vertices, triangles, material_of, emission_of = [], [], [], []
@@ -283,7 +307,13 @@ def _load_scene(path):
         offset += len(v)
         material_of.append(np.full(len(t), index_of[shape["material"]]))
         emission_of.append(np.repeat(emission[None], len(t), 0))
-    integrator = _object(where, data.get("integrator", {}), "'integrator'", INTEGRATOR_KEYS)
+    return (np.concatenate(vertices), np.concatenate(triangles), np.concatenate(material_of),
+            np.concatenate(emission_of))
+
+
+def _parse_integrator(where, integrator):
+    """(max_depth, rr_depth, clamp) of the scene's integrator settings."""
+    integrator = _object(where, integrator, "'integrator'", INTEGRATOR_KEYS)
     max_depth = whole_number("integrator.max_depth", integrator.get("max_depth", -1), f"{where}: integrator.max_depth")
     rr_depth = whole_number("integrator.rr_depth", integrator.get("rr_depth", 5), f"{where}: integrator.rr_depth")
     clamp = integrator.get("clamp")     # absent or null: no clamping
@@ -292,18 +322,7 @@ def _load_scene(path):
     if max_depth < 0 and rr_depth < 0:
         _fail(where, "integrator: max_depth -1 (unbounded) needs Russian roulette (rr_depth >= 0); "
                      "without either, paths only end at each technique's own hard cap")
-    scene = Scene(
-        name=path.parent.name, camera=camera,
-        vertices=np.concatenate(vertices), triangles=np.concatenate(triangles),
-        material_of=np.concatenate(material_of), emission_of=np.concatenate(emission_of),
-        materials=materials,
-        max_depth=max_depth, rr_depth=rr_depth, clamp=clamp,
-        path=path, info={"notes": data.get("notes", "")})
-    scene = drop_degenerate(scene, where)
-    check_scene(scene, where)
-    scene.reference, scene.reference_stderr, problem = _load_reference(path.parent, camera)
-    scene.info.update(problem)
-    return scene
+    return max_depth, rr_depth, clamp
 
 
 def check_scene(scene, where=None):
@@ -357,7 +376,6 @@ def _load_reference(folder, camera):
     ref_path = folder / "reference.exr"
     if not ref_path.is_file():
         return None, None, {}
-    from toolkit.core.images import read_exr
     info = {}
 
     def unusable(problem):

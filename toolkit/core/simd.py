@@ -46,9 +46,7 @@ class PhaseCounter:
         """A loop run inside each lane: its warp issues as many iterations as its longest lane.
         `active` (default: the iterations themselves) counts the lane-steps doing the phase's work."""
         w = self.warp_width
-        x = np.asarray(lane_iterations, np.int64)
-        pad = (-len(x)) % w
-        warps = np.concatenate([x, np.zeros(pad, np.int64)]).reshape(-1, w)
+        warps = _into_warps(lane_iterations, w)
         self.add(phase, warps.sum() if active is None else active, warps.max(1).sum() * w)
 
     def add_loop_iterations(self, phase, lane_iterations, first_iteration=0):
@@ -56,8 +54,7 @@ class PhaseCounter:
         lanes with more than k iterations are active, the warps with any such lane issue."""
         w = self.warp_width
         x = np.asarray(lane_iterations, np.int64)
-        pad = (-len(x)) % w
-        warps = np.concatenate([x, np.zeros(pad, np.int64)]).reshape(-1, w)
+        warps = _into_warps(x, w)
         warp_max = warps.max(1)
         for k in range(int(x.max()) if len(x) else 0):
             active = int((x > k).sum())
@@ -71,3 +68,10 @@ class PhaseCounter:
         total_issued = sum(self.issued.values())
         out["overall"] = sum(self.active.values()) / total_issued if total_issued else 1.0
         return out
+
+
+def _into_warps(lane_iterations, warp_width):
+    """Per-lane counts as rows of `warp_width` lanes (warps), the last warp padded with idle lanes (0)."""
+    x = np.asarray(lane_iterations, np.int64)
+    pad = (-len(x)) % warp_width
+    return np.concatenate([x, np.zeros(pad, np.int64)]).reshape(-1, warp_width)

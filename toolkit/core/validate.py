@@ -9,6 +9,7 @@ import math
 import numbers
 import os
 import stat
+import tempfile
 from pathlib import Path
 
 
@@ -183,7 +184,6 @@ def check_output(path):
 def writable_file(path, what="a file"):
     """`path` (an --out) must not be a folder, and its folder must accept a new file: tried with
     a temporary file that is removed at once. Returns the Path; else an InputError."""
-    import tempfile
     path = Path(path)
     if path.is_dir():
         raise InputError(f"--out {path}: is a folder, not {what}")

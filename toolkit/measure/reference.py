@@ -4,7 +4,7 @@ The reference (256x256 Mitsuba render with its per-pixel standard error) is aver
 k x k blocks to match a reduced-resolution render of the same camera: a 64x64 pixel covers
 exactly a 4x4 block of reference pixels, and the box filter makes its expected value the block
 mean. The z-test combines both standard errors and corrects for the number of pixels tested
-(the distributions' tails and the correction are in `toolkit/measure/stats.py`).
+(the two-sided tails and the correction are in `toolkit/measure/stats.py`).
 """
 from dataclasses import dataclass
 

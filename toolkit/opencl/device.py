@@ -32,6 +32,9 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.opencl import runtimes  # noqa: F401  (registers pip's OpenCL runtimes before the first OpenCL call)
+from toolkit.core.package_data import user_cache_folder
+from toolkit.opencl.program import LOCAL_SIZE, KernelBuildError, build, expand_includes, kernel, launch
+from toolkit.opencl.runtimes import intel_cpu_library
 
 
 class NoOpenCLError(RuntimeError):
@@ -137,15 +140,13 @@ PROBE_ITEMS = 256
 
 
 def _probe_key(device):
-    from toolkit.opencl.program import expand_includes
     text = "\0".join([device.platform.name, device.platform.version, device.name,
                       device.driver_version, device.version, expand_includes("probe.cl"), cl.VERSION_TEXT])
     return hashlib.sha256(text.encode()).hexdigest()[:24]
 
 
 def _probe_cache_file(key):
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "simd-light-transport-toolkit"
-    return base / "probes" / f"{key}.json"
+    return user_cache_folder() / "probes" / f"{key}.json"
 
 
 _probed = {}
@@ -177,12 +178,10 @@ def probe(device):
 
 
 def _run_probe(device):
-    from toolkit.opencl.program import KernelBuildError, build, launch, kernel
     try:
         queue = _queue_for_device(device)
         program = build(queue.context, "probe.cl")
         lengths = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, PROBE_ITEMS * 4)
-        from toolkit.opencl.program import LOCAL_SIZE
         groups = PROBE_ITEMS // LOCAL_SIZE
         sums = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, groups * 4)
         counter = np.zeros(1, np.int32)
@@ -267,7 +266,6 @@ def explain_no_usable_device(found):
                      f"({_cpu_name()}), so it cannot compile for it.")
     lines.append("Fixes:")
     if host_platform.system() == "Linux" and host_platform.machine() == "x86_64":
-        from toolkit.opencl.runtimes import intel_cpu_library
         if intel_cpu_library() is None:
             lines.append("  - pip install intel-opencl-rt intel-cmplr-lib-rt   (Intel's CPU runtime; "
                          "the toolkit registers it by itself)")

@@ -28,6 +28,8 @@ import tempfile
 from importlib import metadata
 from pathlib import Path
 
+from toolkit.core.package_data import APP_NAME, user_cache_folder
+
 SYSTEM_VENDORS = Path("/etc/OpenCL/vendors")
 
 
@@ -48,8 +50,7 @@ def intel_cpu_library():
 def _vendors_folder(icd_lines):
     """A folder of `.icd` files (one per library), written once per distinct content."""
     key = hashlib.sha256("\n".join(sorted(icd_lines.values())).encode()).hexdigest()[:16]
-    base = Path(os.environ.get("XDG_CACHE_HOME") or Path.home() / ".cache") / "simd-light-transport-toolkit"
-    for root in (base, Path(tempfile.gettempdir()) / f"simd-light-transport-toolkit-{os.getuid()}"):
+    for root in (user_cache_folder(), Path(tempfile.gettempdir()) / f"{APP_NAME}-{os.getuid()}"):
         folder = root / f"opencl-vendors-{key}"
         try:
             if not folder.is_dir():

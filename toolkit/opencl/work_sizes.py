@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import pyopencl as cl
 
+from toolkit.core.layout import BDPT_SLOT, BDPT_VERTEX, LANE_COUNTS, PATH_STATE, SHADOW_RAY, SUBPATH
 from toolkit.core.validate import InputError, whole_number
 from toolkit.opencl.device_model import device_warp_width, vendor_of
 from toolkit.opencl.device_model import is_gpu as device_is_gpu
@@ -133,10 +134,8 @@ def device_work_sizes(device, max_vertices=64):
 
 # ---- what the sizes cost: buffers and the largest index the kernels form in them -----------
 
-# Bytes per record (toolkit/core/layout.py): imported lazily, layout builds at import.
 def _record_bytes():
-    from toolkit.core.layout import BDPT_SLOT, BDPT_VERTEX, LANE_COUNTS, PATH_STATE, SHADOW_RAY, SUBPATH
-
+    """Bytes per record (toolkit/core/layout.py), of each buffer the sizes pay for."""
     def soa(record):
         return sum(record.dtype[f].itemsize for f, _ in record.soa_fields)
     return {"path": soa(PATH_STATE), "shadow": soa(SHADOW_RAY), "subpath": soa(SUBPATH),

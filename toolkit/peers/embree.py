@@ -35,6 +35,8 @@ class EmbreeIntersector:
     """Closest-hit and occlusion queries with Embree on the scene's rebased float32 triangles."""
 
     def __init__(self, scene, center=None):
+        # Here, not at the top: embreex takes ~1 s to import, and only the cross-checks and the
+        # ray benchmark use it (and `gpucheck` runs without it).
         from embreex import rtcore_scene
         from embreex.mesh_construction import TriangleMesh
         self.scene = scene

@@ -13,11 +13,21 @@ would otherwise pick, measured in one run on one machine.
 Mitsuba is an optional extra: `pip install ".[peers]"`.
 """
 import statistics
+import subprocess
+import sys
 import tempfile
 import time
 from pathlib import Path
 
 import numpy as np
+
+from toolkit.api import as_scene, render
+from toolkit.measure.reference import reference_at, rmse
+from toolkit.opencl.device import get_queue
+from toolkit.opencl.device_scene import DeviceScene
+from toolkit.opencl.raycast import DeviceRaycaster
+from toolkit.peers.embree import EmbreeIntersector, camera_rays, random_rays
+from toolkit.techniques import family
 
 PEERS = ("embree", "mitsuba")
 INSTALL_HINT = ("Mitsuba 3 is not installed: it is an optional extra of the toolkit. Install it with\n"
@@ -35,10 +45,6 @@ class PeerMissing(RuntimeError):
 def embree_rays(scene, n_random=262_144, repeats=5, seed=0, queue=None, bvhs=("binary", "wide")):
     """Closest-hit rays/s of our traversal (each BVH in `bvhs`) and of Embree on the same rays:
     {"random": {name: rays/s}, "camera": {...}}, medians of `repeats` interleaved runs."""
-    from toolkit.opencl.device import get_queue
-    from toolkit.opencl.device_scene import DeviceScene
-    from toolkit.peers.embree import EmbreeIntersector, camera_rays, random_rays
-    from toolkit.opencl.raycast import DeviceRaycaster
     queue = queue or get_queue()
     casters = {}
     for bvh in bvhs:
@@ -96,9 +102,8 @@ def load_mitsuba():
     (it needs a recent libLLVM; Dr.Jit's DRJIT_LIBLLVM_PATH names one), else scalar_rgb.
     Raises PeerMissing without Mitsuba."""
     global _variant
-    import subprocess
-    import sys
     try:
+        # Optional: Mitsuba is the [peers] extra, needed only to compare with it.
         import mitsuba as mi
     except ImportError:
         raise PeerMissing(INSTALL_HINT) from None
@@ -223,9 +228,6 @@ def mitsuba_bench(scene, techniques=PEER_DEFAULT, spp=16,
     variance between repetitions, times their spp), time to 5% RMSE (relative to the reference's
     mean: (variance per sample / (0.05 mean)^2) samples per pixel at the measured spp/s), and the
     RMSE of the repetitions' mean image against the reference."""
-    from toolkit.api import as_scene, render
-    from toolkit.techniques import family
-    from toolkit.measure.reference import reference_at, rmse
     scene = as_scene(scene)
     width, height = resolution or (scene.camera.width, scene.camera.height)
     ref, _ = reference_at(scene, width, height)

@@ -15,10 +15,9 @@ directions against the pdf that `bsdf_eval` reports, after Mitsuba's `chi2.py` (
 - cells with expected count below 5 are pooled (Mitsuba's rule: sorted by expected count,
   the smallest are merged until the pooled cell reaches 5);
 - the statistic sum (O - E)^2 / E has (cells - 1) degrees of freedom; its p-value is the
-  regularized upper incomplete gamma function Q(dof / 2, chi2 / 2). The statistic, the
-  p-value and the Sidak correction are in `toolkit/measure/stats.py`, shared with the render z-test.
-
-Only numpy and the standard library are used on the host (no scipy).
+  chi-square distribution's tail, the regularized upper incomplete gamma function
+  Q(dof / 2, chi2 / 2) (from scipy). The statistic with its pooling, the tail and the Sidak
+  correction are in `toolkit/measure/stats.py`, shared with the render z-test.
 """
 import math
 from dataclasses import dataclass, field
@@ -28,6 +27,7 @@ import pyopencl as cl
 import pyopencl.cltypes as cltypes
 
 from toolkit.opencl import program
+from toolkit.opencl.device import get_queue
 from toolkit.core.layout import MATERIAL, MATERIAL_TYPES
 from toolkit.measure.stats import chi2_sf, pearson
 
@@ -77,10 +77,7 @@ class BsdfChecker:
     """cl/bsdf_test.cl built once for a queue (all materials); sample and evaluate on it."""
 
     def __init__(self, queue=None):
-        if queue is None:
-            from toolkit.opencl.device import get_queue
-            queue = get_queue()
-        self.queue = queue
+        self.queue = queue if queue is not None else get_queue()
         self.program = program.build(queue.context, SOURCE, defines())
         self._sample = program.kernel(self.program, "bsdf_test_sample")
         self._eval = program.kernel(self.program, "bsdf_test_eval")

@@ -99,12 +99,7 @@ def compare_with_embree(scene, n_random=100_000, seed=0, resolution=None, queue=
     `any_unexplained` (segments) must be 0."""
     if not isinstance(scene, Scene):
         scene = load_scene(Path(scene))
-    if resolution is None:
-        width, height = scene.camera.width, scene.camera.height
-    elif isinstance(resolution, (int, np.integer)):
-        width = height = int(resolution)
-    else:
-        width, height = (int(r) for r in resolution)
+    width, height = _resolution_of(scene, resolution)
     queue = queue or get_queue()
     start = time.perf_counter()
     device_scene = DeviceScene(queue, scene, bvh=bvh)
@@ -116,13 +111,48 @@ def compare_with_embree(scene, n_random=100_000, seed=0, resolution=None, queue=
     co, cd = camera_rays(device_scene, width, height)
     ro, rd = random_rays(device_scene, n_random, rng)
     origins, dirs = np.concatenate([co, ro]), np.concatenate([cd, rd])
-    n = len(origins)
-
-    # Closest hit.
     dev = device.closest(origins, dirs)
     emb = embree.closest(origins, dirs)
-    td, pd, ud, vd = dev
-    te, pe, ue, ve = emb
+    figures = {"scene": scene.name, "bvh": bvh, "triangles": int(len(scene.triangles)), "rays": int(len(origins)),
+               "camera_rays": int(len(co)), "random_rays": int(len(ro)), "resolution": (width, height)}
+    closest, excused, unexplained = _closest_figures(origins, dirs, dev, emb, embree.triangles)
+    figures.update(closest)
+    figures["camera_disagreements"] = int((dev[1] != emb[1])[: len(co)].sum())
+    figures["camera_unexplained"] = int(unexplained[: len(co)].sum())
+
+    # Any hit on random segments: the random rays with tmax uniform in (0, scene diagonal).
+    tmax = (rng.random(len(ro)) * device_scene.extent).astype(np.float32)
+    tmax = np.maximum(tmax, np.float32(1e-6 * device_scene.extent))
+    blocked = device.occluded(ro, rd, tmax), embree.occluded(ro, rd, tmax)
+    sl = slice(len(co), len(origins))
+    any_figures, any_unexplained = _any_hit_figures(tuple(a[sl] for a in dev), tuple(a[sl] for a in emb),
+                                                    tmax, blocked, excused[sl])
+    figures.update(any_figures)
+    figures["excused_fraction"] = figures["excused"] / max(len(origins), 1)
+    figures["excused_rounding_fraction"] = figures["excused_rounding"] / max(len(origins), 1)
+    figures["any_excused_fraction"] = figures["any_excused"] / max(len(ro), 1)
+    figures["unexplained_examples"] = (
+        _closest_examples(origins, dirs, dev, emb, unexplained, max_examples)
+        + _segment_examples(ro, rd, tmax, blocked, dev, emb, len(co), any_unexplained, max_examples))
+    figures["seconds"] = time.perf_counter() - start
+    return figures
+
+
+def _resolution_of(scene, resolution):
+    """(width, height) of the camera rays: the scene's camera, a square side, or a pair."""
+    if resolution is None:
+        return scene.camera.width, scene.camera.height
+    if isinstance(resolution, (int, np.integer)):
+        return int(resolution), int(resolution)
+    width, height = (int(r) for r in resolution)
+    return width, height
+
+
+def _closest_figures(origins, dirs, dev, emb, triangles):
+    """The closest-hit figures of the module doc, and per ray whether a disagreement is excused
+    or unexplained: (figures, excused, unexplained)."""
+    td, pd, _, _ = dev
+    te, pe, _, _ = emb
     hd, he = pd >= 0, pe >= 0
     agree = pd == pe
     excusable, edge, tie = _excused_closest(dev, emb)
@@ -131,29 +161,11 @@ def compare_with_embree(scene, n_random=100_000, seed=0, resolution=None, queue=
     unexplained = disagree & ~excusable
     # Ties (not near an edge) whose two triangles the ray provably hits at the same distance.
     tie_only = np.flatnonzero(disagree & tie & ~edge)
-    proven = np.zeros(n, bool)
-    proven[tie_only] = verified_ties(origins[tie_only], dirs[tie_only], pd[tie_only], pe[tie_only],
-                                     embree.triangles)
+    proven = np.zeros(len(origins), bool)
+    proven[tie_only] = verified_ties(origins[tie_only], dirs[tie_only], pd[tie_only], pe[tie_only], triangles)
     both = agree & hd
-    t64, e64 = td[both].astype(np.float64), te[both].astype(np.float64)
-    dt = np.abs(t64 - e64)
-    rel = dt / np.maximum(e64, 1e-30)
-    # The condition number of the distance (module doc): coordinates' size over |cos|.
-    hit_point = origins[both].astype(np.float64) + t64[:, None] * dirs[both]
-    scale = np.maximum(np.maximum(e64, np.abs(origins[both]).max(1)), np.abs(hit_point).max(1))
-    tri = embree.triangles[pe[both]].astype(np.float64)
-    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
-    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
-    cos = np.abs(np.einsum("ij,ij->i", normal, dirs[both].astype(np.float64)))
-    conditioned = dt * cos / scale
+    rel, conditioned = _distance_errors(origins[both], dirs[both], td[both], te[both], triangles[pe[both]])
     figures = {
-        "scene": scene.name,
-        "bvh": bvh,
-        "triangles": int(len(scene.triangles)),
-        "rays": int(n),
-        "camera_rays": int(len(co)),
-        "random_rays": int(len(ro)),
-        "resolution": (width, height),
         "hits_device": int(hd.sum()),
         "hits_embree": int(he.sum()),
         "hit_miss_agree": int((hd == he).sum()),
@@ -169,59 +181,77 @@ def compare_with_embree(scene, n_random=100_000, seed=0, resolution=None, queue=
         "agreeing_hits": int(both.sum()),
         "max_rel_t_error": float(rel.max()) if len(rel) else 0.0,
         "rel_t_error_above_tie": int((rel > TIE_RELATIVE).sum()),
-        "max_t_error_conditioned": float(conditioned.max()) if len(dt) else 0.0,
-        "camera_disagreements": int(disagree[: len(co)].sum()),
-        "camera_unexplained": int(unexplained[: len(co)].sum()),
+        "max_t_error_conditioned": float(conditioned.max()) if len(conditioned) else 0.0,
     }
+    return figures, excused, unexplained
 
-    # Any hit on random segments: the random rays with tmax uniform in (0, scene diagonal).
-    m = len(ro)
-    tmax = (rng.random(m) * device_scene.extent).astype(np.float32)
-    tmax = np.maximum(tmax, np.float32(1e-6 * device_scene.extent))
-    bd = device.occluded(ro, rd, tmax)
-    be = embree.occluded(ro, rd, tmax)
-    sl = slice(len(co), n)
-    td_s, te_s = td[sl].astype(np.float64), te[sl].astype(np.float64)
-    on_d = hd[sl] & (td_s <= tmax * (1 + TIE_RELATIVE))
-    on_e = he[sl] & (te_s <= tmax * (1 + TIE_RELATIVE))
-    near_d = on_d & (edge_distance(ud[sl], vd[sl]) < EDGE_BARYCENTRIC)
-    near_e = on_e & (edge_distance(ue[sl], ve[sl]) < EDGE_BARYCENTRIC)
+
+def _distance_errors(origins, dirs, t_device, t_embree, triangles):
+    """Over hits on the same triangle: the relative distance error, and the error without the
+    distance's condition number (module doc: coordinates' size over |cos|)."""
+    t64, e64 = t_device.astype(np.float64), t_embree.astype(np.float64)
+    dt = np.abs(t64 - e64)
+    rel = dt / np.maximum(e64, 1e-30)
+    hit_point = origins.astype(np.float64) + t64[:, None] * dirs
+    scale = np.maximum(np.maximum(e64, np.abs(origins).max(1)), np.abs(hit_point).max(1))
+    tri = triangles.astype(np.float64)
+    normal = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
+    normal /= np.linalg.norm(normal, axis=1, keepdims=True)
+    cos = np.abs(np.einsum("ij,ij->i", normal, dirs.astype(np.float64)))
+    return rel, dt * cos / scale
+
+
+def _any_hit_figures(dev, emb, tmax, blocked, excused):
+    """The any-hit figures of the segments (module doc), given each intersector's closest hit on
+    the same rays and which segments each found blocked: (figures, unexplained per segment)."""
+    td, pd, ud, vd = dev
+    te, pe, ue, ve = emb
+    bd, be = blocked
+    hd, he = pd >= 0, pe >= 0
+    td_s, te_s = td.astype(np.float64), te.astype(np.float64)
+    on_d = hd & (td_s <= tmax * (1 + TIE_RELATIVE))
+    on_e = he & (te_s <= tmax * (1 + TIE_RELATIVE))
+    near_d = on_d & (edge_distance(ud, vd) < EDGE_BARYCENTRIC)
+    near_e = on_e & (edge_distance(ue, ve) < EDGE_BARYCENTRIC)
     with np.errstate(invalid="ignore"):
-        at_end = ((hd[sl] & (np.abs(td_s - tmax) <= TIE_RELATIVE * tmax))
-                  | (he[sl] & (np.abs(te_s - tmax) <= TIE_RELATIVE * tmax)))
-    any_excusable = near_d | near_e | at_end | excused[sl]
+        at_end = (hd & (np.abs(td_s - tmax) <= TIE_RELATIVE * tmax)) | (he & (np.abs(te_s - tmax) <= TIE_RELATIVE * tmax))
+    any_excusable = near_d | near_e | at_end | excused
     any_disagree = bd != be
     any_unexplained = any_disagree & ~any_excusable
-    # Consistency of each intersector with itself: blocked iff its closest hit is on the segment.
-    figures.update({
-        "segments": int(m),
+    figures = {
+        "segments": int(len(tmax)),
         "blocked_device": int(bd.sum()),
         "blocked_embree": int(be.sum()),
         "any_agree": int((~any_disagree).sum()),
         "any_disagreements": int(any_disagree.sum()),
         "any_excused": int((any_disagree & any_excusable).sum()),
         "any_unexplained": int(any_unexplained.sum()),
-        "device_any_vs_closest_mismatch": int((bd != (hd[sl] & (td_s < tmax))).sum()),
-    })
-    figures["excused_fraction"] = figures["excused"] / max(n, 1)
-    figures["excused_rounding_fraction"] = figures["excused_rounding"] / max(n, 1)
-    figures["any_excused_fraction"] = figures["any_excused"] / max(m, 1)
+        # Consistency of each intersector with itself: blocked iff its closest hit is on the segment.
+        "device_any_vs_closest_mismatch": int((bd != (hd & (td_s < tmax))).sum()),
+    }
+    return figures, any_unexplained
 
+
+def _closest_examples(origins, dirs, dev, emb, unexplained, max_examples):
+    td, pd, ud, vd = dev
+    te, pe, ue, ve = emb
+    return [{"ray": int(i), "origin": origins[i].tolist(), "dir": dirs[i].tolist(),
+             "device": (float(td[i]), int(pd[i]), float(ud[i]), float(vd[i])),
+             "embree": (float(te[i]), int(pe[i]), float(ue[i]), float(ve[i]))}
+            for i in np.flatnonzero(unexplained)[:max_examples]]
+
+
+def _segment_examples(ro, rd, tmax, blocked, dev, emb, first, unexplained, max_examples):
+    """Segments with an unexplained any-hit disagreement; `first`: the index of the first random ray."""
     examples = []
-    for i in np.flatnonzero(unexplained)[:max_examples]:
-        examples.append({"ray": int(i), "origin": origins[i].tolist(), "dir": dirs[i].tolist(),
-                         "device": (float(td[i]), int(pd[i]), float(ud[i]), float(vd[i])),
-                         "embree": (float(te[i]), int(pe[i]), float(ue[i]), float(ve[i]))})
-    for j in np.flatnonzero(any_unexplained)[:max_examples]:
-        i = len(co) + j
+    for j in np.flatnonzero(unexplained)[:max_examples]:
+        i = first + j
         examples.append({"segment": int(j), "origin": ro[j].tolist(), "dir": rd[j].tolist(),
-                         "tmax": float(tmax[j]), "device_blocked": bool(bd[j]),
-                         "embree_blocked": bool(be[j]),
-                         "device_closest": (float(td[i]), int(pd[i])),
-                         "embree_closest": (float(te[i]), int(pe[i]))})
-    figures["unexplained_examples"] = examples
-    figures["seconds"] = time.perf_counter() - start
-    return figures
+                         "tmax": float(tmax[j]), "device_blocked": bool(blocked[0][j]),
+                         "embree_blocked": bool(blocked[1][j]),
+                         "device_closest": (float(dev[0][i]), int(dev[1][i])),
+                         "embree_closest": (float(emb[0][i]), int(emb[1][i]))})
+    return examples
 
 
 def format_figures(f):

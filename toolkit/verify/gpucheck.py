@@ -26,8 +26,18 @@ import time
 from pathlib import Path
 
 import numpy as np
+import pyopencl as cl
 
+from toolkit.api import as_scene
+from toolkit.core.scene import bundled_scene_dir
+from toolkit.core.validate import InputError, writable_file
+from toolkit.measure.bench import bench
+from toolkit.measure.compare import compare
+from toolkit.opencl import device as devices
 from toolkit.opencl.device_model import device_warp_width
+from toolkit.opencl.work_sizes import device_work_sizes
+from toolkit.verify.crosscheck import compare_with_embree
+from toolkit.verify.same_image import Check, same_image_checks
 
 # The talk's GPU figures (van Antwerpen, HPG 2011) and the issue's GPU target.
 TALK_RATIOS = {"stream PT / in-place PT": ("pt_compact_regen", "pt_inplace_regen", 1.20),
@@ -61,54 +71,18 @@ def settings(sizes, fast):
 
 def run(device=None, fast=False, out_dir="out/gpucheck", log=None):
     """Run every step; returns the report (a dict, see format_report)."""
-    from toolkit.opencl import device as devices
-    from toolkit.api import as_scene
-    from toolkit.measure.bench import bench
-    from toolkit.measure.compare import compare
-    from toolkit.verify.crosscheck import compare_with_embree
-    from toolkit.verify.same_image import Check, same_image_checks
-    from toolkit.core.scene import bundled_scene_dir
-    from toolkit.opencl.work_sizes import device_work_sizes
-
     log = log or (lambda text: print(f"gpucheck: {text}", file=sys.stderr, flush=True))
     start = time.perf_counter()
     queue = devices.get_queue(device)
     dev = queue.device
     sizes = device_work_sizes(dev)
-    width, why = device_warp_width(dev)
-    is_gpu = _is_gpu(dev)
     s = settings(sizes, fast)
-    report = {"device": {"name": devices.describe(dev), "implementation": devices.describe_implementation(dev),
-                         "gpu": is_gpu, "compute_units": dev.max_compute_units, "warp_width": width,
-                         "warp_width_source": why, "stream_size": sizes.stream_size, "pool_size": sizes.pool_size,
-                         "work_sizes_source": sizes.why},
-              "fast": fast, "settings": {k: list(v) if isinstance(v, tuple) else v for k, v in s.items()}}
+    report = {"device": _device_report(dev, sizes), "fast": fast,
+              "settings": {k: list(v) if isinstance(v, tuple) else v for k, v in s.items()}}
     scenes = {name: as_scene(bundled_scene_dir(name)) for name in s["scenes"]}
     box = scenes["cornell_box"]
-    checks = []
-
-    # Other OpenCL implementations to compare images with (Oclgrind, a simulator, left out).
-    others = [c for c in devices.candidates() if c.usable and c.rank[0] < 4 and c.device.int_ptr != dev.int_ptr]
-    log(f"[1/5] same image on {devices.describe(dev)} "
-        f"({s['same_resolution'][0]}x{s['same_resolution'][1]}; also on {len(others)} other implementation(s))")
-    for check in same_image_checks(box, device, s["same_resolution"], s["same_spp"],
-                                   others=[(c.selector, c.implementation) for c in others], log=lambda t: log(f"      {t}")):
-        checks.append(("same image", check))
-
-    log(f"[2/5] Embree cross-check ({s['rays']:,} random rays per scene and BVH)")
-    try:
-        import embreex  # noqa: F401
-        for name, scene in scenes.items():
-            for bvh in ("wide", "binary"):
-                f = compare_with_embree(scene, n_random=s["rays"], resolution=32 if fast else None, queue=queue,
-                                        bvh=bvh)
-                unexplained = f["unexplained"] + f["any_unexplained"]
-                checks.append(("Embree", Check(f"{name}, {bvh} BVH: {f['rays']:,} rays", unexplained == 0,
-                                               f"{f['unexplained']} closest-hit and {f['any_unexplained']} any-hit "
-                                               f"disagreements unexplained ({f['excused']} excused)",
-                                               {k: f[k] for k in ("rays", "excused", "unexplained", "any_unexplained")})))
-    except ImportError:
-        checks.append(("Embree", Check("Embree cross-check", True, "skipped: embreex is not installed")))
+    checks = [("same image", check) for check in _same_image_step(dev, box, device, s, log)]
+    checks += [("Embree", check) for check in _embree_step(scenes, queue, s, fast, log)]
 
     res = s["bench_resolution"]
     log(f"[3/5] bench: {len(BENCH_TECHNIQUES)} techniques, {res[0]}x{res[1]}, {s['bench_spp']} spp, "
@@ -118,22 +92,11 @@ def run(device=None, fast=False, out_dir="out/gpucheck", log=None):
     rates = {name: row["samples_per_second"] for name, row in report["bench"]["techniques"].items()}
     report["ratios"] = {label: {"ratio": rates[a] / rates[b], "talk": talk, "of": f"{a} / {b}"}
                         for label, (a, b, talk) in TALK_RATIOS.items()}
-
-    res = s["compare_resolution"]
-    log(f"[4/5] compare with SIMD figures: {res[0]}x{res[1]}, {s['compare_spp']} spp")
-    table = compare(box, list(COMPARE_TECHNIQUES), s["compare_spp"], resolution=res, device=device,
-                    out_dir=out_dir, plots=not fast)
-    report["compare"] = {name: {k: row[k] for k in ("samples_per_second", "simd_efficiency", "rmse", "nonfinite")}
-                         for name, row in table.items()}
-    for name, row in table.items():
-        efficiency = row["simd_efficiency"]
-        sane = row["nonfinite"] == 0 and all(0.0 < v <= 1.0 for v in efficiency.values())
-        checks.append(("compare", Check(f"{name}: SIMD figures", sane,
-                                        f"overall {efficiency.get('overall', float('nan')):.1%}, "
-                                        f"{row['nonfinite']} non-finite pixels")))
+    report["compare"], compare_checks = _compare_step(box, device, s, out_dir, fast, log)
+    checks += [("compare", check) for check in compare_checks]
 
     log("[5/5] GPU against CPU")
-    report["gpu_vs_cpu"] = gpu_vs_cpu(dev, is_gpu, report["bench"], s, box, log)
+    report["gpu_vs_cpu"] = gpu_vs_cpu(dev, report["device"]["gpu"], report["bench"], s, box, log)
 
     report["checks"] = [{"step": step, "name": c.name, "passed": c.passed, "detail": c.detail} for step, c in checks]
     report["passed"] = all(c.passed for _, c in checks)
@@ -141,15 +104,67 @@ def run(device=None, fast=False, out_dir="out/gpucheck", log=None):
     return report
 
 
+def _device_report(dev, sizes):
+    """Step 1: the device, its warp width and the work sizes chosen for it."""
+    width, why = device_warp_width(dev)
+    return {"name": devices.describe(dev), "implementation": devices.describe_implementation(dev),
+            "gpu": _is_gpu(dev), "compute_units": dev.max_compute_units, "warp_width": width,
+            "warp_width_source": why, "stream_size": sizes.stream_size, "pool_size": sizes.pool_size,
+            "work_sizes_source": sizes.why}
+
+
+def _same_image_step(dev, box, device, s, log):
+    """Step 2: the same image from every technique and setting, here and on the other implementations."""
+    # Other OpenCL implementations to compare images with (Oclgrind, a simulator, left out).
+    others = [c for c in devices.candidates() if c.usable and c.rank[0] < 4 and c.device.int_ptr != dev.int_ptr]
+    log(f"[1/5] same image on {devices.describe(dev)} "
+        f"({s['same_resolution'][0]}x{s['same_resolution'][1]}; also on {len(others)} other implementation(s))")
+    return same_image_checks(box, device, s["same_resolution"], s["same_spp"],
+                             others=[(c.selector, c.implementation) for c in others], log=lambda t: log(f"      {t}"))
+
+
+def _embree_step(scenes, queue, s, fast, log):
+    """Step 3: our traversal against Embree's on random rays, both BVHs (skipped without embreex)."""
+    log(f"[2/5] Embree cross-check ({s['rays']:,} random rays per scene and BVH)")
+    try:
+        import embreex  # noqa: F401  (an optional check: is Embree here at all?)
+    except ImportError:
+        return [Check("Embree cross-check", True, "skipped: embreex is not installed")]
+    checks = []
+    for name, scene in scenes.items():
+        for bvh in ("wide", "binary"):
+            f = compare_with_embree(scene, n_random=s["rays"], resolution=32 if fast else None, queue=queue, bvh=bvh)
+            unexplained = f["unexplained"] + f["any_unexplained"]
+            checks.append(Check(f"{name}, {bvh} BVH: {f['rays']:,} rays", unexplained == 0,
+                                f"{f['unexplained']} closest-hit and {f['any_unexplained']} any-hit "
+                                f"disagreements unexplained ({f['excused']} excused)",
+                                {k: f[k] for k in ("rays", "excused", "unexplained", "any_unexplained")}))
+    return checks
+
+
+def _compare_step(box, device, s, out_dir, fast, log):
+    """Step 5: `compare`'s SIMD figures, each within (0, 1] and every pixel finite: (figures, checks)."""
+    res = s["compare_resolution"]
+    log(f"[4/5] compare with SIMD figures: {res[0]}x{res[1]}, {s['compare_spp']} spp")
+    table = compare(box, list(COMPARE_TECHNIQUES), s["compare_spp"], resolution=res, device=device,
+                    out_dir=out_dir, plots=not fast)
+    figures = {name: {k: row[k] for k in ("samples_per_second", "simd_efficiency", "rmse", "nonfinite")}
+               for name, row in table.items()}
+    checks = []
+    for name, row in table.items():
+        efficiency = row["simd_efficiency"]
+        sane = row["nonfinite"] == 0 and all(0.0 < v <= 1.0 for v in efficiency.values())
+        checks.append(Check(f"{name}: SIMD figures", sane, f"overall {efficiency.get('overall', float('nan')):.1%}, "
+                                                           f"{row['nonfinite']} non-finite pixels"))
+    return figures, checks
+
+
 def _is_gpu(device):
-    import pyopencl as cl
     return bool(device.type & cl.device_type.GPU) and not device.type & cl.device_type.CPU
 
 
 def gpu_vs_cpu(dev, is_gpu, bench_report, s, scene, log):
     """Samples/s of the best path tracer and BDPT on a GPU and on a CPU, when both exist."""
-    from toolkit.opencl import device as devices
-    from toolkit.measure.bench import bench
     usable = [c for c in devices.candidates() if c.usable and c.rank[0] < 4]
     gpus = [c for c in usable if _is_gpu(c.device)]
     cpus = [c for c in usable if not _is_gpu(c.device)]
@@ -208,7 +223,6 @@ def format_report(r):
 def report_path(out):
     """`out` checked before any work: a .txt file (the JSON goes beside it) in a folder that
     accepts new files; else an InputError that names the problem."""
-    from toolkit.core.validate import InputError, writable_file
     path = Path(out)
     if path.suffix.lower() != ".txt":
         raise InputError(f"--out {path}: the report is text; give a .txt name (its JSON goes beside it)")

@@ -23,6 +23,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from toolkit import api   # api.render at each call: a test replaces it to plant a bug
+
 PT_FAMILY = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "pt_compact_regen/multipass")
 BDPT_FAMILY = ("bdpt_naive_connect", "bdpt_parallel_connect", "bdpt_parallel_connect/direct_scatter")
 SAME_DEVICE = (1e-5, 1e-6)              # (rtol, atol)
@@ -60,13 +62,11 @@ def same_image_checks(scene, device=None, resolution=(16, 16), spp=2, seed=3, ot
     """Every same-image check on `device` (a selector or None): a list of Check.
     `spp` is for the path tracers; BDPT gets max(1, spp // 8) (a sample costs ~10x).
     `others`: (selector, name) of further OpenCL implementations to compare this device with."""
-    from toolkit.api import render
-
     bdpt_spp = max(1, spp // 8)
 
     def image(technique, on=device, **kwargs):
         family_spp = bdpt_spp if technique.startswith("bdpt") else spp
-        return render(scene, technique=technique, spp=family_spp, seed=seed, resolution=resolution, device=on,
+        return api.render(scene, technique=technique, spp=family_spp, seed=seed, resolution=resolution, device=on,
                       count_simd=False, **kwargs).image
 
     def say(text):
