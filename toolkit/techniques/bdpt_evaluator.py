@@ -259,6 +259,17 @@ def read_records(tech, value_buffer, pixel_buffer, n):
     return values, pixels
 
 
+def scan_slot_counts(tech, p, kernel, label):
+    """Launch `kernel`, which writes a count per pool slot (records a connect phase will write),
+    and scan the counts: (counts, firsts, total) with firsts[k] = sum of counts[0 .. k - 1].
+    The buffers are kept under `label` and reused by the next connect phases."""
+    pool = p.pool.size
+    counts, firsts = tech.reused((label, pool), lambda: (tech.int_buffer(pool), tech.int_buffer(pool)))
+    tech.launch(tech.kernel(kernel), pool, np.int32(pool), p.pool.slots, counts)
+    firsts, total = tech.compactor.exclusive_scan(counts, pool, out=firsts)
+    return counts, firsts, total
+
+
 def record_buffers(tech, n, *more):
     """Device memory for n records (float4 values, int pixels, and `more(capacity)` buffers);
     it grows by powers of two and is reused by the next connect phases."""

@@ -7,7 +7,7 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.core.simd import PhaseCounter
-from toolkit.techniques.bdpt_evaluator import Connections, read_records, record_buffers
+from toolkit.techniques.bdpt_evaluator import Connections, read_records, record_buffers, scan_slot_counts
 from toolkit.core.bdpt_indices import (naive_record_count, naive_splat_record, naive_strategy_record,
                                        naive_sum_record, strategy_count, strategy_index)
 from toolkit.techniques.bdpt_base import BdptTechnique
@@ -28,9 +28,7 @@ class NaiveConnect:
             return Connections.none()
         # Where each terminated slot's light-tracing records go: a scan of their counts, so the
         # host reads back only the records written (before: MAX_VERTICES + 1 places per slot).
-        counts, firsts = tech.reused(("splat counts", pool), lambda: (tech.int_buffer(pool), tech.int_buffer(pool)))
-        tech.launch(tech.kernel("bdpt_naive_connect_splats"), pool, np.int32(pool), p.pool.slots, counts)
-        firsts, splats = tech.compactor.exclusive_scan(counts, pool, out=firsts)
+        counts, firsts, splats = scan_slot_counts(tech, p, "bdpt_naive_connect_splats", "splat counts")
         # the splats, one eye-path sum per slot, and with per-strategy images a record per eye-path strategy of the short paths
         n = naive_record_count(splats, pool, self.record_strategy_count())
         values, pixels = record_buffers(tech, n)

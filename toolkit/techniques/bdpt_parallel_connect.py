@@ -6,7 +6,7 @@ import numpy as np
 
 from toolkit.core.bdpt_indices import connection_strategy
 from toolkit.core.layout import BDPT_SLOT
-from toolkit.techniques.bdpt_evaluator import Connections, read_records, record_buffers
+from toolkit.techniques.bdpt_evaluator import Connections, read_records, record_buffers, scan_slot_counts
 from toolkit.techniques.strategy_images import strategy_index
 from toolkit.techniques.bdpt_base import BdptTechnique
 
@@ -26,9 +26,7 @@ class ParallelConnect:
         tech, pool = self.tech, p.pool.size
         if count == 0:
             return Connections.none()
-        counts, firsts = tech.reused(("counts", pool), lambda: (tech.int_buffer(pool), tech.int_buffer(pool)))
-        tech.launch(tech.kernel("bdpt_parallel_connect_count"), pool, np.int32(pool), p.pool.slots, counts)
-        firsts, total = tech.compactor.exclusive_scan(counts, pool, out=firsts)
+        counts, firsts, total = scan_slot_counts(tech, p, "bdpt_parallel_connect_count", "counts")
         if total == 0:
             return Connections.none()
         values, pixels, lanes = record_buffers(tech, total, tech.lane_counts_buffer)
