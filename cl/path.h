@@ -120,7 +120,8 @@ HELPER bool path_extend_deferred(const SceneView* s, PathState* p, uint seed, La
                 float len = length(seg);
                 if (dot(seg, wi) > 0.0f) {
                     float w = power_heuristic(light_pdf, bsdf_pdf);
-                    shadow->origin = (float4)(from, len);
+                    shadow->origin = from;
+                    shadow->length = len;
                     shadow->dir = (float4)(seg / len, 0.0f);
                     shadow->contribution = (float4)(p->throughput.xyz * f * wi_local.z * ls.emission * (w / light_pdf), 0.0f);
                     shadow->slot = p->slot;
@@ -156,7 +157,7 @@ HELPER bool path_extend_deferred(const SceneView* s, PathState* p, uint seed, La
 /* Whether a shadow ray reaches its light. */
 HELPER bool shadow_unoccluded(const SceneView* s, const ShadowRay* r, LaneCounters* count) {
     count->shadow_rays += 1;
-    return !trace_any(s, r->origin.xyz, r->dir.xyz, 0.0f, r->origin.w, &count->shadow_steps);
+    return !trace_any(s, r->origin, r->dir.xyz, 0.0f, r->length, &count->shadow_steps);
 }
 
 /* Extend by one vertex and trace the shadow ray at once (one path per work-item). */
