@@ -9,13 +9,13 @@
 #include "path.h"
 
 /* `paths`: a PathState structure of arrays of pass_args.capacity records (layout.h); its first
- * `length` slots take the step. */
-__kernel void extend_in_place(SCENE_PARAMS, const PtPass pass_args, const int length,
+ * `stream_length` slots take the step. */
+__kernel void extend_in_place(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
                               __global void* paths, __global int* alive, __global float4* radiance,
                               __global LaneCounts* lane_counts)
 {
     int gid = get_global_id(0);
-    if (gid >= length) return;
+    if (gid >= stream_length) return;
     LaneCounters count = {0, 0, 0};
     int was_alive = alive[gid];
     if (was_alive) {

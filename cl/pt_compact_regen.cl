@@ -16,7 +16,7 @@
  *   the scan                     toolkit/opencl/compaction.py (multi-pass compaction)
  *   pt_compact_regen_gather      here (multi-pass compaction)
  * Every stream is a structure of arrays of pass_args.capacity records in one buffer (layout.h);
- * `pass_args` (PtPass) holds what every kernel of the pass shares, `length` the stream's length. */
+ * `pass_args` (PtPass) holds what every kernel of the pass shares. */
 #include "path.h"
 #include "compact.h"
 #include "extend_in_place.h"
@@ -25,7 +25,7 @@
  * the shadow rays they prepared packed into the shadow queue; counters[STREAM_PATHS] and
  * counters[STREAM_SHADOW_RAYS] count them (StreamCounter, toolkit/core/layout.py). */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
-void pt_compact_regen_extend(SCENE_PARAMS, const PtPass pass_args, const int length,
+void pt_compact_regen_extend(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
                              __global void* stream, __global void* next_stream, __global void* shadow_rays,
                              volatile __global int* counters, __global float4* radiance,
                              __global LaneCounts* lane_counts)
@@ -38,7 +38,7 @@ void pt_compact_regen_extend(SCENE_PARAMS, const PtPass pass_args, const int len
     ray.slot = -1;
     bool alive = false;
     /* No early return: every work-item of the group must reach the compaction barriers. */
-    if (gid < length) {
+    if (gid < stream_length) {
         SceneView s = SCENE_INIT;
         p = path_state_load(path_state_soa(stream, pass_args.capacity), gid);
         alive = path_extend_deferred(&s, &p, pass_args.seed, &count, &ray);
@@ -50,18 +50,18 @@ void pt_compact_regen_extend(SCENE_PARAMS, const PtPass pass_args, const int len
     if (queued >= 0) shadow_ray_store(shadow_ray_soa(shadow_rays, pass_args.capacity), queued, &ray);
 #if COUNT_SIMD
     count.shadow_rays = ray.slot >= 0;   /* queued, traced by pt_compact_regen_shadow */
-    if (gid < length) lane_counts[gid] = lane_counts_of(1, &count);
+    if (gid < stream_length) lane_counts[gid] = lane_counts_of(1, &count);
 #endif
 }
 
 /* Trace the queued shadow rays; an unoccluded one adds its contribution to its sample.
  * A sample has at most one shadow ray per iteration, so no two work-items add to one slot. */
-__kernel void pt_compact_regen_shadow(SCENE_PARAMS, const PtPass pass_args, const int length,
+__kernel void pt_compact_regen_shadow(SCENE_PARAMS, const PtPass pass_args, const int queued,
                                       __global void* shadow_rays, __global float4* radiance,
                                       __global int* shadow_steps)
 {
     int gid = get_global_id(0);
-    if (gid >= length) return;
+    if (gid >= queued) return;
     SceneView s = SCENE_INIT;
     ShadowRay ray = shadow_ray_load(shadow_ray_soa(shadow_rays, pass_args.capacity), gid);
     LaneCounters count = {0, 0, 0};

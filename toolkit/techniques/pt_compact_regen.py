@@ -88,7 +88,7 @@ class PtCompactRegen(Technique):
             # Trace the queued shadow rays: a packed stream of its own.
             if queued:
                 self.launch(self.kernel("pt_compact_regen_shadow"), queued, **self.scene_args(),
-                            pass_args=pass_args, length=np.int32(queued), shadow_rays=b.shadow_rays,
+                            pass_args=pass_args, queued=np.int32(queued), shadow_rays=b.shadow_rays,
                             radiance=b.radiance, shadow_steps=b.shadow_steps)
                 self.count_shadow(b.shadow_steps, queued)
             b.swap()
@@ -109,14 +109,14 @@ class PtCompactRegen(Technique):
         if self.compaction == "immediate":
             cl.enqueue_fill_buffer(self.queue, b.counters, np.int32(0), 0, 4 * len(StreamCounter))
             self.launch(self.kernel("pt_compact_regen_extend"), length, **self.scene_args(), pass_args=pass_args,
-                        length=np.int32(length), stream=b.stream, next_stream=b.next_stream,
+                        stream_length=np.int32(length), stream=b.stream, next_stream=b.next_stream,
                         shadow_rays=b.shadow_rays, counters=b.counters, radiance=b.radiance,
                         lane_counts=b.lane_counts)
             lengths = self.read_ints(b.counters, len(StreamCounter))
             return int(lengths[StreamCounter.PATHS]), int(lengths[StreamCounter.SHADOW_RAYS])
         cl.enqueue_fill_buffer(self.queue, b.alive, np.int32(1), 0, 4 * length)   # every path in the stream is live
         self.launch(self.kernel("extend_in_place"), length, **self.scene_args(), pass_args=pass_args,
-                    length=np.int32(length), paths=b.stream, alive=b.alive, radiance=b.radiance,
+                    stream_length=np.int32(length), paths=b.stream, alive=b.alive, radiance=b.radiance,
                     lane_counts=b.lane_counts)
         indices, survivors = self.compactor.compact_indices(b.alive, length, method="multipass", out=b.indices)
         if survivors:

@@ -75,7 +75,7 @@ class PtInplaceRegen(Technique):
                 break   # budget spent and every path has ended
             # Extend: every slot with a live path traces one more vertex.
             self.launch(self.kernel("extend_in_place"), slots, **self.scene_args(), pass_args=pass_args,
-                        length=np.int32(slots), paths=b.paths, alive=b.alive, radiance=b.radiance,
+                        stream_length=np.int32(slots), paths=b.paths, alive=b.alive, radiance=b.radiance,
                         lane_counts=b.lane_counts)
             self.count_extend(b.lane_counts, slots, b.next_sample, budget)
         self.collect(film, b.radiance, budget)
