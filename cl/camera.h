@@ -11,11 +11,14 @@ HELPER float3 camera_direction(const Camera* cam, float x, float y) {
     return normalize(cam->forward.xyz + sx * cam->right.xyz + sy * cam->up.xyz);
 }
 
+/* The image's pixel count: a pass's sample ids 0 .. pixels - 1 are one sample of every pixel. */
+HELPER int camera_pixels(const Camera* cam) { return cam->width * cam->height; }
+
 /* Sample `id` of a pass: consecutive ids are consecutive pixels (so samples started together
  * trace coherent primary rays), then the next sample of every pixel. */
-HELPER int sample_pixel(const Camera* cam, int id) { return id % (cam->width * cam->height); }
+HELPER int sample_pixel(const Camera* cam, int id) { return id % camera_pixels(cam); }
 HELPER int sample_number(const Camera* cam, int id, int sample_base) {
-    return sample_base + id / (cam->width * cam->height);
+    return sample_base + id / camera_pixels(cam);
 }
 
 /* The camera sample: the direction through a box-filtered position (u, v in [0, 1)) inside

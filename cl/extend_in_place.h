@@ -8,18 +8,20 @@
 
 #include "path.h"
 
-/* `paths`: a PathState structure of arrays of `capacity` records (layout.h). */
-__kernel void extend_in_place(SCENE_PARAMS, const uint seed, const int length, const int capacity,
+/* `paths`: a PathState structure of arrays of pass_args.capacity records (layout.h); its first
+ * `stream_length` slots take the step. */
+__kernel void extend_in_place(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
                               __global void* paths, __global int* alive, __global float4* radiance,
                               __global LaneCounts* lane_counts)
 {
     int gid = get_global_id(0);
-    if (gid >= length) return;
+    if (gid >= stream_length) return;
     LaneCounters count = {0, 0, 0};
     int was_alive = alive[gid];
     if (was_alive) {
         SceneView s = SCENE_INIT;
-        alive[gid] = path_extend_in_place(&s, path_state_soa(paths, capacity), gid, seed, &count, radiance);
+        alive[gid] = path_extend_in_place(&s, path_state_soa(paths, pass_args.capacity), gid, pass_args.seed,
+                                          &count, radiance);
     }
 #if COUNT_SIMD
     lane_counts[gid] = lane_counts_of(was_alive, &count);

@@ -50,6 +50,78 @@ HELPER float path_rand(const PathState* p, Sampler* rng, uint offset) {
     return sampler_get(rng, bounce_dim(p->bounce, offset));
 }
 
+/* Emission found by the BSDF-sampled ray (hit at distance t, from direction wo), MIS-weighted
+ * against light sampling (Veach 1997, sec. 9.2); after the camera or a specular bounce light
+ * sampling was impossible. */
+HELPER void path_add_emission(const SceneView* s, PathState* p, const Triangle* tri, float3 ng, float3 wo, float t) {
+    float3 le = emitted(s, tri, ng, wo);
+    if (!is_black(le)) {
+        float w = 1.0f;
+        if (!p->prev_specular) {
+            float light_pdf = tri->light_pdf * t * t / fabs(dot(ng, wo));
+            w = power_heuristic(p->prev_pdf, light_pdf);
+        }
+        p->radiance.xyz += p->throughput.xyz * le * w;
+    }
+}
+
+/* Next-event estimation at x (geometric normal ng, shading frame ts, tt, n): one point on a
+ * light, one shadow ray, MIS with BSDF sampling. The shadow ray is only prepared here
+ * (shadow->slot >= 0 if there is one); the caller traces it now or queues it. */
+HELPER void path_prepare_shadow_ray(const SceneView* s, const PathState* p, Sampler* rng, const Material* m,
+                                    float3 x, float3 ng, float3 ts, float3 tt, float3 n, float3 wo_local,
+                                    ShadowRay* shadow) {
+    LightSample ls = sample_light(s, path_rand(p, rng, DIM_LIGHT_PICK),
+                                  path_rand(p, rng, DIM_LIGHT_U), path_rand(p, rng, DIM_LIGHT_V));
+    float3 to_light = ls.p - x;
+    float dist2 = dot(to_light, to_light);
+    float3 wi = to_light * rsqrt(dist2);
+    float cos_light = dot(ls.n, -wi);
+    if (!(cos_light > 0.0f && dist2 > 0.0f)) return;
+    float3 wi_local = to_local(wi, ts, tt, n);
+    float bsdf_pdf;
+    float3 f = bsdf_eval(m, wo_local, wi_local, &bsdf_pdf);
+    if (is_black(f)) return;
+    float light_pdf = ls.pdf_area * dist2 / cos_light;
+    float3 from = offset_point(s, x, ng, wi);
+    float3 to = offset_point(s, ls.p, ls.n, -wi);
+    float3 seg = to - from;
+    float len = length(seg);
+    if (dot(seg, wi) > 0.0f) {
+        float w = power_heuristic(light_pdf, bsdf_pdf);
+        shadow->origin = from;
+        shadow->length = len;
+        shadow->dir = (float4)(seg / len, 0.0f);
+        shadow->contribution = (float4)(p->throughput.xyz * f * wi_local.z * ls.emission * (w / light_pdf), 0.0f);
+        shadow->slot = p->slot;
+    }
+}
+
+/* Continue the path from x by sampling the BSDF, then Russian roulette (common.h) from RR_DEPTH
+ * bounces on. Returns false when the path has terminated. */
+HELPER bool path_continue(const SceneView* s, PathState* p, Sampler* rng, const Material* m,
+                          float3 x, float3 ng, float3 ts, float3 tt, float3 n, float3 wo_local) {
+    BsdfSample bs;
+    if (!bsdf_sample(m, wo_local, path_rand(p, rng, DIM_BSDF_U), path_rand(p, rng, DIM_BSDF_V),
+                     path_rand(p, rng, DIM_BSDF_LOBE), &bs))
+        return false;
+    float3 wi = to_world(bs.wi, ts, tt, n);
+    p->throughput.xyz *= bs.weight;
+    p->prev_pdf = bs.pdf;
+    p->prev_specular = bs.specular ? 1 : 0;
+    p->origin = (float4)(offset_point(s, x, ng, wi), 0.0f);
+    p->dir = (float4)(wi, 0.0f);
+    p->bounce += 1;
+#if USE_RUSSIAN_ROULETTE
+    if (p->bounce >= RR_DEPTH) {
+        float3 throughput = p->throughput.xyz;
+        if (!roulette(&throughput, 1.0f, sampler_get(rng, bounce_dim(p->bounce - 1, DIM_ROULETTE)))) return false;
+        p->throughput.xyz = throughput;
+    }
+#endif
+    return !is_black(p->throughput.xyz);
+}
+
 /* Extend the path by one vertex: intersect, add emission, prepare a next-event shadow ray
  * (shadow->slot >= 0 if there is one), sample the BSDF, roulette.
  * Returns false when the path has terminated. */
@@ -71,18 +143,7 @@ HELPER bool path_extend_deferred(const SceneView* s, PathState* p, uint seed, La
     float3 x = o + h.t * d;
     float3 wo = -d;
     int segments = p->bounce + 1;                    /* path segments so far, camera one included */
-
-    /* Emission found by the BSDF-sampled ray, MIS-weighted against light sampling
-     * (Veach 1997, sec. 9.2); after the camera or a specular bounce light sampling was impossible. */
-    float3 le = emitted(s, &tri, ng, wo);
-    if (!is_black(le)) {
-        float w = 1.0f;
-        if (!p->prev_specular) {
-            float light_pdf = tri.light_pdf * h.t * h.t / fabs(dot(ng, wo));
-            w = power_heuristic(p->prev_pdf, light_pdf);
-        }
-        p->radiance.xyz += p->throughput.xyz * le * w;
-    }
+    path_add_emission(s, p, &tri, ng, wo, h.t);
 #if USE_MAX_DEPTH
     if (segments >= MAX_DEPTH) return false;
 #endif
@@ -93,70 +154,18 @@ HELPER bool path_extend_deferred(const SceneView* s, PathState* p, uint seed, La
     float3 ts, tt;
     make_basis(n, &ts, &tt);
     float3 wo_local = to_local(wo, ts, tt, n);
-
-    /* Next-event estimation: one point on a light, one shadow ray, MIS with BSDF sampling.
-     * The shadow ray is only prepared here; the caller traces it now or queues it. */
-    shadow->slot = -1;
     bool nee_allowed = !is_specular(m.type);
 #if USE_MAX_DEPTH
     nee_allowed = nee_allowed && segments + 1 <= MAX_DEPTH;
 #endif
-    if (nee_allowed) {
-        LightSample ls = sample_light(s, path_rand(p, &rng, DIM_LIGHT_PICK),
-                                      path_rand(p, &rng, DIM_LIGHT_U), path_rand(p, &rng, DIM_LIGHT_V));
-        float3 to_light = ls.p - x;
-        float dist2 = dot(to_light, to_light);
-        float3 wi = to_light * rsqrt(dist2);
-        float cos_light = dot(ls.n, -wi);
-        if (cos_light > 0.0f && dist2 > 0.0f) {
-            float3 wi_local = to_local(wi, ts, tt, n);
-            float bsdf_pdf;
-            float3 f = bsdf_eval(&m, wo_local, wi_local, &bsdf_pdf);
-            if (!is_black(f)) {
-                float light_pdf = ls.pdf_area * dist2 / cos_light;
-                float3 from = offset_point(s, x, ng, wi);
-                float3 to = offset_point(s, ls.p, ls.n, -wi);
-                float3 seg = to - from;
-                float len = length(seg);
-                if (dot(seg, wi) > 0.0f) {
-                    float w = power_heuristic(light_pdf, bsdf_pdf);
-                    shadow->origin = (float4)(from, len);
-                    shadow->dir = (float4)(seg / len, 0.0f);
-                    shadow->contribution = (float4)(p->throughput.xyz * f * wi_local.z * ls.emission * (w / light_pdf), 0.0f);
-                    shadow->slot = p->slot;
-                }
-            }
-        }
-    }
-
-    /* Continue the path by sampling the BSDF. */
-    BsdfSample bs;
-    if (!bsdf_sample(&m, wo_local, path_rand(p, &rng, DIM_BSDF_U), path_rand(p, &rng, DIM_BSDF_V),
-                     path_rand(p, &rng, DIM_BSDF_LOBE), &bs))
-        return false;
-    float3 wi = to_world(bs.wi, ts, tt, n);
-    p->throughput.xyz *= bs.weight;
-    p->prev_pdf = bs.pdf;
-    p->prev_specular = bs.specular ? 1 : 0;
-    p->origin = (float4)(offset_point(s, x, ng, wi), 0.0f);
-    p->dir = (float4)(wi, 0.0f);
-    p->bounce += 1;
-
-#if USE_RUSSIAN_ROULETTE
-    /* Russian roulette (common.h) from RR_DEPTH bounces on. */
-    if (p->bounce >= RR_DEPTH) {
-        float3 throughput = p->throughput.xyz;
-        if (!roulette(&throughput, 1.0f, sampler_get(&rng, bounce_dim(p->bounce - 1, DIM_ROULETTE)))) return false;
-        p->throughput.xyz = throughput;
-    }
-#endif
-    return !is_black(p->throughput.xyz);
+    if (nee_allowed) path_prepare_shadow_ray(s, p, &rng, &m, x, ng, ts, tt, n, wo_local, shadow);
+    return path_continue(s, p, &rng, &m, x, ng, ts, tt, n, wo_local);
 }
 
 /* Whether a shadow ray reaches its light. */
 HELPER bool shadow_unoccluded(const SceneView* s, const ShadowRay* r, LaneCounters* count) {
     count->shadow_rays += 1;
-    return !trace_any(s, r->origin.xyz, r->dir.xyz, 0.0f, r->origin.w, &count->shadow_steps);
+    return !trace_any(s, r->origin, r->dir.xyz, 0.0f, r->length, &count->shadow_steps);
 }
 
 /* Extend by one vertex and trace the shadow ray at once (one path per work-item). */

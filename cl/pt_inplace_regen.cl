@@ -11,10 +11,10 @@
 /* Regenerate in place: a free slot takes the next sample of the pass's budget, if any is left.
  * Sample ids come from one atomic counter; the image does not depend on which slot gets
  * which sample because every random number is keyed by the sample, not by the slot.
- * Any slot that holds a live path afterwards sets *any_alive (the host clears it first). */
-__kernel void pt_inplace_regen_regenerate(const Camera cam, const uint seed, const int slots,
-                                          const int sample_base, const int budget,
-                                          volatile __global int* next_sample, const int capacity,
+ * Any slot that holds a live path afterwards sets *any_alive (the host clears it first).
+ * `pass_args`: the pass's seed, sample_base, budget and the capacity of `paths` (PtPass, layout.h). */
+__kernel void pt_inplace_regen_regenerate(const Camera cam, const PtPass pass_args, const int slots,
+                                          volatile __global int* next_sample,
                                           __global void* paths, __global int* alive,
                                           __global int* any_alive, __global int* regenerated)
 {
@@ -22,13 +22,13 @@ __kernel void pt_inplace_regen_regenerate(const Camera cam, const uint seed, con
     if (gid >= slots) return;
     int started = 0;
     /* The counter is read before it is raised: once the budget is spent it stays put, so it
-     * never passes budget + slots, however many iterations the pass takes (no int overflow). */
-    if (!alive[gid] && *next_sample < budget) {
+     * never passes the budget + slots, however many iterations the pass takes (no int overflow). */
+    if (!alive[gid] && *next_sample < pass_args.budget) {
         int id = atomic_inc(next_sample);
-        if (id < budget) {
+        if (id < pass_args.budget) {
             PathState p;
-            path_start_sample(&p, &cam, id, sample_base, seed);
-            path_state_store(path_state_soa(paths, capacity), gid, &p);
+            path_start_sample(&p, &cam, id, pass_args.sample_base, pass_args.seed);
+            path_state_store(path_state_soa(paths, pass_args.capacity), gid, &p);
             alive[gid] = 1;
             started = 1;
         }

@@ -5,16 +5,17 @@
  *   pt_naive_render   here */
 #include "path.h"
 
-__kernel void pt_naive_render(SCENE_PARAMS, const Camera cam, const uint seed,
-                              const int sample_base, const int n,
+/* `pass_args`: the pass's seed, sample_base and budget (one work-item per sample; PtPass, layout.h). */
+__kernel void pt_naive_render(SCENE_PARAMS, const Camera cam, const PtPass pass_args,
                               __global float4* radiance,          /* one per work-item; .w = 1: non-finite */
                               __global LaneCounts* lane_counts)   /* per lane: .work = loop iterations */
 {
     int gid = get_global_id(0);
-    if (gid >= n) return;
+    if (gid >= pass_args.budget) return;
     SceneView s = SCENE_INIT;
+    uint seed = pass_args.seed;
     PathState path;
-    path_start_sample(&path, &cam, gid, sample_base, seed);
+    path_start_sample(&path, &cam, gid, pass_args.sample_base, seed);
     LaneCounters count = {0, 0, 0};
     int iterations = 0;
 #if !(USE_MAX_DEPTH) || MAX_DEPTH > 0

@@ -1,113 +1,19 @@
 """Every layout and constant that host and device share, described once.
 
-Each `Record` gives the numpy dtype (with C's offsets: a float4 is 16-byte aligned) and the C
-struct; each group of named values (an IntEnum) gives the Python constants and C `#define`s.
-All of it is generated into `layout.h` (see `c_header()`), which every program includes
-through cl/common.h, so host and device can never disagree. `LAYOUT_CHECKS` lets a test kernel
-(cl/layout_check.cl) compare sizeof/offsetof of every struct with numpy (tests/test_layout.py).
-The index formulas both sides compute (toolkit/core/bdpt_indices.py, sample_dims.py) and the names
-of quantities packed into a float4's .w lane (record_lanes.py) are emitted into layout.h here too.
+Each `Record` (toolkit/core/record.py) gives the numpy dtype (with C's offsets: a float4 is
+16-byte aligned) and the C struct; each group of named values (an IntEnum) gives the Python
+constants and C `#define`s. All of it is generated into `layout.h` (see `c_header()`), which
+every program includes through cl/common.h, so host and device can never disagree.
+`LAYOUT_CHECKS` lets a test kernel (cl/layout_check.cl) compare sizeof/offsetof of every struct
+with numpy (tests/test_layout.py). The index formulas both sides compute
+(toolkit/core/bdpt_indices.py, sample_dims.py) and the names of quantities packed into a float4's
+.w lane (record_lanes.py) are emitted into layout.h here too.
 """
 from enum import IntEnum, IntFlag
 
-import numpy as np
-
 from toolkit.core import bdpt_indices, sample_dims
-from toolkit.core.c_formula import HELPER   # how every generated helper is declared (cl/common.h)
+from toolkit.core.record import Record
 from toolkit.core.record_lanes import Lane
-
-# C type -> (numpy base type, element count, alignment in bytes). OpenCL C aligns a vector
-# type to its size; numpy's align=True would align a float32 x 4 sub-array to 4 bytes only.
-_C_TYPES = {"float": ("float32", 1, 4), "int": ("int32", 1, 4), "uint": ("uint32", 1, 4),
-            "float4": ("float32", 4, 16), "int4": ("int32", 4, 16), "uint4": ("uint32", 4, 16)}
-
-
-def _align(offset, alignment):
-    return (offset + alignment - 1) // alignment * alignment
-
-
-class Record:
-    def __init__(self, name, fields, doc=""):
-        self.name, self.fields, self.doc = name, list(fields), doc
-        offsets, offset, largest = [], 0, 1
-        for _, t in self.fields:
-            base, count, alignment = _C_TYPES[t]
-            offset = _align(offset, alignment)
-            offsets.append(offset)
-            offset += np.dtype(base).itemsize * count
-            largest = max(largest, alignment)
-        self.dtype = np.dtype({"names": [f for f, _ in self.fields],
-                               "formats": [(_C_TYPES[t][0], (_C_TYPES[t][1],)) if _C_TYPES[t][1] > 1
-                                           else _C_TYPES[t][0] for _, t in self.fields],
-                               "offsets": offsets, "itemsize": _align(offset, largest)})
-
-    def c_struct(self):
-        lines = [f"/* {self.doc} */"] if self.doc else []
-        lines.append("typedef struct {")
-        lines += [f"    {t} {f};" for f, t in self.fields]
-        lines.append(f"}} {self.name};")
-        return "\n".join(lines)
-
-    def c_soa(self):
-        """Structure-of-arrays access to records of this type, all in one global buffer of
-        `capacity` records (field after field: consecutive work-items touch consecutive words):
-        <Name>SoA, <name>_soa(memory, capacity) to find the fields, and <name>_load /
-        <name>_store to move one record in and out."""
-        lower = _snake(self.name)
-        fields = self.soa_fields
-        lines = [f"/* {self.name} as a structure of arrays: consecutive work-items touch consecutive words. */",
-                 "typedef struct {"]
-        lines += [f"    __global {t}* {f};" for f, t in fields]
-        lines.append(f"}} {self.name}SoA;")
-        lines.append("/* The fields of `capacity` records (a multiple of 4) stored one after another in `memory`. */")
-        lines.append(f"{HELPER} {self.name}SoA {lower}_soa(__global void* memory, int capacity) {{")
-        lines.append("    __global uchar* m = (__global uchar*)memory;")
-        lines.append(f"    {self.name}SoA s;")
-        for f, t in fields:
-            lines.append(f"    s.{f} = (__global {t}*)m;")
-            lines.append(f"    m += (size_t)capacity * sizeof({t});")
-        lines.append("    return s;\n}")
-        lines.append(f"{HELPER} {self.name} {lower}_load({self.name}SoA s, int i) {{")
-        lines.append(f"    {self.name} r;")
-        lines += [f"    r.{f} = s.{f}[i];" for f, _ in fields]
-        lines.append("    return r;\n}")
-        lines.append(f"{HELPER} void {lower}_store({self.name}SoA s, int i, const {self.name}* r) {{")
-        lines += [f"    s.{f}[i] = r->{f};" for f, _ in fields]
-        lines.append("}")
-        return "\n".join(lines)
-
-    def soa_offset(self, field, capacity):
-        """Byte offset of `field`'s array in a structure-of-arrays buffer of `capacity` records."""
-        offset = 0
-        for f, _ in self.soa_fields:
-            if f == field:
-                return offset
-            offset += capacity * self.dtype[f].itemsize
-        raise KeyError(field)
-
-    def soa_buffer(self, context, capacity):
-        """One device buffer that holds `capacity` records as a structure of arrays (see c_soa)."""
-        import pyopencl as cl
-        if capacity % 4:
-            raise ValueError("a structure-of-arrays capacity must be a multiple of 4 (float4 alignment)")
-        return cl.Buffer(context, cl.mem_flags.READ_WRITE, max(1, capacity) * sum(
-            self.dtype[f].itemsize for f, _ in self.soa_fields))
-
-    @property
-    def soa_fields(self):
-        """Fields stored in structure-of-arrays form (alignment padding is left out)."""
-        return [(f, t) for f, t in self.fields if not f.startswith("pad")]
-
-    def zeros(self, n):
-        return np.zeros(n, self.dtype)
-
-    def layout_checks(self):
-        """(what, C expression, value numpy expects) for sizeof and every offsetof."""
-        out = [(f"sizeof({self.name})", f"sizeof({self.name})", self.dtype.itemsize)]
-        out += [(f"offsetof({self.name}, {f})", f"__builtin_offsetof({self.name}, {f})",
-                 self.dtype.fields[f][1]) for f, _ in self.fields]
-        return out
-
 
 # float4-first layouts keep every record 16-byte aligned on host and device alike.
 BVH_NODE = Record("BvhNode", [
@@ -192,14 +98,26 @@ PATH_STATE = Record("PathState", [
 ], "The state of one camera path between two extension steps, 96 bytes.")
 
 SHADOW_RAY = Record("ShadowRay", [
-    ("origin", "float4"),        # .w = length of the segment to test
-    ("dir", "float4"),
-    ("contribution", "float4"),  # radiance added to the sample if the segment is unoccluded
+    ("origin", "float3"),        # where the segment to test starts (already offset off the surface)
+    ("length", "float"),         # its length (in its stream it shares origin's 16 bytes: soa_arrays)
+    ("dir", "float4"),           # its unit direction; .w unused
+    ("contribution", "float4"),  # radiance added to the sample if the segment is unoccluded; .w unused
     ("slot", "int"),             # the sample's slot in the pass's output
-    ("pad0", "int"),
-    ("pad1", "int"),
-    ("pad2", "int"),
-], "A next-event-estimation shadow ray waiting to be traced, 64 bytes.")
+], "A next-event-estimation shadow ray waiting to be traced, 52 bytes in its stream.")
+
+# The scalar arguments of the path tracers' kernels (cl/pt_*.cl), grouped as BDPT's are.
+PT_PASS = Record("PtPass", [
+    ("seed", "uint"),           # keys every random number, with the sample's pixel and number
+    ("sample_base", "int"),     # samples per pixel of the passes before this one
+    ("budget", "int"),          # samples in this pass: ids 0 .. budget - 1 (cl/camera.h's sample_pixel)
+    ("capacity", "int"),        # records each path stream holds (a multiple of 4); pt_naive has no stream: 0
+], "What every path-tracing kernel of one pass shares.")
+
+PT_REGENERATION = Record("PtRegeneration", [
+    ("count", "int"),           # new samples, in consecutive stream entries
+    ("first_id", "int"),        # id of the first new sample (the others follow: consecutive pixels)
+    ("base", "int"),            # the stream entry of the first (the stream's length before)
+], "One regeneration at the end of pt_compact_regen's stream.")
 
 BDPT_VERTEX = Record("BdptVertex", [
     ("pos", "float4"),       # position; .w unused
@@ -290,7 +208,7 @@ MLT_ITERATION = Record("MltIteration", [
 
 RECORDS = [BVH_NODE, WIDE_NODE, TRI_GROUP, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY, BDPT_VERTEX,
            SUBPATH, LANE_COUNTS, BDPT_SLOT, BDPT_PASS, BDPT_STEP, BDPT_REGENERATION, MLT_CHAIN, MLT_ITERATION]
-
+RECORDS += [PT_PASS, PT_REGENERATION]   # the path tracers' kernel arguments
 
 SOA_RECORDS = [PATH_STATE, SHADOW_RAY, SUBPATH]
 
@@ -366,10 +284,8 @@ LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)   # Rec. 709 luminance of linear RG
 SCENE_ARGS = [("nodes", "__global const BVH_WORD*"), ("tris", "__global const Triangle*"),
               ("materials", "__global const Material*"), ("lights", "__global const LightTri*"),
               ("light_count", "const int"), ("epsilon", "const float")]
-
-
-def _snake(name):
-    return "".join("_" + c.lower() if c.isupper() and i else c.lower() for i, c in enumerate(name))
+# Their names as kernel parameters, by which the host passes them (Technique.scene_args).
+SCENE_PARAM_NAMES = [f"scene_{name}" for name, _ in SCENE_ARGS]
 
 
 def _c_literal(value):
@@ -386,8 +302,9 @@ def c_constants():
     lines.append("#ifdef BVH_WIDE\n#define BVH_WORD float4\n#else\n#define BVH_WORD BvhNode\n#endif")
     lines += [f"#define LUMINANCE_{c} {_c_literal(w)}" for c, w in zip("RGB", LUMINANCE_WEIGHTS)]
     lines.append("/* The scene as kernel parameters, and the SceneView (cl/scene.h) made of them. */")
-    lines.append("#define SCENE_PARAMS " + ", ".join(f"{t} scene_{n}" for n, t in SCENE_ARGS))
-    lines.append("#define SCENE_INIT {" + ", ".join(f".{n} = scene_{n}" for n, _ in SCENE_ARGS) + "}")
+    scene = list(zip(SCENE_ARGS, SCENE_PARAM_NAMES))
+    lines.append("#define SCENE_PARAMS " + ", ".join(f"{t} {param}" for (_, t), param in scene))
+    lines.append("#define SCENE_INIT {" + ", ".join(f".{n} = {param}" for (n, _), param in scene) + "}")
     return "\n".join(lines)
 
 

@@ -102,16 +102,20 @@ _memo = {}
 build_log = []  # (name, seconds, cached_in_process) for reports and tests
 
 
-def build(context, name, defines=None, directory=None):
+def build(context, name, defines=None, directory=None, arg_info=False):
     """The built program for cl/<name> (or <directory>/<name>) under `defines`, memoised per device.
 
     With `directory`, `name` and its quoted includes are read from there first, then from cl/,
     so a kernel of your own can include the toolkit's headers. `defines["LOCAL_SIZE"]` (default
-    LOCAL_SIZE) is the work-group size the program must be launched with (launch's local_size)."""
+    LOCAL_SIZE) is the work-group size the program must be launched with (launch's local_size).
+    `arg_info`: keep the kernels' parameter names (-cl-kernel-arg-info), for
+    kernel.get_arg_info (tests/test_kernel_args.py compares them with the names the host passes)."""
     defines = dict(defines or {})
     defines.setdefault("LOCAL_SIZE", LOCAL_SIZE)
     source = expand_includes(name, directory)
     options = define_options(defines) + ["-I", str(_pyopencl_include_dir())]
+    if arg_info:
+        options.append("-cl-kernel-arg-info")
     if os.environ.get("TOOLKIT_WERROR") == "1":
         options.append("-Werror")  # the test suite: any compiler warning fails the build
     device = context.devices[0]

@@ -7,9 +7,15 @@ import pyopencl as cl
 
 from toolkit.opencl import program
 from toolkit.core.film import Film, clamp_radiance
-from toolkit.core.layout import LANE_COUNTS
+from toolkit.core.layout import LANE_COUNTS, SCENE_PARAM_NAMES
 from toolkit.core.simd import PhaseCounter
 from toolkit.core.validate import InputError, local_size as checked_local_size, whole_number
+
+
+def pixel_count(camera):
+    """The pixels of the image a Camera record is for (width x height): a pass of one sample per
+    pixel is this many samples."""
+    return int(camera["width"]) * int(camera["height"])
 
 
 class Technique:
@@ -83,9 +89,15 @@ class Technique:
         """The kernel object, retrieved once (each retrieval makes a new cl.Kernel)."""
         return program.kernel(self.program, name)
 
-    def launch(self, kernel, n, *args):
-        """program.launch in work-groups of this technique's local size (its program's LOCAL_SIZE)."""
-        return program.launch(self.queue, kernel, n, *args, local_size=self.local_size)
+    def launch(self, kernel, n, /, *args, **named):
+        """program.launch over n work-items in work-groups of this technique's local size (its
+        program's LOCAL_SIZE). Arguments given by name follow the positional ones: the names are
+        the kernel's own parameter names, in its order (tests/test_kernel_args.py checks them)."""
+        return program.launch(self.queue, kernel, n, *args, *named.values(), local_size=self.local_size)
+
+    def scene_args(self):
+        """The scene's kernel arguments (SCENE_PARAMS) by parameter name, for launch(**...)."""
+        return dict(zip(SCENE_PARAM_NAMES, self.scene.args()))
 
     def padded(self, n):
         """n rounded up to a multiple of this technique's local size (a launch's global size)."""
@@ -95,7 +107,7 @@ class Technique:
         """Render `spp` samples per pixel; returns the film (see toolkit.api.render)."""
         film = Film(width, height)
         camera = self.scene.camera(width, height)
-        per_pass = self.passes(width, height, spp)
+        per_pass = self.passes(pixel_count(camera), spp)
         start = 0
         while start < spp:
             count = min(per_pass, spp - start)
@@ -106,11 +118,11 @@ class Technique:
         self.queue.finish()
         return film
 
-    def passes(self, width, height, spp):
-        """Samples per pixel in one pass (one launch batch)."""
+    def passes(self, pixels, spp):
+        """Samples per pixel in one pass (one launch batch) of an image of `pixels` pixels."""
         if self.pass_spp is not None:
             return min(spp, self.pass_spp)
-        return max(1, min(spp, self.target_batch // (width * height)))
+        return max(1, min(spp, self.target_batch // pixels))
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         raise NotImplementedError

@@ -10,13 +10,33 @@ work-group in local memory, one atomic per group); "multipass" labels, scans and
 Option `stream_size`: the paths in the stream (default: the device's, toolkit/opencl/work_sizes.py:
 32,768 on a CPU).
 """
+from dataclasses import dataclass
+
 import numpy as np
 import pyopencl as cl
 
 from toolkit.opencl.compaction import Compactor
-from toolkit.core.layout import PATH_STATE, SHADOW_RAY, StreamCounter
+from toolkit.core.layout import PATH_STATE, PT_PASS, PT_REGENERATION, SHADOW_RAY, StreamCounter
 from toolkit.opencl.work_sizes import checked_size
-from toolkit.techniques.base import Technique
+from toolkit.techniques.base import Technique, pixel_count
+
+
+@dataclass
+class StreamBuffers:
+    """pt_compact_regen's device memory: made once per stream size, reused by every pass."""
+    stream: cl.Buffer        # PathState x capacity, a structure of arrays: the paths in flight, packed at its start
+    next_stream: cl.Buffer   # the same: each step writes its survivors here, packed; then the two swap
+    shadow_rays: cl.Buffer   # ShadowRay x capacity: the shadow rays a step queued, packed (immediate compaction)
+    lane_counts: cl.Buffer   # LaneCounts per path: what it did in an extension step (COUNT_SIMD)
+    alive: cl.Buffer         # int per path: 1 where it survived the step (multi-pass compaction's flags)
+    shadow_steps: cl.Buffer  # int per queued shadow ray: the BVH nodes it visited (COUNT_SIMD)
+    counters: cl.Buffer      # int per StreamCounter: the survivors and queued shadow rays of a step (immediate)
+    indices: cl.Buffer       # int per path: the survivors' indices from the scan (multi-pass; None: immediate)
+    radiance: cl.Buffer = None   # float4 per sample of the pass (Technique.output_buffer): set by each pass
+
+    def swap(self):
+        """After a step: the survivors, packed into next_stream, are the stream."""
+        self.stream, self.next_stream = self.next_stream, self.stream
 
 
 class PtCompactRegen(Technique):
@@ -35,43 +55,45 @@ class PtCompactRegen(Technique):
         self.shadow_queue = compaction == "immediate"
         self.compactor = Compactor(self.queue, self.local_size) if compaction == "multipass" else None
 
-    def run_pass(self, film, camera, seed, sample_base, spp):
-        budget = camera["width"] * camera["height"] * spp
-        size = min(self.stream_size, budget)
-        capacity = np.int32(self.stream_capacity(size))
-        stream, spare, shadow_rays = self.reused(("streams", size), lambda: (
-            self.soa_buffer(PATH_STATE, size), self.soa_buffer(PATH_STATE, size),  # compaction writes to spare
-            self.soa_buffer(SHADOW_RAY, size)))
-        lane_counts, alive, shadow_steps, counters, indices = self.reused(("lanes", size), lambda: (
-            self.lane_counts_buffer(size), self.int_buffer(size), self.int_buffer(size),
-            self.int_buffer(len(StreamCounter)), self.compacted_indices(size)))
-        radiance = self.output_buffer(budget)
-        generate = self.kernel("pt_compact_regen_generate")
+    def stream_buffers(self, size):
+        """The device memory of a stream of `size` paths (run_pass makes it once per stream size)."""
+        return StreamBuffers(
+            stream=self.soa_buffer(PATH_STATE, size), next_stream=self.soa_buffer(PATH_STATE, size),
+            shadow_rays=self.soa_buffer(SHADOW_RAY, size), lane_counts=self.lane_counts_buffer(size),
+            alive=self.int_buffer(size), shadow_steps=self.int_buffer(size),
+            counters=self.int_buffer(len(StreamCounter)), indices=self.compacted_indices(size))
 
+    def run_pass(self, film, camera, seed, sample_base, spp):
+        budget = pixel_count(camera) * spp
+        size = min(self.stream_size, budget)
+        b = self.reused(("streams", size), lambda: self.stream_buffers(size))
+        b.radiance = self.output_buffer(budget)
+        pass_args = PT_PASS.record(seed=seed, sample_base=sample_base, budget=budget,
+                                   capacity=self.stream_capacity(size))
         length, next_id = 0, 0
         while True:
             # Regenerate: fill the end of the stream with the next samples of the budget.
             count = min(size - length, budget - next_id)
             if count > 0:
-                self.launch(generate, count, camera, seed, np.int32(length), np.int32(count),
-                            np.int32(next_id), np.int32(sample_base), capacity, stream)
+                self.launch(self.kernel("pt_compact_regen_generate"), count, cam=camera, pass_args=pass_args,
+                            r=PT_REGENERATION.record(count=count, first_id=next_id, base=length), stream=b.stream)
                 self.count_generate(count)
                 length += count
                 next_id += count
             if length == 0:
                 break   # budget spent and the stream has drained
-            # Extend every path by one vertex, then compact the survivors into `spare`.
-            survivors, queued = self.extend_and_compact(seed, length, capacity, stream, spare, alive, counters,
-                                                        shadow_rays, radiance, lane_counts, indices)
-            self.count_extend_and_compact(lane_counts, length, size, draining=next_id == budget)
+            # Extend every path by one vertex, then compact the survivors into next_stream.
+            survivors, queued = self.extend_and_compact(pass_args, length, b)
+            self.count_extend_and_compact(b.lane_counts, length, size, draining=next_id == budget)
             # Trace the queued shadow rays: a packed stream of its own.
             if queued:
-                self.launch(self.kernel("pt_compact_regen_shadow"), queued, *self.scene.args(),
-                            np.int32(queued), capacity, shadow_rays, radiance, shadow_steps)
-                self.count_shadow(shadow_steps, queued)
-            stream, spare = spare, stream
+                self.launch(self.kernel("pt_compact_regen_shadow"), queued, **self.scene_args(),
+                            pass_args=pass_args, queued=np.int32(queued), shadow_rays=b.shadow_rays,
+                            radiance=b.radiance, shadow_steps=b.shadow_steps)
+                self.count_shadow(b.shadow_steps, queued)
+            b.swap()
             length = survivors
-        self.collect(film, radiance, budget)
+        self.collect(film, b.radiance, budget)
 
     def compacted_indices(self, size):
         """Multi-pass compaction's output (the survivors' indices) and the compactor's scratch
@@ -81,23 +103,25 @@ class PtCompactRegen(Technique):
         self.compactor.reserve(size)
         return self.int_buffer(size)
 
-    def extend_and_compact(self, seed, length, capacity, stream, spare, alive, counters, shadow_rays,
-                           radiance, lane_counts, indices=None):
-        """Returns (surviving paths, now packed at the start of `spare`; queued shadow rays)."""
+    def extend_and_compact(self, pass_args, length, b):
+        """Extend the `length` paths of b.stream; returns (the survivors, now packed at the start
+        of b.next_stream; the queued shadow rays)."""
         if self.compaction == "immediate":
-            cl.enqueue_fill_buffer(self.queue, counters, np.int32(0), 0, 4 * len(StreamCounter))
-            self.launch(self.kernel("pt_compact_regen_extend"), length, *self.scene.args(),
-                        seed, np.int32(length), capacity, stream, spare, shadow_rays, counters,
-                        radiance, lane_counts)
-            lengths = self.read_ints(counters, len(StreamCounter))
+            cl.enqueue_fill_buffer(self.queue, b.counters, np.int32(0), 0, 4 * len(StreamCounter))
+            self.launch(self.kernel("pt_compact_regen_extend"), length, **self.scene_args(), pass_args=pass_args,
+                        stream_length=np.int32(length), stream=b.stream, next_stream=b.next_stream,
+                        shadow_rays=b.shadow_rays, counters=b.counters, radiance=b.radiance,
+                        lane_counts=b.lane_counts)
+            lengths = self.read_ints(b.counters, len(StreamCounter))
             return int(lengths[StreamCounter.PATHS]), int(lengths[StreamCounter.SHADOW_RAYS])
-        cl.enqueue_fill_buffer(self.queue, alive, np.int32(1), 0, 4 * length)   # every path in the stream is live
-        self.launch(self.kernel("extend_in_place"), length, *self.scene.args(),
-                    seed, np.int32(length), capacity, stream, alive, radiance, lane_counts)
-        indices, survivors = self.compactor.compact_indices(alive, length, method="multipass", out=indices)
+        cl.enqueue_fill_buffer(self.queue, b.alive, np.int32(1), 0, 4 * length)   # every path in the stream is live
+        self.launch(self.kernel("extend_in_place"), length, **self.scene_args(), pass_args=pass_args,
+                    stream_length=np.int32(length), paths=b.stream, alive=b.alive, radiance=b.radiance,
+                    lane_counts=b.lane_counts)
+        indices, survivors = self.compactor.compact_indices(b.alive, length, method="multipass", out=b.indices)
         if survivors:
-            self.launch(self.kernel("pt_compact_regen_gather"), survivors,
-                        np.int32(survivors), indices, capacity, stream, spare)
+            self.launch(self.kernel("pt_compact_regen_gather"), survivors, pass_args=pass_args,
+                        count=np.int32(survivors), indices=indices, stream=b.stream, next_stream=b.next_stream)
         return survivors, 0
 
     # --- SIMD counting: one hook per stage, no-ops unless count_simd ----------------------

@@ -8,12 +8,26 @@ measures ~30% active threads per warp in that step.
 
 Option `stream_size`: the slots (default: the device's, toolkit/opencl/work_sizes.py: 32,768 on a CPU).
 """
+from dataclasses import dataclass
+
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.layout import PATH_STATE
+from toolkit.core.layout import PATH_STATE, PT_PASS
 from toolkit.opencl.work_sizes import checked_size
-from toolkit.techniques.base import Technique
+from toolkit.techniques.base import Technique, pixel_count
+
+
+@dataclass
+class SlotBuffers:
+    """pt_inplace_regen's device memory: made once per stream size, reused by every pass."""
+    paths: cl.Buffer         # PathState per slot, a structure of arrays of `capacity` records: the slot's path
+    lane_counts: cl.Buffer   # LaneCounts per slot: what it did in an extension step (COUNT_SIMD)
+    regenerated: cl.Buffer   # int per slot: 1 where a regeneration started a sample (COUNT_SIMD)
+    alive: cl.Buffer         # int per slot: 1 while it holds a live path, 0 while it is free
+    next_sample: cl.Buffer   # one int: the next sample id of the pass to start (the slots' atomic counter)
+    any_alive: cl.Buffer     # one int: set by every slot that holds a live path after a regeneration
+    radiance: cl.Buffer = None   # float4 per sample of the pass (Technique.output_buffer): set by each pass
 
 
 class PtInplaceRegen(Technique):
@@ -29,17 +43,21 @@ class PtInplaceRegen(Technique):
         super().__init__(*args, **kwargs)
         self.stream_size = self.in_flight("stream_size", stream_size)
 
+    def slot_buffers(self, slots):
+        """The device memory of `slots` slots (run_pass makes it once per stream size)."""
+        return SlotBuffers(paths=self.soa_buffer(PATH_STATE, slots), lane_counts=self.lane_counts_buffer(slots),
+                           regenerated=self.int_buffer(slots), alive=self.int_buffer(slots),
+                           next_sample=self.int_buffer(1), any_alive=self.int_buffer(1))
+
     def run_pass(self, film, camera, seed, sample_base, spp):
-        budget = camera["width"] * camera["height"] * spp
+        budget = pixel_count(camera) * spp
         slots = min(self.stream_size, budget)
-        capacity = np.int32(self.stream_capacity(slots))
-        # Every buffer is made once per stream size and reused by every pass of the render.
-        paths, lane_counts, regenerated, alive, next_sample, any_alive = self.reused(("slots", slots), lambda: (
-            self.soa_buffer(PATH_STATE, slots), self.lane_counts_buffer(slots), self.int_buffer(slots),
-            self.int_buffer(slots), self.int_buffer(1), self.int_buffer(1)))
-        self.fill_ints(alive, 0)        # every slot free
-        self.fill_ints(next_sample, 0)  # the pass's first sample comes next
-        radiance = self.output_buffer(budget)
+        b = self.reused(("slots", slots), lambda: self.slot_buffers(slots))
+        self.fill_ints(b.alive, 0)        # every slot free
+        self.fill_ints(b.next_sample, 0)  # the pass's first sample comes next
+        b.radiance = self.output_buffer(budget)
+        pass_args = PT_PASS.record(seed=seed, sample_base=sample_base, budget=budget,
+                                   capacity=self.stream_capacity(slots))
         # The host waits for the "any path alive" flag only every `reads_every` iterations: in
         # between, the GPU runs on. Once every path has ended, the iterations issued before the
         # next read find no work (every lane returns at once), so the image does not change.
@@ -47,19 +65,20 @@ class PtInplaceRegen(Technique):
         step = 0
         while True:
             # Regenerate: every free slot starts the next sample of the budget, if one is left.
-            cl.enqueue_fill_buffer(self.queue, any_alive, np.int32(0), 0, 4)
-            self.launch(self.kernel("pt_inplace_regen_regenerate"), slots, camera, seed,
-                        np.int32(slots), np.int32(sample_base), np.int32(budget), next_sample, capacity,
-                        paths, alive, any_alive, regenerated)
-            self.count_regenerate(regenerated, slots)
+            cl.enqueue_fill_buffer(self.queue, b.any_alive, np.int32(0), 0, 4)
+            self.launch(self.kernel("pt_inplace_regen_regenerate"), slots, cam=camera, pass_args=pass_args,
+                        slots=np.int32(slots), next_sample=b.next_sample, paths=b.paths, alive=b.alive,
+                        any_alive=b.any_alive, regenerated=b.regenerated)
+            self.count_regenerate(b.regenerated, slots)
             step += 1
-            if step % reads_every == 0 and not self.read_ints(any_alive, 1)[0]:
+            if step % reads_every == 0 and not self.read_ints(b.any_alive, 1)[0]:
                 break   # budget spent and every path has ended
             # Extend: every slot with a live path traces one more vertex.
-            self.launch(self.kernel("extend_in_place"), slots, *self.scene.args(), seed,
-                        np.int32(slots), capacity, paths, alive, radiance, lane_counts)
-            self.count_extend(lane_counts, slots, next_sample, budget)
-        self.collect(film, radiance, budget)
+            self.launch(self.kernel("extend_in_place"), slots, **self.scene_args(), pass_args=pass_args,
+                        stream_length=np.int32(slots), paths=b.paths, alive=b.alive, radiance=b.radiance,
+                        lane_counts=b.lane_counts)
+            self.count_extend(b.lane_counts, slots, b.next_sample, budget)
+        self.collect(film, b.radiance, budget)
 
     def count_regenerate(self, regenerated, slots):
         if self.count_simd:

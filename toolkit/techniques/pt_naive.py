@@ -4,9 +4,20 @@ Kernel: cl/pt_naive.cl. A warp keeps issuing the extension loop until its longes
 ended, so lanes whose paths ended early sit idle: with Russian roulette the SIMD efficiency
 of the loop is low (the talk reports ~33% active threads per warp).
 """
-import numpy as np
+from dataclasses import dataclass
 
-from toolkit.techniques.base import Technique
+import numpy as np
+import pyopencl as cl
+
+from toolkit.core.layout import PT_PASS
+from toolkit.techniques.base import Technique, pixel_count
+
+
+@dataclass
+class NaiveBuffers:
+    """What one pass of pt_naive writes on the device."""
+    radiance: cl.Buffer      # float4 per sample: its value (Technique.output_buffer; .w = -1 until written)
+    lane_counts: cl.Buffer   # LaneCounts per sample: its loop iterations and BVH steps (one, unused, without COUNT_SIMD)
 
 
 class PtNaive(Technique):
@@ -16,13 +27,13 @@ class PtNaive(Technique):
     iterations = 0   # loop iterations over all passes so far (for per-iteration plots)
 
     def run_pass(self, film, camera, seed, sample_base, spp):
-        n = int(camera["width"] * camera["height"]) * spp
-        radiance = self.output_buffer(n)
-        lane_counts = self.lane_counts_buffer(n if self.count_simd else 1)
-        self.launch(self.kernel("pt_naive_render"), n, *self.scene.args(), camera, seed,
-                    np.int32(sample_base), np.int32(n), radiance, lane_counts)
-        self.collect(film, radiance, n)
-        self.count_render(lane_counts, n)
+        n = pixel_count(camera) * spp   # one work-item per sample
+        b = NaiveBuffers(radiance=self.output_buffer(n), lane_counts=self.lane_counts_buffer(n if self.count_simd else 1))
+        pass_args = PT_PASS.record(seed=seed, sample_base=sample_base, budget=n, capacity=0)
+        self.launch(self.kernel("pt_naive_render"), n, **self.scene_args(), cam=camera, pass_args=pass_args,
+                    radiance=b.radiance, lane_counts=b.lane_counts)
+        self.collect(film, b.radiance, n)
+        self.count_render(b.lane_counts, n)
 
     def count_render(self, lane_counts, n):
         """SIMD counters of one launch (a no-op unless count_simd)."""

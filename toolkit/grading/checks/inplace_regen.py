@@ -3,7 +3,7 @@ student's cl/pt_inplace_regen.cl."""
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.layout import PATH_STATE
+from toolkit.core.layout import PATH_STATE, PT_PASS
 from toolkit.grading.assignment import Assignment, CheckFailed, same_image
 from toolkit.opencl import program
 from toolkit.techniques import PtInplaceRegen
@@ -33,8 +33,9 @@ def _regenerate(c, alive, next_sample, budget):
     flags, counter = c.buffer(np.r_[alive, np.zeros(capacity - n)].astype(np.int32)), c.buffer(np.int32([next_sample]))
     any_alive, regenerated = c.buffer(np.zeros(1, np.int32)), c.buffer(np.full(capacity, -1, np.int32))
     camera = tech.scene.camera(16, 16)
-    program.launch(c.queue, tech.kernel("pt_inplace_regen_regenerate"), n, camera, np.uint32(1), np.int32(n),
-                   np.int32(0), np.int32(budget), counter, np.int32(capacity), paths, flags, any_alive, regenerated)
+    pass_args = PT_PASS.record(seed=1, sample_base=0, budget=budget, capacity=capacity)
+    program.launch(c.queue, tech.kernel("pt_inplace_regen_regenerate"), n, camera, pass_args, np.int32(n),
+                   counter, paths, flags, any_alive, regenerated)
     ids = c.read(paths, np.int32, n, PATH_STATE.soa_offset("slot", capacity))
     return (ids, c.read(flags, np.int32, n), int(c.read(any_alive, np.int32, 1)[0]),
             c.read(regenerated, np.int32, n))

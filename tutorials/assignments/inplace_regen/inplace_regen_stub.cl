@@ -7,19 +7,19 @@
  * Fill in the region marked TODO; keep the kernel's name and arguments. */
 #include "extend_in_place.h"
 
-/* cam, seed, sample_base: pass them on to path_start_sample (cl/path.h).
+/* cam, pass_args.seed, pass_args.sample_base: pass them on to path_start_sample (cl/path.h).
+ *               (pass_args is a PtPass record: toolkit/core/layout.py.)
  * slots:        slots in the pool (work-items: gid < slots).
- * budget:       samples in this pass; sample ids are 0 .. budget - 1.
+ * pass_args.budget: samples in this pass; sample ids are 0 .. budget - 1.
  * next_sample:  the next sample id to start, shared by all work-items (an atomic counter).
- * capacity, paths: the path states, a structure of arrays: path_state_store(path_state_soa(paths,
- *               capacity), slot, &p) writes slot `slot`.
+ * paths:        the path states, a structure of arrays of pass_args.capacity records:
+ *               path_state_store(path_state_soa(paths, pass_args.capacity), slot, &p) writes slot `slot`.
  * alive:        alive[gid] != 0 while slot gid holds a live path.
  * any_alive:    the host clears it before the launch and stops when it stays 0: set it to 1 if
  *               your slot holds a live path after this step.
  * regenerated:  (SIMD counters) 1 in the lanes that started a sample, else 0. */
-__kernel void pt_inplace_regen_regenerate(const Camera cam, const uint seed, const int slots,
-                                          const int sample_base, const int budget,
-                                          volatile __global int* next_sample, const int capacity,
+__kernel void pt_inplace_regen_regenerate(const Camera cam, const PtPass pass_args, const int slots,
+                                          volatile __global int* next_sample,
                                           __global void* paths, __global int* alive,
                                           __global int* any_alive, __global int* regenerated)
 {
@@ -29,8 +29,7 @@ __kernel void pt_inplace_regen_regenerate(const Camera cam, const uint seed, con
     /* TODO: if this slot is free, take the next sample id (atomically); if it is inside the
      * budget, start it with path_start_sample, store it in this slot, mark the slot alive and
      * set started. Then tell the host whether the slot holds a live path (any_alive). */
-    (void)cam; (void)seed; (void)sample_base; (void)budget; (void)next_sample;
-    (void)capacity; (void)paths; (void)alive; (void)any_alive;
+    (void)cam; (void)pass_args; (void)next_sample; (void)paths; (void)alive; (void)any_alive;
 #if COUNT_SIMD
     regenerated[gid] = started;
 #else
