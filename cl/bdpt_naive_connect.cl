@@ -31,11 +31,7 @@ __kernel void bdpt_naive_connect_splats(const int pool, __global const BdptSlot*
  * nothing; the host pre-fills). Built for per-strategy images (STRATEGY_IMAGES), the eye-path
  * strategies of paths up to STRATEGY_MAX_EDGES edges get a record each, at naive_strategy_record
  * (after all the sums; numbered by strategy_index), and the sum holds only the longer ones. */
-__kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool, const int splats,
-                                 __global const int* firsts, __global const BdptSlot* slots,
-                                 __global const BdptVertex* eye_vertices, __global const BdptVertex* light_vertices,
-                                 __global float4* record_value, __global int* record_pixel,
-                                 __global LaneCounts* lane_counts)
+__kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool, const int splats, CONNECT_PARAMS)
 {
     int gid = get_global_id(0);
     if (gid >= pool) return;

@@ -39,11 +39,7 @@ HELPER int find_sample(__global const int* firsts, int n, int g) {
 }
 
 /* One connection per work-item; record g holds its value and target pixel (-1: none). */
-__kernel void bdpt_parallel_connect(SCENE_PARAMS, const Camera cam, const int total, const int pool,
-                                    __global const int* firsts, __global const BdptSlot* slots,
-                                    __global const BdptVertex* eye_vertices, __global const BdptVertex* light_vertices,
-                                    __global float4* record_value, __global int* record_pixel,
-                                    __global LaneCounts* lane_counts)
+__kernel void bdpt_parallel_connect(SCENE_PARAMS, const Camera cam, const int total, const int pool, CONNECT_PARAMS)
 {
     int gid = get_global_id(0);
     if (gid >= total) return;

@@ -287,6 +287,16 @@ SCENE_ARGS = [("nodes", "__global const BVH_WORD*"), ("tris", "__global const Tr
 # Their names as kernel parameters, by which the host passes them (Technique.scene_args).
 SCENE_PARAM_NAMES = [f"scene_{name}" for name, _ in SCENE_ARGS]
 
+# What both BDPT connect kernels (cl/bdpt_naive_connect.cl, cl/bdpt_parallel_connect.cl) read and
+# write, in order, after their own scalars: CONNECT_PARAMS. The host passes them in this order
+# (the connect phases in toolkit/techniques/bdpt_*_connect.py).
+CONNECT_ARGS = [("firsts", "__global const int*"),            # a scan of per-slot record counts
+                ("slots", "__global const BdptSlot*"),        # the sample pool
+                ("eye_vertices", "__global const BdptVertex*"), ("light_vertices", "__global const BdptVertex*"),
+                ("record_value", "__global float4*"),          # connection records: RGB and, in .w, a weight for the host
+                ("record_pixel", "__global int*"),             # and their target pixel (-1: none)
+                ("lane_counts", "__global LaneCounts*")]       # the SIMD counters
+
 
 def _c_literal(value):
     return f"{value!r}f" if isinstance(value, float) else (f"({value})" if value < 0 else str(value))
@@ -305,6 +315,8 @@ def c_constants():
     scene = list(zip(SCENE_ARGS, SCENE_PARAM_NAMES))
     lines.append("#define SCENE_PARAMS " + ", ".join(f"{t} {param}" for (_, t), param in scene))
     lines.append("#define SCENE_INIT {" + ", ".join(f".{n} = {param}" for (n, _), param in scene) + "}")
+    lines.append("/* The pool and the records of both BDPT connect kernels (CONNECT_ARGS). */")
+    lines.append("#define CONNECT_PARAMS " + ", ".join(f"{t} {name}" for name, t in CONNECT_ARGS))
     return "\n".join(lines)
 
 
