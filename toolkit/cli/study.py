@@ -1,4 +1,4 @@
-"""`python -m toolkit study`: the speed-accuracy study (toolkit/measure/study.py), error against
+"""`python -m toolkit study`: the speed-accuracy study (toolkit/measure/study/), error against
 time for each technique or each value of an accuracy knob."""
 import json
 

@@ -3,6 +3,7 @@ numpy dtype (with C's offsets: a float4 is 16-byte aligned), the C struct, its s
 access and the sizeof/offsetof checks. The records themselves are described in toolkit/core/layout.py.
 """
 import numpy as np
+import pyopencl as cl
 
 from toolkit.core.c_formula import HELPER   # how every generated helper is declared (cl/common.h)
 
@@ -89,7 +90,6 @@ class Record:
 
     def soa_buffer(self, context, capacity):
         """One device buffer that holds `capacity` records as a structure of arrays (see c_soa)."""
-        import pyopencl as cl
         if capacity % 4:
             raise ValueError("a structure-of-arrays capacity must be a multiple of 4 (float4 alignment)")
         return cl.Buffer(context, cl.mem_flags.READ_WRITE, max(1, capacity) * sum(

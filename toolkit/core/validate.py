@@ -1,5 +1,5 @@
 """Every limit on what the toolkit accepts, in one table, and the checks shared by the scene
-loader (scene.py), the command line (cli.py) and `toolkit.render` (api.py).
+loader (scene.py), the command line (toolkit/cli/) and `toolkit.render` (api.py).
 
 scenes/FORMAT.md states each limit of LIMITS in its "Limits" table; a test
 (tests/test_bad_input.py) checks the document against this table, so they cannot drift apart.

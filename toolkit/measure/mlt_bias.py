@@ -13,6 +13,7 @@ reference itself, so bias^2 is unbiased and may come out slightly negative when 
 Both are averaged over the pixels and divided by the mean squared reference value, so they
 are relative squared errors: relative RMSE^2 of one run = bias^2 + variance (+ the reference's).
 """
+import sys
 import time
 
 import numpy as np
@@ -79,5 +80,4 @@ def format_row(row):
 
 
 if __name__ == "__main__":
-    import sys
     sweep(sys.argv[1] if len(sys.argv) > 1 else "scenes/covered_lamp")

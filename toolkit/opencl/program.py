@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import pyopencl as cl
 
+from toolkit.core.layout import c_header
 from toolkit.core.package_data import data_dir
 
 # The default work-group size. A program is built for one local size (the LOCAL_SIZE define: the
@@ -32,8 +33,7 @@ def cl_dir():
 
 
 def _pyopencl_include_dir():
-    import pyopencl
-    return Path(pyopencl.__file__).parent / "cl"
+    return Path(cl.__file__).parent / "cl"
 
 
 class KernelBuildError(RuntimeError):
@@ -59,7 +59,6 @@ def expand_includes(name, directory=None, _seen=None):
     directory = Path(directory or cl_dir())
     seen = set() if _seen is None else _seen
     if name == "layout.h":  # generated from the one description in toolkit/core/layout.py
-        from toolkit.core.layout import c_header
         if name in seen:
             return ""
         seen.add(name)

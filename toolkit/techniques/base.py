@@ -6,6 +6,8 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.opencl import program
+from toolkit.opencl.device_model import resolve_warp_width
+from toolkit.opencl.work_sizes import CPU_POOL_SIZE, CPU_STREAM_SIZE, check_fits, device_work_sizes
 from toolkit.core.film import Film, clamp_radiance
 from toolkit.core.layout import LANE_COUNTS, SCENE_PARAM_NAMES
 from toolkit.core.simd import PhaseCounter
@@ -38,11 +40,10 @@ class Technique:
         `general`: build the general kernel (every material and feature compiled in, Scene.features)
         instead of the one specialized to the scene; both compute the same image.
         `pass_spp` (an option of every technique): samples per pixel in one pass instead of what
-        fills `target_batch`; a cost knob of the speed-accuracy study (toolkit/measure/study.py)."""
+        fills `target_batch`; a cost knob of the speed-accuracy study (toolkit/measure/study/)."""
         self.pass_spp = None if pass_spp is None else whole_number("technique.pass_spp", pass_spp, "pass_spp")
         # Firefly clamping (scene integrator.clamp): applied where samples reach the film.
         self.clamp = device_scene.scene.clamp
-        from toolkit.opencl.device_model import resolve_warp_width
         self.queue = queue
         self.scene = device_scene
         warp_width, self.warp_width_source = resolve_warp_width(warp_width, queue.device)
@@ -72,7 +73,6 @@ class Technique:
         a size the class sets (the grader's variants do), else the device's choice
         (toolkit.opencl.work_sizes.choose_work_sizes: a GPU's resident work-items, a CPU's own sizes).
         The pass grows with it (target_batch), so every slot still runs several samples a pass."""
-        from toolkit.opencl.work_sizes import CPU_POOL_SIZE, CPU_STREAM_SIZE, check_fits, device_work_sizes
         if given is not None:
             size, why = check_fits(self.queue.device, option, given, max_vertices), "given"
         elif getattr(type(self), option) is not None:
