@@ -148,17 +148,17 @@ HELPER bool subpath_extend(const SceneView* scene, Subpath* p, BdptSampler* rng,
  * ended (it waits for its connections), SLOT_IDLE when the pass's budget left it empty. */
 
 /* One random-walk step over a compacted subpath stream (eye or light). Survivors are packed
- * into `out` and counted in counters[EYE_ or LIGHT_SURVIVORS]; a subpath that ends records
+ * into `next_stream` and counted in counters[EYE_ or LIGHT_SURVIVORS]; a subpath that ends records
  * its vertex count, and the sample whose second subpath this was counts as terminated.
- * `in` and `out` are Subpath structures of arrays of pass.capacity records (layout.h). */
+ * `stream` and `next_stream` are Subpath structures of arrays of pass_args.capacity records (layout.h). */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
-void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass, const BdptStep step,
-                 __global void* in, __global void* out, volatile __global int* counters,
+void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const BdptStep walk_step,
+                 __global void* stream, __global void* next_stream, volatile __global int* counters,
                  __global BdptVertex* vertices, volatile __global BdptSlot* slots, __global LaneCounts* lane_counts
                  BDPT_SAMPLER_PARAM)
 {
     int gid = get_global_id(0);
-    const int light_path = step.light_path, length = step.length;
+    const int light_path = walk_step.light_path, length = walk_step.length;
     __local int scratch[COMPACT_SCRATCH_INTS];
     __local uint stage[LOCAL_SIZE * VERTEX_WORDS];
     __local int dest[LOCAL_SIZE];
@@ -169,8 +169,8 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass, const Bdpt
     /* No early return: every work-item must reach the barriers of the scatter and compaction. */
     if (gid < length) {
         SceneView scene = SCENE_INIT;
-        p = subpath_load(subpath_soa(in, pass.capacity), gid);
-        BdptSampler rng = bdpt_sampler(&cam, &pass, slots[p.slot].sample_id);
+        p = subpath_load(subpath_soa(stream, pass_args.capacity), gid);
+        BdptSampler rng = bdpt_sampler(&cam, &pass_args, slots[p.slot].sample_id);
         alive = subpath_extend(&scene, &p, &rng, light_path != 0, &v, &store_at, &steps);
         if (!alive) {
             if (light_path) slots[p.slot].light_vertices = p.vertices;
@@ -180,7 +180,7 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass, const Bdpt
     }
     store_vertex(vertices, store_at, &v, stage, dest);
     int slot = immediate_compact_slot(alive, scratch, &counters[light_path ? LIGHT_SURVIVORS : EYE_SURVIVORS]);
-    if (slot >= 0) subpath_store(subpath_soa(out, pass.capacity), slot, &p);
+    if (slot >= 0) subpath_store(subpath_soa(next_stream, pass_args.capacity), slot, &p);
 #if COUNT_SIMD
     if (gid < length) {
         LaneCounts lane = {.work = 1, .closest_steps = steps};
@@ -193,7 +193,7 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass, const Bdpt
  * samples r.first_id, r.first_id + 1, ... (consecutive pixels); the rest go idle (budget spent).
  * Writes z_0 (camera) and y_0 (point on a light) and appends both subpaths to their streams
  * at r.eye_base + i and r.light_base + i. */
-__kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pass, const BdptRegeneration r,
+__kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const BdptRegeneration r,
                               __global const int* slot_list, __global void* eye_stream, __global void* light_stream,
                               __global BdptVertex* eye_vertices, __global BdptVertex* light_vertices,
                               __global BdptSlot* slots BDPT_SAMPLER_PARAM)
@@ -204,7 +204,7 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pas
     if (gid >= r.fresh) { slots[slot].live = SLOT_IDLE; return; }
     SceneView scene = SCENE_INIT;
     int id = r.first_id + gid;
-    BdptSampler rng = bdpt_sampler(&cam, &pass, id);
+    BdptSampler rng = bdpt_sampler(&cam, &pass_args, id);
     float3 eye_pos = cam.origin.xyz, forward = cam.forward.xyz;
 
     /* Eye subpath: z_0 is the pinhole; the first direction is the camera sample (camera.h). */
@@ -219,7 +219,7 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pas
     Subpath e = {.origin = (float4)(eye_pos, camera_pdf_dir(&cam, w)), .dir = (float4)(w, 0.0f),
                  .beta = (float4)(1.0f), .prev_pos = (float4)(eye_pos, 0.0f), .prev_normal = (float4)(forward, 0.0f),
                  .slot = slot, .vertices = 1, .prev_flags = VERTEX_CAMERA};
-    subpath_store(subpath_soa(eye_stream, pass.capacity), r.eye_base + gid, &e);
+    subpath_store(subpath_soa(eye_stream, pass_args.capacity), r.eye_base + gid, &e);
 
     /* Light subpath: y_0 on a light (chosen by power), then a cosine-weighted direction. */
     LightSample ls = sample_light(&scene, bdpt_sample(&rng, BDPT_DIM_LIGHT_PICK),
@@ -240,7 +240,7 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pas
     Subpath l = {.origin = (float4)(offset_point(&scene, ls.p, ls.n, dir), emit_local.z * INV_PI),
                  .dir = (float4)(dir, 0.0f), .beta = (float4)(beta, max3(beta)), .prev_pos = (float4)(ls.p, 0.0f),
                  .prev_normal = (float4)(ls.n, 0.0f), .slot = slot, .vertices = 1, .prev_flags = VERTEX_LIGHT};
-    subpath_store(subpath_soa(light_stream, pass.capacity), r.light_base + gid, &l);
+    subpath_store(subpath_soa(light_stream, pass_args.capacity), r.light_base + gid, &l);
 
     BdptSlot started = {.live = SLOT_BOTH_WALKING, .sample_id = id, .eye_vertices = 1, .light_vertices = 1,
                         .pixel = pixel};

@@ -2,14 +2,12 @@
 kernel's own parameter names, in its order (Technique.launch(kernel, n, **named)), and the
 compiler keeps those names when asked (-cl-kernel-arg-info: program.build(arg_info=True)), so
 this test renders a small image with each technique and checks every launch before it runs.
-(A parameter named like an OpenCL builtin, `length`, comes back renamed on PoCL, `_cl_length`:
+(A parameter named like an OpenCL builtin, `length` or `step`, comes back renamed on PoCL, `_cl_length`:
 the kernels avoid such names.)
 
-The path tracers pass every argument by name. A launch that passes arguments by position (the
-bidirectional tracers', for now) is checked on what it shows: each value's kind (a buffer, an
-int, a uint, a float or a layout.py record) against the type of the parameter in its place.
-Every kernel in a technique's program must be launched by one of its variants, so none goes
-unchecked."""
+Every technique passes every argument by name, and each value's kind (a buffer, an int, a uint,
+a float or a layout.py record) must be the type of the parameter in its place. Every kernel in a
+technique's program must be launched by one of its variants, so none goes unchecked."""
 import numpy as np
 import pyopencl as cl
 import pytest
@@ -27,6 +25,7 @@ PROGRAMS = {
     "pt_compact_regen.cl": ["pt_compact_regen", "pt_compact_regen/multipass"],
     "bdpt_naive_connect.cl": ["bdpt_naive_connect"],
     "bdpt_parallel_connect.cl": ["bdpt_parallel_connect"],
+    "mlt.cl": ["mlt", "mlt/pool"],      # pool: the start from chosen candidates (mlt_start_from)
 }
 SCALARS = {np.int32: "int", np.uint32: "uint", np.float32: "float"}
 RECORD_NAMES = {record.dtype: record.name for record in RECORDS}
@@ -55,17 +54,16 @@ def kernel_parameters(tech):
             for k in built.all_kernels()}
 
 
-def check_call(kernel, call, parameters, all_named):
+def check_call(kernel, call, parameters):
     """`call`: (name or None when passed by position, kind) of each argument of one launch of
-    `kernel`; `parameters`: the kernel's (name, kind) of each. `all_named`: no argument may be
-    passed by position."""
+    `kernel`; `parameters`: the kernel's (name, kind) of each. No argument may be passed by position."""
     assert len(call) == len(parameters), f"{kernel}: {len(call)} arguments for {len(parameters)} parameters"
     kinds = [(i, host, device) for i, ((_, host), (_, device)) in enumerate(zip(call, parameters)) if host != device]
     assert not kinds, f"{kernel}: (argument, host kind, kernel kind) that differ: {kinds}"
     names = [(host, device) for (host, _), (device, _) in zip(call, parameters) if host is not None]
     wrong = [(host, device) for host, device in names if host != device]
     assert not wrong, f"{kernel}: (host name, kernel name) that differ: {wrong}"
-    assert len(names) == len(parameters) or not all_named, f"{kernel}: some arguments passed by position"
+    assert len(names) == len(parameters), f"{kernel}: some arguments passed by position"
 
 
 def checked_render(monkeypatch, tech, parameters):
@@ -77,7 +75,7 @@ def checked_render(monkeypatch, tech, parameters):
 
     def checked(self, kernel, n, /, *args, **named):
         call = [(None, host_kind(v)) for v in args] + [(name, host_kind(v)) for name, v in named.items()]
-        check_call(kernel.function_name, call, parameters[kernel.function_name], all_named=tech.family == "pt")
+        check_call(kernel.function_name, call, parameters[kernel.function_name])
         launched.add(kernel.function_name)
         return real(self, kernel, n, *args, **named)
 
@@ -106,9 +104,9 @@ def test_a_wrong_name_order_or_kind_is_seen(queue, cornell_box):
     right = list(parameters)
     assert [name for name, _ in right][-3:] == ["pass_args", "radiance", "lane_counts"]
     assert right[-3][1] == "PtPass" and right[-1][1] == "pointer"
-    check_call("pt_naive_render", right, parameters, all_named=True)
+    check_call("pt_naive_render", right, parameters)
     for wrong in (right[:-2] + [right[-1], right[-2]], right[:-3] + [("pass_args", "int")] + right[-2:],
                   right[:-1] + [(None, "pointer")]):
         with pytest.raises(AssertionError):
-            check_call("pt_naive_render", wrong, parameters, all_named=True)
+            check_call("pt_naive_render", wrong, parameters)
     assert host_kind(np.uint32(1)) == "uint" and host_kind(tech.scene.camera(4, 4)) == "Camera"

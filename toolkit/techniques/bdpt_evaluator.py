@@ -19,7 +19,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.layout import BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, SUBPATH, WalkCounter
+from toolkit.core.layout import (BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, CONNECT_ARGS, SUBPATH,
+                                 WalkCounter)
 from toolkit.core.scene import NO_LIMIT
 from toolkit.core.simd import PhaseCounter
 
@@ -73,7 +74,7 @@ class PassState:
     camera: np.void           # Camera record
     args: np.void             # BdptPass record (seed, sample_base, pool, capacity)
     budget: int               # samples in this pass
-    sampler_args: tuple = ()  # extra arguments of the kernels that draw random numbers (BDPT_SAMPLER_PARAM)
+    sampler_args: dict = field(default_factory=dict)  # by name: the random-number kernels' extra (BDPT_SAMPLER_PARAM)
     next_id: int = 0          # next sample to start
     in_flight: int = 0        # slots whose sample is not connected yet
 
@@ -127,10 +128,10 @@ class BdptEvaluator:
 
     # --- the stages of a pass, one kernel each ---------------------------------------------
 
-    def start_pass(self, camera, seed, sample_base, budget, sampler_args=(), vector_stride=0):
+    def start_pass(self, camera, seed, sample_base, budget, sampler_args=None, vector_stride=0):
         """The pass's state for `budget` samples; every slot of the pool starts terminated
         (nothing in flight). Kernels built with a sampler that reads stored primary-sample
-        vectors (cl/mlt_proposals.h) take them as `sampler_args`, with their stride `vector_stride`
+        vectors (cl/mlt_proposals.h) take them as `sampler_args` (by parameter name), with their stride `vector_stride`
         (BdptPass.chains); plain BDPT has neither."""
         tech = self.tech
         pool = self.sample_pool(min(self.pool_size, budget))
@@ -140,7 +141,7 @@ class BdptEvaluator:
         cl.enqueue_fill_buffer(tech.queue, pool.counters, np.int32(0), 0, 4 * len(WalkCounter))
         pool.eye.length = pool.light.length = 0
         # every slot "terminated", nothing to connect
-        self.last_pass = PassState(pool, camera, args, budget, tuple(sampler_args), in_flight=pool.size)
+        self.last_pass = PassState(pool, camera, args, budget, dict(sampler_args or {}), in_flight=pool.size)
         return self.last_pass
 
     def sample_pool(self, size):
@@ -170,9 +171,10 @@ class BdptEvaluator:
             r = BDPT_REGENERATION.zeros(1)[0]
             r["count"], r["fresh"], r["first_id"] = count, fresh, p.next_id
             r["eye_base"], r["light_base"] = p.pool.eye.length, p.pool.light.length
-            tech.launch(tech.kernel("bdpt_regenerate"), count, *tech.scene.args(), p.camera,
-                        p.args, r, slots, p.pool.eye.current, p.pool.light.current, p.pool.eye.vertices,
-                        p.pool.light.vertices, p.pool.slots, *p.sampler_args)
+            tech.launch(tech.kernel("bdpt_regenerate"), count, **tech.scene_args(), cam=p.camera,
+                        pass_args=p.args, r=r, slot_list=slots, eye_stream=p.pool.eye.current,
+                        light_stream=p.pool.light.current, eye_vertices=p.pool.eye.vertices,
+                        light_vertices=p.pool.light.vertices, slots=p.pool.slots, **p.sampler_args)
         cl.enqueue_fill_buffer(tech.queue, p.pool.counters, np.int32(0), 4 * WalkCounter.TERMINATED_SAMPLES, 4)
         p.pool.eye.length += fresh
         p.pool.light.length += fresh
@@ -198,16 +200,17 @@ class BdptEvaluator:
         tech = self.tech
         step = BDPT_STEP.zeros(1)[0]
         step["light_path"], step["length"] = stream.is_light, stream.length
-        tech.launch(tech.kernel("bdpt_extend"), stream.length, *tech.scene.args(), p.camera,
-                    p.args, step, stream.current, stream.spare, p.pool.counters, stream.vertices,
-                    p.pool.slots, p.pool.lane_counts, *p.sampler_args)
+        tech.launch(tech.kernel("bdpt_extend"), stream.length, **tech.scene_args(), cam=p.camera,
+                    pass_args=p.args, walk_step=step, stream=stream.current, next_stream=stream.spare,
+                    counters=p.pool.counters, vertices=stream.vertices, slots=p.pool.slots,
+                    lane_counts=p.pool.lane_counts, **p.sampler_args)
         self.count_walk_step(p, stream)
 
     def terminated_slots(self, p):
         """bdpt_mark_terminated, then compaction: (the list of terminated slots, its length)."""
         tech = self.tech
-        tech.launch(tech.kernel("bdpt_mark_terminated"), p.pool.size, np.int32(p.pool.size),
-                    p.pool.slots, p.pool.terminated)
+        tech.launch(tech.kernel("bdpt_mark_terminated"), p.pool.size, pool=np.int32(p.pool.size),
+                    slots=p.pool.slots, flags=p.pool.terminated)
         listed = tech.reused(("terminated_list", p.pool.size), lambda: tech.int_buffer(p.pool.size))
         return tech.compactor.compact_indices(p.pool.terminated, p.pool.size, method="immediate", out=listed)
 
@@ -265,9 +268,18 @@ def scan_slot_counts(tech, p, kernel, label):
     The buffers are kept under `label` and reused by the next connect phases."""
     pool = p.pool.size
     counts, firsts = tech.reused((label, pool), lambda: (tech.int_buffer(pool), tech.int_buffer(pool)))
-    tech.launch(tech.kernel(kernel), pool, np.int32(pool), p.pool.slots, counts)
+    tech.launch(tech.kernel(kernel), pool, pool=np.int32(pool), slots=p.pool.slots, counts=counts)
     firsts, total = tech.compactor.exclusive_scan(counts, pool, out=firsts)
     return counts, firsts, total
+
+
+def connect_args(p, firsts, values, pixels, lane_counts):
+    """CONNECT_PARAMS by name (layout.py CONNECT_ARGS, in its order): what both connect kernels
+    read (the scan of the slots' record counts, the pool, its vertices) and write (the records)."""
+    given = dict(firsts=firsts, slots=p.pool.slots, eye_vertices=p.pool.eye.vertices,
+                 light_vertices=p.pool.light.vertices, record_value=values, record_pixel=pixels,
+                 lane_counts=lane_counts)
+    return {name: given[name] for name, _ in CONNECT_ARGS}
 
 
 def record_buffers(tech, n, *more):

@@ -7,7 +7,7 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.core.simd import PhaseCounter
-from toolkit.techniques.bdpt_evaluator import Connections, read_records, record_buffers, scan_slot_counts
+from toolkit.techniques.bdpt_evaluator import Connections, connect_args, read_records, record_buffers, scan_slot_counts
 from toolkit.core.bdpt_indices import (naive_record_count, naive_splat_record, naive_strategy_record,
                                        naive_sum_record, strategy_count, strategy_index)
 from toolkit.techniques.bdpt_base import BdptTechnique
@@ -33,9 +33,8 @@ class NaiveConnect:
         n = naive_record_count(splats, pool, self.record_strategy_count())
         values, pixels = record_buffers(tech, n)
         cl.enqueue_fill_buffer(tech.queue, pixels, np.int32(-1), 0, 4 * n)   # records a slot may leave unwritten
-        tech.launch(tech.kernel("bdpt_naive_connect"), pool, *tech.scene.args(), p.camera,
-                    np.int32(pool), np.int32(splats), firsts, p.pool.slots, p.pool.eye.vertices,
-                    p.pool.light.vertices, values, pixels, p.pool.lane_counts)
+        tech.launch(tech.kernel("bdpt_naive_connect"), pool, **tech.scene_args(), cam=p.camera, pool=np.int32(pool),
+                    splats=np.int32(splats), **connect_args(p, firsts, values, pixels, p.pool.lane_counts))
         self.count_connect(p)
         connections = Connections(*read_records(tech, values, pixels, n))
         if self.strategy_max_edges:

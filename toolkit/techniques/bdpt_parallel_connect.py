@@ -6,7 +6,7 @@ import numpy as np
 
 from toolkit.core.bdpt_indices import connection_strategy
 from toolkit.core.layout import BDPT_SLOT
-from toolkit.techniques.bdpt_evaluator import Connections, read_records, record_buffers, scan_slot_counts
+from toolkit.techniques.bdpt_evaluator import Connections, connect_args, read_records, record_buffers, scan_slot_counts
 from toolkit.techniques.strategy_images import strategy_index
 from toolkit.techniques.bdpt_base import BdptTechnique
 
@@ -30,9 +30,8 @@ class ParallelConnect:
         if total == 0:
             return Connections.none()
         values, pixels, lanes = record_buffers(tech, total, tech.lane_counts_buffer)
-        tech.launch(tech.kernel("bdpt_parallel_connect"), total, *tech.scene.args(), p.camera,
-                    np.int32(total), np.int32(pool), firsts, p.pool.slots, p.pool.eye.vertices,
-                    p.pool.light.vertices, values, pixels, lanes)
+        tech.launch(tech.kernel("bdpt_parallel_connect"), total, **tech.scene_args(), cam=p.camera,
+                    total=np.int32(total), pool=np.int32(pool), **connect_args(p, firsts, values, pixels, lanes))
         if tech.count_simd:
             tech.simd.add_stream_step("connect", total)
         connections = Connections(*read_records(tech, values, pixels, total))

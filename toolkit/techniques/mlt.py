@@ -250,9 +250,10 @@ class Mlt(Technique):
         ctx, flags = self.queue.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR
         it = MLT_ITERATION.zeros(1)[0]
         it["seed"], it["chains"], it["active"] = c.seed, count, count
-        self.launch(self.kernel("mlt_start_from"), count, it, c.current, c.records,
-                    *(cl.Buffer(ctx, flags, hostbuf=np.ascontiguousarray(x, dtype)) for x, dtype in
-                      ((src_chain, np.int32), (src_iteration, np.int32), (f[pick], np.float32), (dims, np.int32))))
+        upload = lambda x, dtype: cl.Buffer(ctx, flags, hostbuf=np.ascontiguousarray(x, dtype))
+        self.launch(self.kernel("mlt_start_from"), count, it=it, current=c.current, chains=c.records,
+                    src_chain=upload(src_chain, np.int32), src_iteration=upload(src_iteration, np.int32),
+                    f=upload(f[pick], np.float32), dims=upload(dims, np.int32))
         c.f_current = f[pick].astype(np.float64)
         c.current_records = records_of_picks(candidates, pick, count)   # the chosen candidates' records
 
@@ -260,15 +261,15 @@ class Mlt(Technique):
 
     def mutate(self, c, it):
         """mlt_mutate: every active chain writes its proposal (cl/mlt.h)."""
-        self.launch(self.kernel("mlt_mutate"), int(it["active"]), it, c.current, c.proposal,
-                    c.records)
+        self.launch(self.kernel("mlt_mutate"), int(it["active"]), it=it, current=c.current, proposal=c.proposal,
+                    chains=c.records)
         if self.count_simd:
             self.simd.add_stream_step("mutate", int(it["active"]))
 
     def evaluate_proposals(self, c, active):
         """The proposals as one batch of BDPT samples (sample id = chain, random numbers from the
         proposals' vectors): their records stay with their chains (ProposalSink)."""
-        p = self.bdpt.start_pass(c.camera, c.seed, c.iteration, active, sampler_args=(c.proposal,),
+        p = self.bdpt.start_pass(c.camera, c.seed, c.iteration, active, sampler_args={"mlt_primary": c.proposal},
                                  vector_stride=c.count)
         sink = ProposalSink(active)
         self.bdpt.evaluate(p, sink)
@@ -283,8 +284,8 @@ class Mlt(Technique):
         active = int(it["active"])
         cl.enqueue_copy(self.queue, c.f_proposal, proposals.f.astype(np.float32))
         cl.enqueue_copy(self.queue, c.dims_proposal, proposals.dims.astype(np.int32))
-        self.launch(self.kernel("mlt_accept"), active, it, c.current, c.proposal, c.records,
-                    c.f_proposal, c.dims_proposal)
+        self.launch(self.kernel("mlt_accept"), active, it=it, current=c.current, proposal=c.proposal, chains=c.records,
+                    f_proposal=c.f_proposal, dims_proposal=c.dims_proposal)
         if self.count_simd:
             self.simd.add_stream_step("accept", active)
         return self.read_structs(MLT_CHAIN, c.records, active)
