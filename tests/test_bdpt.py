@@ -179,17 +179,17 @@ class KeepConnections:
 def test_the_evaluator_hands_every_connect_phase_to_the_callers_sink(queue, cornell_box):
     """BdptEvaluator.evaluate gives each connect phase's records to the sink it is given (mlt's
     chains, bdpt's ImageSink): a sink that keeps them gets the records of every sample of the
-    pass, each with its slot's sample id, and their sum per pixel is the image that ImageSink
-    adds up from the same samples."""
-    from toolkit.techniques.bdpt_base import ImageSink
+    pass, each with its slot's sample id, and their sum per pixel is the image the technique
+    renders from the same samples (its own pass, through ImageSink and the film)."""
     from toolkit.techniques.bdpt_evaluator import BdptEvaluator, per_pixel_sums
     from toolkit.techniques.bdpt_parallel_connect import ParallelConnect
     tech = BdptParallelConnect(queue, DeviceScene(queue, cornell_box), count_simd=False, pool_size=64)
     evaluator = BdptEvaluator(tech, ParallelConnect(tech, read_slots=True), tech.pool_size, 0.6, tech.max_vertices)
-    camera, pixels, budget = tech.scene.camera(8, 8), 64, 64 * 4
-    kept, image = KeepConnections(), ImageSink(pixels)
-    for sink in (kept, image):
-        evaluator.evaluate(evaluator.start_pass(camera, np.uint32(3), 0, budget), sink)
+    camera, pixels, spp = tech.scene.camera(8, 8), 64, 4
+    budget = pixels * spp
+    kept = KeepConnections()
+    evaluator.evaluate(evaluator.start_pass(camera, np.uint32(3), 0, budget), kept)
+    rendered = tech.render(8, 8, spp, seed=3).image()     # one pass (budget < target_batch), sample ids 0 ..
     assert len(kept.phases) > budget // 64            # the pool of 64 connects several times
     samples = np.concatenate([np.repeat(c.slots["sample_id"], c.slot_records) for c in kept.phases
                               if c.slots is not None])
@@ -197,6 +197,7 @@ def test_the_evaluator_hands_every_connect_phase_to_the_callers_sink(queue, corn
     values = np.concatenate([c.values for c in kept.phases])
     at = np.concatenate([c.pixels for c in kept.phases])
     assert len(samples) == len(at)                     # one sample id per record
-    ours = per_pixel_sums(values[at >= 0, :3], at[at >= 0], pixels)
-    assert image.image.sum() > 0
-    np.testing.assert_allclose(ours, image.image, rtol=1e-12, atol=0)   # float64 sums in another order
+    ours = per_pixel_sums(values[at >= 0, :3], at[at >= 0], pixels).reshape(8, 8, 3) / spp
+    assert rendered.sum() > 0
+    # the same float32 records, summed in float64 in another order (the film keeps float64)
+    np.testing.assert_allclose(ours, rendered, rtol=1e-12, atol=0)

@@ -83,7 +83,11 @@ def test_strategy_images_are_refused_where_they_do_not_apply(technique, edges, e
     """Checked before any work: a technique without connection strategies, or a bad K."""
     with pytest.raises(InputError, match=error):
         toolkit.render(SCENES / "cornell_box", technique=technique, spp=1, resolution=(4, 4), strategy_images=edges)
-    with pytest.raises(InputError, match="unknown option"):      # not an option: render's own argument
+
+
+def test_the_strategy_kernels_are_not_a_technique_option():
+    """strategy_max_edges is render's own argument (strategy_images), not an option."""
+    with pytest.raises(InputError, match="unknown option"):
         toolkit.render(SCENES / "cornell_box", technique="bdpt_naive_connect", spp=1, resolution=(4, 4),
                        options={"strategy_max_edges": 3})
 

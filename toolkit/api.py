@@ -14,7 +14,7 @@ from toolkit.core.layout import BVH_KINDS
 from toolkit.core.scene import Scene, bundled_scene_dir, check_scene, load_scene
 from toolkit.techniques import get_technique
 from toolkit.techniques.strategy_images import StrategyImages
-from toolkit.core.validate import InputError, local_size as checked_local_size, render_args
+from toolkit.core.validate import InputError, local_size as checked_local_size, render_args, whole_number
 
 
 class DroppedSamplesWarning(UserWarning):
@@ -42,7 +42,6 @@ def as_scene(scene):
 # Constructor keywords that render sets from its own arguments: not options.
 RENDER_ARGUMENTS = {"warp_width", "count_simd", "extra_defines", "local_size", "general",
                     "strategy_max_edges"}   # the last: render(..., strategy_images=K)
-MAX_STRATEGY_EDGES = 10     # strategy_images: (K + 1)(K + 2) / 2 images per render at most
 
 
 def _options(cls, options):
@@ -66,10 +65,7 @@ def _strategy_images(cls, technique, max_edges):
     if cls.family != "bdpt":
         raise InputError(f"per-strategy images need a bidirectional technique (bdpt_naive_connect or "
                          f"bdpt_parallel_connect), not {technique}")
-    if isinstance(max_edges, bool) or not isinstance(max_edges, int) or not 1 <= max_edges <= MAX_STRATEGY_EDGES:
-        raise InputError(f"strategy_images must be a whole number 1 .. {MAX_STRATEGY_EDGES} (edges of the longest "
-                         f"paths with images of their own), got {max_edges!r}")
-    return max_edges
+    return whole_number("render.strategy_images", max_edges, "strategy_images")
 
 
 def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, device=None,

@@ -47,6 +47,8 @@ LIMITS = {
     "memory.fraction": (0.0, 0.5, "film and device buffers, as a share of this machine's memory"),
     "bench.equal_time": (0.01, 86400.0, "seconds per technique"),
     "bench.repeats": (1, 1000, "interleaved repetitions"),
+    "render.strategy_images": (1, 10, "edges of the longest paths with per-strategy images of their own "
+                                      "((K + 1)(K + 2) / 2 images at most)"),
     "study.repeats": (1, 1000, "independent repetitions per budget"),
     "study.budget": (1e-3, 86400.0, "seconds of rendering per repetition"),
     "study.target": (1e-6, 10.0, "relative RMSE target (a fraction of the reference image's mean)"),

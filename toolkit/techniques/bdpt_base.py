@@ -9,11 +9,9 @@ on a CPU); each stores MAX_VERTICES eye and light vertices.
 """
 import numpy as np
 
-from toolkit.opencl.compaction import Compactor
-from toolkit.techniques.bdpt_evaluator import BdptEvaluator, per_pixel_sums, walk_defines
+from toolkit.techniques.base import pixel_count
+from toolkit.techniques.bdpt_evaluator import BdptEvaluator, BdptPoolTechnique, per_pixel_sums
 from toolkit.techniques.strategy_images import StrategyImages, strategy_count
-from toolkit.opencl.work_sizes import checked_size
-from toolkit.techniques.base import Technique
 
 
 class ImageSink:
@@ -53,28 +51,20 @@ def weighted(values, pixels):
     return out
 
 
-class BdptTechnique(Technique):
+class BdptTechnique(BdptPoolTechnique):
     family = "bdpt"
-    pool_size = None            # samples in flight (each stores MAX_VERTICES eye + light vertices); None: the device's
-    target_batch = 1 << 14      # samples per pass: many passes give the standard error
-    max_vertices = 64           # per subpath when the depth is unbounded; paths this long carry ~1e-10 of the energy at albedo 0.7
 
     def __init__(self, queue, device_scene, regenerate_fraction=0.6, coalesced_scatter=True, pool_size=None,
                  strategy_max_edges=None, **kwargs):
         """`strategy_max_edges`: build the kernels that keep each connection strategy apart
         (toolkit.render(..., strategy_images=...)), with images for paths up to that many edges."""
-        self.max_vertices, defines = walk_defines(device_scene.scene, self.max_vertices, coalesced_scatter)
         self.strategy_max_edges = strategy_max_edges
         self.strategy_images = None     # StrategyImages of the passes so far, when built for them
+        defines = {}
         if strategy_max_edges:
             defines.update(STRATEGY_IMAGES=True, STRATEGY_MAX_EDGES=strategy_max_edges,
                            STRATEGY_COUNT=strategy_count(strategy_max_edges))
-        defines.update(kwargs.pop("extra_defines", None) or {})
-        checked_size("pool_size", pool_size)         # its range now, before the build; the device's memory after
-        super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
-        self.coalesced_scatter = coalesced_scatter
-        self.pool_size = self.in_flight("pool_size", pool_size, self.max_vertices)
-        self.compactor = Compactor(queue, local_size=self.local_size)
+        super().__init__(queue, device_scene, defines, pool_size, coalesced_scatter, **kwargs)
         self.bdpt = BdptEvaluator(self, self.connect_phase(), self.pool_size, regenerate_fraction, self.max_vertices)
 
     def connect_phase(self):
@@ -82,7 +72,7 @@ class BdptTechnique(Technique):
         raise NotImplementedError
 
     def run_pass(self, film, camera, seed, sample_base, spp):
-        p = self.bdpt.start_pass(camera, seed, sample_base, int(camera["width"] * camera["height"]) * spp)
+        p = self.bdpt.start_pass(camera, seed, sample_base, pixel_count(camera) * spp)
         image = ImageSink(p.pixels, self.strategy_pass(camera, p.budget))
         self.bdpt.evaluate(p, image)
         film.add_pass(image.image.reshape(int(camera["height"]), int(camera["width"]), 3) / spp, spp,
@@ -95,17 +85,10 @@ class BdptTechnique(Technique):
         width, height = int(camera["width"]), int(camera["height"])
         if self.strategy_images is None:
             self.strategy_images = StrategyImages(self.strategy_max_edges, width, height)
-        self.strategy_images.spp += budget // (width * height)
+        self.strategy_images.spp += budget // pixel_count(camera)
         return self.strategy_images
 
     # --- measuring and inspecting ------------------------------------------------------------
-
-    def extra_stats(self):
-        return {**super().extra_stats(), **self.bdpt.stats()}
-
-    @property
-    def last_pass(self):
-        return self.bdpt.last_pass
 
     def read_vertices(self):
         """The vertex memory of the last samples of the last pass (BdptEvaluator.read_vertices)."""

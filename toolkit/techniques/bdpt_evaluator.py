@@ -23,6 +23,9 @@ from toolkit.core.layout import (BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_S
                                  WalkCounter)
 from toolkit.core.scene import NO_LIMIT
 from toolkit.core.simd import PhaseCounter
+from toolkit.opencl.compaction import Compactor
+from toolkit.opencl.work_sizes import checked_size
+from toolkit.techniques.base import Technique, pixel_count
 
 
 def walk_defines(scene, longest, coalesced_scatter):
@@ -80,7 +83,7 @@ class PassState:
 
     @property
     def pixels(self):
-        return int(self.camera["width"] * self.camera["height"])
+        return pixel_count(self.camera)
 
 
 @dataclass
@@ -96,6 +99,30 @@ class Connections:
     def none(cls):
         """A connect phase without records (no sample had terminated)."""
         return cls(np.zeros((0, 4), np.float32), np.zeros(0, np.int32))
+
+
+class BdptPoolTechnique(Technique):
+    """A technique whose samples are BDPT samples of a pool (BdptEvaluator): the BDPT techniques,
+    which add them into an image, and mlt, whose chains propose them. It builds the walk's kernels
+    for the scene, sizes the pool for the device and makes its compactor; the subclass makes its
+    evaluator with the connect phase it wants (self.bdpt)."""
+    pool_size = None            # samples in flight (each stores MAX_VERTICES eye + light vertices); None: the device's
+    target_batch = 1 << 14      # samples per pass: many passes give the standard error
+    max_vertices = 64           # per subpath when the depth is unbounded; paths this long carry ~1e-10 of the energy at albedo 0.7
+
+    def __init__(self, queue, device_scene, defines, pool_size=None, coalesced_scatter=True, **kwargs):
+        """`defines`: the subclass's own, added to the walk's (and to `extra_defines`, if given)."""
+        self.max_vertices, walk = walk_defines(device_scene.scene, self.max_vertices, coalesced_scatter)
+        walk.update(defines)
+        walk.update(kwargs.pop("extra_defines", None) or {})
+        checked_size("pool_size", pool_size)         # its range now, before the build; the device's memory after
+        super().__init__(queue, device_scene, extra_defines=walk, **kwargs)
+        self.pool_size = self.in_flight("pool_size", pool_size, self.max_vertices)
+        self.compactor = Compactor(queue, local_size=self.local_size)
+        self.bdpt = None            # the subclass's BdptEvaluator
+
+    def extra_stats(self):
+        return {**super().extra_stats(), **self.bdpt.stats()}
 
 
 @dataclass

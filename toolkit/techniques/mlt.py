@@ -91,10 +91,8 @@ import pyopencl as cl
 from toolkit.core.film import Film
 from toolkit.core.layout import MLT_CHAIN, MLT_ITERATION, MltMode
 from toolkit.core.validate import LIMITS, InputError, finite_number, whole_number
-from toolkit.opencl.compaction import Compactor
-from toolkit.opencl.work_sizes import checked_size
-from toolkit.techniques.base import Technique
-from toolkit.techniques.bdpt_evaluator import BdptEvaluator, per_pixel_sums, walk_defines
+from toolkit.techniques.base import pixel_count
+from toolkit.techniques.bdpt_evaluator import BdptEvaluator, BdptPoolTechnique, per_pixel_sums
 from toolkit.techniques.bdpt_parallel_connect import ParallelConnect
 from toolkit.techniques.mlt_chains import (ChainRecords, Chains, ProposalSink, records_of_picks,
                                            systematic_picks)
@@ -114,30 +112,22 @@ def step_defines(small_step):
     return {"MLT_S2": float(small_step), "MLT_S1": float(small_step) / 16}
 
 
-class Mlt(Technique):
+class Mlt(BdptPoolTechnique):
     """Metropolis chains whose proposals BDPT's evaluator (bdpt_evaluator.py) evaluates with the
     parallel connect phase; the records go to the chains (ProposalSink), not to an image."""
     name = "mlt"
     source = "mlt.cl"
     family = "mlt"
-    pool_size = None            # BDPT samples in flight; None: the device's (as bdpt_parallel_connect)
-    target_batch = 1 << 14      # as BDPT's (Technique.in_flight scales it); mlt renders one pass
-    max_vertices = 64           # per subpath when the depth is unbounded, as BDPT's
 
     def __init__(self, queue, device_scene, chains=None, large_step=0.3, start="naive", candidates=16,
                  max_dims=128, combine=True, time_limit=None, small_step=SMALL_STEP, pool_size=None,
                  regenerate_fraction=None, coalesced_scatter=True, **kwargs):
         self.check_options(device_scene.scene, chains, large_step, start, candidates, max_dims, combine,
                            time_limit, small_step, kwargs)
-        self.max_vertices, defines = walk_defines(device_scene.scene, self.max_vertices, coalesced_scatter)
-        defines.update({"MLT": True, "MLT_MAX_DIMS": self.max_dims, **step_defines(self.small_step),
-                        # cl/mlt_proposals.h mlt_index: a CPU reads a vertex's dimensions from one cache line
-                        "MLT_CHAIN_MAJOR": bool(queue.device.type & cl.device_type.CPU)})
-        defines.update(kwargs.pop("extra_defines", None) or {})
-        checked_size("pool_size", pool_size)         # its range now, before the build; the device's memory after
-        super().__init__(queue, device_scene, extra_defines=defines, **kwargs)
-        self.pool_size = self.in_flight("pool_size", pool_size, self.max_vertices)
-        self.compactor = Compactor(queue, local_size=self.local_size)
+        defines = {"MLT": True, "MLT_MAX_DIMS": self.max_dims, **step_defines(self.small_step),
+                   # cl/mlt_proposals.h mlt_index: a CPU reads a vertex's dimensions from one cache line
+                   "MLT_CHAIN_MAJOR": bool(queue.device.type & cl.device_type.CPU)}
+        super().__init__(queue, device_scene, defines, pool_size, coalesced_scatter, **kwargs)
         if self.chain_count is None:   # one chain per slot of the BDPT pool, within the chains' limit
             self.chain_count = min(self.pool_size, LIMITS["mlt.chains"][1])
         if regenerate_fraction is None:
@@ -208,7 +198,7 @@ class Mlt(Technique):
         c.f_current = np.zeros(count)
         c.candidate_sum, c.weight = np.zeros(count), np.ones(count)
         c.current_records = ChainRecords.empty()
-        c.splats = np.zeros((int(camera["width"] * camera["height"]), 3))
+        c.splats = np.zeros((pixel_count(camera), 3))
         c.large_splats = np.zeros_like(c.splats)
         self.last_chains = c
         if self.start == "naive":
@@ -335,7 +325,7 @@ class Mlt(Technique):
 
     def extra_stats(self):
         c = self.last_chains
-        return {**super().extra_stats(), **self.bdpt.stats(),
+        return {**super().extra_stats(),
                 "mlt": {"chains": c.count, "start": self.start, "large_step": self.large_step, "combine": self.combine,
                         "mutations": c.mutations, "mutations_per_chain": c.mutations / c.count,
                         "acceptance_rate": c.accepted / max(c.mutations, 1), "b": c.b, "large_steps": c.large_count,
