@@ -1,5 +1,5 @@
 """The host-side statistics in toolkit/measure/stats.py, which the BSDF chi-square test and the render
-z-test share, against closed forms and known values (the tails themselves are scipy.stats')."""
+z-test share, against closed forms and known values (the tails themselves are scipy.special's)."""
 import math
 
 import pytest

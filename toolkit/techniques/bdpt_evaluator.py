@@ -162,9 +162,8 @@ class BdptEvaluator:
         (BdptPass.chains); plain BDPT has neither."""
         tech = self.tech
         pool = self.sample_pool(min(self.pool_size, budget))
-        args = BDPT_PASS.zeros(1)[0]
-        args["seed"], args["sample_base"], args["pool"], args["capacity"] = seed, sample_base, pool.size, pool.capacity
-        args["chains"] = vector_stride
+        args = BDPT_PASS.record(seed=seed, sample_base=sample_base, pool=pool.size, capacity=pool.capacity,
+                                chains=vector_stride)
         cl.enqueue_fill_buffer(tech.queue, pool.counters, np.int32(0), 0, 4 * len(WalkCounter))
         pool.eye.length = pool.light.length = 0
         # every slot "terminated", nothing to connect
@@ -195,9 +194,8 @@ class BdptEvaluator:
         tech = self.tech
         fresh = min(count, p.budget - p.next_id)
         if count:
-            r = BDPT_REGENERATION.zeros(1)[0]
-            r["count"], r["fresh"], r["first_id"] = count, fresh, p.next_id
-            r["eye_base"], r["light_base"] = p.pool.eye.length, p.pool.light.length
+            r = BDPT_REGENERATION.record(count=count, fresh=fresh, first_id=p.next_id,
+                                         eye_base=p.pool.eye.length, light_base=p.pool.light.length)
             tech.launch(tech.kernel("bdpt_regenerate"), count, **tech.scene_args(), cam=p.camera,
                         pass_args=p.args, r=r, slot_list=slots, eye_stream=p.pool.eye.current,
                         light_stream=p.pool.light.current, eye_vertices=p.pool.eye.vertices,
@@ -225,8 +223,7 @@ class BdptEvaluator:
     def extend(self, p, stream):
         """bdpt_extend: one vertex more on every subpath of `stream`, survivors into its spare."""
         tech = self.tech
-        step = BDPT_STEP.zeros(1)[0]
-        step["light_path"], step["length"] = stream.is_light, stream.length
+        step = BDPT_STEP.record(light_path=stream.is_light, length=stream.length)
         tech.launch(tech.kernel("bdpt_extend"), stream.length, **tech.scene_args(), cam=p.camera,
                     pass_args=p.args, walk_step=step, stream=stream.current, next_stream=stream.spare,
                     counters=p.pool.counters, vertices=stream.vertices, slots=p.pool.slots,
