@@ -25,6 +25,9 @@ from toolkit.core.package_data import data_dir
 LOCAL_SIZE = 64
 
 _INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
+# pyopencl's own headers (Philox, cl/philox.h): inlined from pyopencl's folder like ours, so that no
+# -I option names this environment's path and kernel caches are shared by every checkout.
+_PYOPENCL_INCLUDE = re.compile(r'^\s*#\s*include\s+<(pyopencl-[\w-]+)/([\w.]+)>\s*$')
 
 
 def cl_dir():
@@ -73,9 +76,12 @@ def expand_includes(name, directory=None, _seen=None):
     seen.add(name)
     out = [f'#line 1 "{name}"']
     for number, line in enumerate(path.read_text().splitlines(), start=1):
-        match = _INCLUDE.match(line)
+        match, theirs = _INCLUDE.match(line), _PYOPENCL_INCLUDE.match(line)
         if match:
             out.append(expand_includes(match.group(1), directory, seen))
+            out.append(f'#line {number + 1} "{name}"')
+        elif theirs:   # its own quoted includes are found beside it, in its folder
+            out.append(expand_includes(theirs.group(2), _pyopencl_include_dir() / theirs.group(1), seen))
             out.append(f'#line {number + 1} "{name}"')
         else:
             out.append(line)
@@ -112,7 +118,7 @@ def build(context, name, defines=None, directory=None, arg_info=False):
     defines = dict(defines or {})
     defines.setdefault("LOCAL_SIZE", LOCAL_SIZE)
     source = expand_includes(name, directory)
-    options = define_options(defines) + ["-I", str(_pyopencl_include_dir())]
+    options = define_options(defines)
     if arg_info:
         options.append("-cl-kernel-arg-info")
     if os.environ.get("TOOLKIT_WERROR") == "1":
