@@ -22,8 +22,11 @@ __kernel void pt_inplace_regen_regenerate(const Camera cam, const PtPass pass_ar
     if (gid >= slots) return;
     int started = 0;
     /* The counter is read before it is raised: once the budget is spent it stays put, so it
-     * never passes the budget + slots, however many iterations the pass takes (no int overflow). */
-    if (!alive[gid] && *next_sample < pass_args.budget) {
+     * never passes the budget + slots, however many iterations the pass takes (no int overflow).
+     * Read atomically (an atomic_add of 0): a plain read of a counter that other work-items
+     * atomic_inc meanwhile is a data race, undefined in OpenCL's memory model. The sample is the
+     * one atomic_inc returns, tested again: others may have taken the last ones in between. */
+    if (!alive[gid] && atomic_add(next_sample, 0) < pass_args.budget) {
         int id = atomic_inc(next_sample);
         if (id < pass_args.budget) {
             PathState p;

@@ -126,7 +126,7 @@ def test_every_command_is_registered_with_its_help_and_handler():
         if "--bvh" in options:   # the kernel options come last, under their heading
             kernel = text.split("\nkernel options:\n")[1]
             listed = [line.split()[0] for line in kernel.splitlines() if line.startswith("  --")]
-            assert listed == ["--bvh", "--general"][:2 if "--general" in options else 1], name
+            assert listed == [o for o in ("--bvh", "--general", "--lanes") if o in options], name
     args = parser.parse_args(["--device", "0:0", "render", "--bvh", "binary"])
     assert (args.device, args.bvh, args.general, args.run.__name__) == ("0:0", "binary", False, "cmd_render")
     assert parser.parse_args(["compare", "--device", "1:0"]).device == "1:0"

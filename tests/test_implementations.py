@@ -31,7 +31,8 @@ IMPLEMENTATIONS = [c for c in candidates() if c.usable and "Oclgrind" not in c.p
 @pytest.mark.parametrize("technique", film_error_techniques())
 def test_every_implementation_renders_the_same_image(technique, scene, max_depth):
     """A finite max_depth too: Intel's cross-work-item vectorizer got the compaction-based
-    techniques wrong there (toolkit/opencl/runtimes.py switches it off)."""
+    techniques wrong there once (issue 17; lanes are off by default, toolkit/opencl/lanes.py, and
+    tests/test_lanes.py compares the images with lanes on and off)."""
     if len(IMPLEMENTATIONS) < 2:
         pytest.skip("only one OpenCL implementation is usable here")
     loaded = toolkit.load_scene(SCENES / scene)

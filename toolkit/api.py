@@ -8,7 +8,10 @@ from pathlib import Path
 
 import numpy as np
 
+from toolkit.opencl import program
 from toolkit.opencl.device import describe, get_queue
+from toolkit.opencl.lanes import checked as checked_lanes, describe as describe_lanes, of_context as lanes_of_context
+from toolkit.opencl.lanes import width as lane_width
 from toolkit.opencl.device_scene import DeviceScene
 from toolkit.core.layout import BVH_KINDS
 from toolkit.core.scene import Scene, bundled_scene_dir, check_scene, load_scene
@@ -70,7 +73,7 @@ def _strategy_images(cls, technique, max_edges):
 
 def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, device=None,
            warp_width=None, count_simd=True, progress=False, options=None, bvh="wide", local_size=64,
-           general=False, strategy_images=None):
+           general=False, strategy_images=None, lanes=None):
     """Render a scene (a Scene, a folder, a scene.json or None for the bundled Cornell box).
 
     `resolution` (width, height) keeps the scene's camera and field of view. `technique` is a
@@ -90,14 +93,20 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     paths up to K edges, with and without its MIS weight, in result.strategy_images (a
     StrategyImages; toolkit/measure/strategies.py writes them and each strategy's share of the
     variance); the kernels are built for it, and the image stays the same.
+    `lanes` "on" or "off": whether the compiler may run work-items as SIMD lanes, on Intel's CPU
+    runtime (toolkit/opencl/lanes.py; None: TOOLKIT_LANES, else off); the image stays the same
+    within toolkit.same_image. stats["lanes"] says what the device did, stats["vector_widths"]
+    each kernel's width from the compiler's log.
     """
     # Every argument is checked before any work (kernel builds, BVH) starts.
     cls, options, strategy_max_edges = _checked(technique, options, strategy_images, resolution, bvh, device)
+    lanes = checked_lanes(lanes)
     scene = as_scene(scene)
     width, height = resolution or (scene.camera.width, scene.camera.height)
     spp, seed, width, height = render_args(spp, seed, width, height, warp_width)
     local_size = checked_local_size(local_size)
-    queue = get_queue(device)
+    queue = get_queue(device, lanes)
+    builds = len(program.lanes_log)   # the programs this render builds (or finds built) follow
     device_scene = DeviceScene(queue, scene, bvh=bvh)
     tech = cls(queue, device_scene, warp_width=warp_width, count_simd=count_simd, local_size=local_size,
                general=bool(general), **options,
@@ -107,7 +116,7 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     stats = {"scene": scene.name, "technique": technique, "spp": spp, "resolution": [width, height],
              **_stats(tech, film, image, seconds), "bvh": device_scene.bvh_stats(),
              "triangles": int(len(scene.triangles)), "degrees_of_freedom": film.degrees_of_freedom,
-             **tech.extra_stats()}
+             **_lanes_stats(queue, program.vector_widths_since(builds)), **tech.extra_stats()}
     if film.nonfinite_samples:
         # A non-finite sample is a bug to fix where it comes from; never only inside the stats.
         warnings.warn(f"{technique} on {scene.name}: {film.nonfinite_samples} non-finite sample(s) "
@@ -132,6 +141,13 @@ def _checked(technique, options, strategy_images, resolution, bvh, device):
     if device is not None and not isinstance(device, str):
         raise InputError(f"device must be a string like '0:0' or a name part, got {device!r}")
     return cls, {**variant_options, **options}, strategy_max_edges
+
+
+def _lanes_stats(queue, widths):
+    """Whether the render ran work-items as SIMD lanes, and how wide, as its compiler said."""
+    setting = lanes_of_context(queue.context)
+    return {"lanes": setting, "vector_width": lane_width(widths), "vector_widths": widths,
+            "lanes_summary": describe_lanes(setting, widths)}
 
 
 def _run(tech, what, width, height, spp, seed, progress):

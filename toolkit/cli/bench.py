@@ -5,8 +5,8 @@ import json
 import sys
 
 from toolkit.api import as_scene
-from toolkit.cli.options import (BVH, DEVICE, GENERAL, SCENE, TECHNIQUE_NAMES, number, positive, resolution,
-                                 technique_list)
+from toolkit.cli.options import (BVH, DEVICE, GENERAL, LANES_BOTH, SCENE, TECHNIQUE_NAMES, number, positive,
+                                 resolution, technique_list)
 from toolkit.core.validate import finite_number, whole_number
 from toolkit.measure import specialization
 from toolkit.measure.bench import DEFAULT, bench, format_bench
@@ -17,7 +17,7 @@ from toolkit.peers import mitsuba as peers
 
 def add_command(sub):
     p = sub.add_parser("bench", help="samples/s of each technique and their ratios, measured in one run",
-                       parents=[DEVICE, SCENE, BVH, GENERAL])
+                       parents=[DEVICE, SCENE, BVH, GENERAL, LANES_BOTH])
     p.add_argument("--techniques", help=f"comma-separated, from: {TECHNIQUE_NAMES} (default {','.join(DEFAULT)}; "
                                         f"with --peer mitsuba: {','.join(peers.PEER_DEFAULT)})")
     p.add_argument("--spp", type=positive, default=16, help="samples per pixel for path tracers (BDPT: an eighth)")
@@ -41,6 +41,9 @@ def add_command(sub):
 
 def cmd_bench(args):
     whole_number("bench.repeats", args.repeats, "--repeats")
+    if args.lanes and (args.peer or args.specialization or args.equal_time is not None):
+        raise ValueError("--lanes applies to the samples/s bench only, not to --peer, --specialization or "
+                         "--equal-time")
     if args.peer:
         return cmd_bench_peer(args)
     if args.specialization:
@@ -49,7 +52,7 @@ def cmd_bench(args):
         return cmd_bench_equal_time(args)
     report = bench(args.scene, tuple(technique_list(args.techniques or ",".join(DEFAULT))), spp=args.spp,
                    resolution=args.resolution or (128, 128), repeats=args.repeats, device=args.device, bvh=args.bvh,
-                   general=args.general)
+                   general=args.general, lanes=args.lanes or (None,))
     print(format_bench(report))
     if args.json:
         print(json.dumps(report))

@@ -2,14 +2,14 @@
 with images and plots."""
 import json
 
-from toolkit.cli.options import (BVH, DEVICE, GENERAL, SCENE, TECHNIQUE_NAMES, positive, resolution,
+from toolkit.cli.options import (BVH, DEVICE, GENERAL, LANES, SCENE, TECHNIQUE_NAMES, positive, resolution,
                                  technique_list, whole)
 from toolkit.measure.compare import compare, format_table
 
 
 def add_command(sub):
     p = sub.add_parser("compare", help="several techniques side by side: time, SIMD efficiency, error",
-                       parents=[DEVICE, SCENE, BVH, GENERAL])
+                       parents=[DEVICE, SCENE, BVH, GENERAL, LANES])
     p.add_argument("--techniques", default="pt_naive,pt_inplace_regen,pt_compact_regen",
                    help=f"comma-separated, from: {TECHNIQUE_NAMES}")
     # 64x64 at 64 spp: a pass of 262,144 samples, eight per slot of the stream techniques'
@@ -30,7 +30,8 @@ def add_command(sub):
 def cmd_compare(args):
     table = compare(args.scene, technique_list(args.techniques), args.spp, resolution=args.resolution,
                     seed=args.seed, warp_width=args.warp_width, out_dir=args.out, device=args.device,
-                    progress=not args.no_progress, bvh=args.bvh, general=args.general)
+                    progress=not args.no_progress, bvh=args.bvh, general=args.general,
+                    lanes=args.lanes)
     print(format_table(table))
     first = next(iter(table.values()))
     print("plots: " + ", ".join(first.get("plots", {}).values()))

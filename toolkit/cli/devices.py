@@ -4,10 +4,11 @@ import os
 
 import pyopencl as cl
 
-from toolkit.opencl import runtimes
-from toolkit.opencl.device import (HOW_TO_GET_OPENCL, RANKING, NoOpenCLError, candidates, describe, has_gpu,
-                                   pick_device)
-from toolkit.opencl.device_model import device_warp_width
+from toolkit.core.validate import InputError
+from toolkit.opencl import lanes, program, runtimes
+from toolkit.opencl.device import (HOW_TO_GET_OPENCL, RANKING, NoOpenCLError, candidates, describe, get_queue,
+                                   has_gpu, pick_device)
+from toolkit.opencl.device_model import device_warp_width, is_gpu
 from toolkit.opencl.work_sizes import device_work_sizes
 
 
@@ -48,8 +49,36 @@ def _device_lines(c):
             f"       type: {cl.device_type.to_string(c.device.type)}, compute units: "
             f"{c.device.max_compute_units}, max work-group: {c.device.max_work_group_size}, "
             f"global memory: {c.device.global_mem_size / 2**30:.1f} GiB",
+            *_lanes_lines(c),
             f"       SIMD counters: warps of {width} ({why}; --warp-width overrides)",
             f"       in flight: {device_work_sizes(c.device).text()}; options stream_size / pool_size override"]
+
+
+def _lanes_lines(c):
+    """Whether the device runs work-items as SIMD lanes (toolkit/opencl/lanes.py): on Intel's CPU
+    runtime the setting, and the width its compiler gives probe.cl with lanes on, from its log."""
+    if not c.usable:
+        return []
+    if is_gpu(c.device):
+        return ["       SIMD lanes: the GPU's warps (hardware)"]
+    if "Oclgrind" in c.platform.name:
+        return ["       SIMD lanes: none (a simulator, one work-item at a time)"]
+    if not lanes.can_choose(c.device):
+        return ["       SIMD lanes: none reported (its compiler may vectorize a work-group's work-item loops; "
+                "its build log does not say)"]
+    try:
+        setting = lanes.setting_for(c.device)
+    except InputError as error:   # TOOLKIT_LANES is wrong, or asks what the user's environment forbids
+        return [f"       SIMD lanes: {error}"]
+    fixed, variable = lanes.fixed_by_environment()
+    if fixed:
+        widths = program.vector_widths(program.build(get_queue(c.selector).context, "probe.cl"))
+        return [f"       SIMD lanes: {fixed}, for the whole process ({variable} is set): its compiler runs probe.cl "
+                f"{lanes.width(widths) or '?'} work-item(s) to a vector (its build log)"]
+    widths = program.vector_widths(program.build(get_queue(c.selector, "on").context, "probe.cl"))
+    return [f"       SIMD lanes: {setting} (--lanes on|off or TOOLKIT_LANES; default {lanes.INTEL_DEFAULT}); "
+            f"with lanes on its compiler runs probe.cl {lanes.width(widths) or '?'} work-items to a vector "
+            "(its build log)"]
 
 
 def _environment_lines():

@@ -53,6 +53,14 @@ def technique_list(text):
     return names
 
 
+def lanes_list(text):
+    """'off,on' -> ("off", "on"): SIMD-lanes settings for bench, each once."""
+    settings = tuple(t.strip() for t in text.split(",") if t.strip())
+    if not settings or any(s not in ("on", "off") for s in settings) or len(set(settings)) < len(settings):
+        raise argparse.ArgumentTypeError(f"expected on, off or off,on, got {text!r}")
+    return settings
+
+
 def numbers(text, kind, option):
     """'1,2' -> [kind(1), kind(2)]; a ValueError that names `option` otherwise."""
     try:
@@ -84,6 +92,21 @@ GENERAL.add_argument_group(KERNEL_OPTIONS).add_argument(
     help="build the general kernel (every material and feature compiled in) instead of "
          "the one specialized to the scene; the same image (bench --specialization "
          "measures the difference)")
+
+LANES_HELP = ("on: the compiler may run work-items as the SIMD lanes of a vector register, a warp on a CPU; off: "
+              "each work-item a thread of its own. Intel's CPU runtime only (its log's vector width is reported); "
+              "default off, or the TOOLKIT_LANES environment variable. Both can run in one process, unless "
+              "CL_CONFIG_USE_VECTORIZER=False or CL_CONFIG_CPU_VECTORIZER_MODE is set, which fixes it for the "
+              "process")
+LANES = _parent()
+LANES.add_argument_group(KERNEL_OPTIONS).add_argument("--lanes", choices=["on", "off"], default=None,
+                                                      help=LANES_HELP)
+# bench's: one setting, or both in one run ("off,on", interleaved).
+LANES_BOTH = _parent()
+LANES_BOTH.add_argument_group(KERNEL_OPTIONS).add_argument(
+    "--lanes", type=lanes_list, default=None, metavar="on|off|off,on",
+    help=LANES_HELP + ". With off,on every technique runs both ways in the same run, interleaved, with its "
+                      "on/off ratio")
 
 SCENE = _parent()
 SCENE.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")

@@ -5,7 +5,7 @@ import json
 import numpy as np
 
 from toolkit.api import as_scene, render
-from toolkit.cli.options import BVH, DEVICE, GENERAL, SCENE, positive, resolution, whole
+from toolkit.cli.options import BVH, DEVICE, GENERAL, LANES, SCENE, positive, resolution, whole
 from toolkit.core.images import write_image
 from toolkit.core.validate import check_output
 from toolkit.measure.reference import reference_at, reference_problem, rmse
@@ -15,7 +15,8 @@ from toolkit.techniques.strategy_images import DEFAULT_MAX_EDGES
 
 
 def add_command(sub):
-    p = sub.add_parser("render", help="render a scene with one technique", parents=[DEVICE, SCENE, BVH, GENERAL])
+    p = sub.add_parser("render", help="render a scene with one technique",
+                       parents=[DEVICE, SCENE, BVH, GENERAL, LANES])
     p.add_argument("--technique", default="pt_naive", choices=sorted(TECHNIQUES))
     p.add_argument("--spp", type=positive, default=64, help="samples per pixel (default 64)")
     p.add_argument("--resolution", type=resolution, help="WxH; keeps the scene's camera and field of view")
@@ -43,7 +44,7 @@ def cmd_render(args):
     out = check_output(args.out or f"out/{scene.name}_{args.technique}.exr")
     result = render(scene, technique=args.technique, spp=args.spp, seed=args.seed,
                     resolution=(width, height), device=args.device, progress=not args.no_progress, bvh=args.bvh,
-                    general=args.general)
+                    general=args.general, lanes=args.lanes)
     written = write_image(out, result.image.astype(np.float32))
     stats = dict(result.stats, out=str(out))
     ref, _ = reference_at(scene, width, height)
@@ -55,6 +56,7 @@ def cmd_render(args):
              f"{stats['seconds']:.2f} s, {stats['samples_per_second']:,.0f} samples/s on {stats['device']}",
              f"  image mean (linear RGB) {np.round(stats['mean'], 5).tolist()}, non-finite pixels "
              f"{stats['nonfinite']}, dropped samples {stats['nonfinite_samples']}",
+             f"  {stats['lanes_summary']}",
              f"  SIMD efficiency (W={stats['warp_width']}, {stats['warp_width_source']}): "
              + ", ".join(f"{k} {v:.1%}" for k, v in simd.items())]
     for option in ("stream_size", "pool_size"):
@@ -78,7 +80,7 @@ def cmd_render_strategies(args):
     check_output(f"{args.strategies}/full.exr")     # before the render: a bad folder must not cost its time
     result = render(scene, technique=args.technique, spp=args.spp, seed=args.seed, resolution=args.resolution,
                     device=args.device, count_simd=False, progress=not args.no_progress, bvh=args.bvh,
-                    strategy_images=args.strategy_edges)
+                    strategy_images=args.strategy_edges, lanes=args.lanes)
     report = write_strategies(args.strategies, result.image, result.strategy_images, scene.name, args.technique)
     print(format_strategies(report))
     print(f"  wrote {len(report['strategies'])} x 2 strategy images, longer_weighted.exr, full.exr and "

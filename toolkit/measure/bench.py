@@ -16,38 +16,61 @@ DEFAULT = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "pt_compact_regen
 
 
 def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats=3, seed=0, device=None,
-          bvh="wide", general=False):
+          bvh="wide", general=False, lanes=(None,)):
+    """Samples/s of each technique and the ratios to the first, medians of interleaved runs.
+    `lanes`: the SIMD-lanes settings to run each technique with ("on", "off"; None: the default,
+    toolkit.render); with two, every technique runs both ways, interleaved, and each row is
+    named "technique [lanes on]" and has its ratio to the same technique with lanes off."""
     scene = as_scene(scene)
-    for name in techniques:   # warm-up: kernel builds and BVH outside the timings
+    rows = [(name, setting) for name in techniques for setting in lanes]
+    for name, setting in rows:   # warm-up: kernel builds and BVH outside the timings
         render(scene, technique=name, spp=1, resolution=(16, 16), device=device, count_simd=False, bvh=bvh,
-               general=general)
-    rates = {name: [] for name in techniques}
-    device_name = None
+               general=general, lanes=setting)
+    rates = {row: [] for row in rows}
+    device_name, widths = None, {}
     for r in range(repeats):
-        for name in techniques:
+        for name, setting in rows:
             # Bidirectional samples (and Metropolis mutations, each one) cost ~10x more: an eighth of
             # the budget keeps the runs comparable in length.
             n = max(1, spp // 8) if family(name) in ("bdpt", "mlt") else spp
             result = render(scene, technique=name, spp=n, seed=seed + r, resolution=resolution,
-                            device=device, count_simd=False, bvh=bvh, general=general)
-            rates[name].append(result.stats["samples_per_second"])
+                            device=device, count_simd=False, bvh=bvh, general=general, lanes=setting)
+            rates[(name, setting)].append(result.stats["samples_per_second"])
             device_name = result.stats["device"]
-    median = {name: statistics.median(v) for name, v in rates.items()}
+            widths[(name, setting)] = {k: result.stats[k] for k in ("lanes", "vector_width", "vector_widths")}
+    median = {row: statistics.median(v) for row, v in rates.items()}
     base = techniques[0]
+    report = {}
+    for name, setting in rows:
+        off = (name, "off") if (name, "off") in median else None
+        report[_row_name(name, setting, len(lanes))] = {
+            "technique": name, "samples_per_second": median[(name, setting)], "runs": rates[(name, setting)],
+            f"ratio_to_{base}": median[(name, setting)] / median[(base, setting)], **widths[(name, setting)],
+            **({"ratio_to_lanes_off": median[(name, setting)] / median[off]} if off and setting == "on" else {})}
     return {"scene": scene.name, "device": device_name, "gpu": has_gpu(), "spp": spp, "bvh": bvh, "general": general,
-            "resolution": list(resolution), "repeats": repeats,
-            "techniques": {name: {"samples_per_second": median[name], "runs": rates[name],
-                                  f"ratio_to_{base}": median[name] / median[base]} for name in techniques}}
+            "resolution": list(resolution), "repeats": repeats, "lanes": list(lanes), "techniques": report}
+
+
+def _row_name(name, setting, settings):
+    return f"{name} [lanes {setting}]" if settings > 1 else name
 
 
 def format_bench(report):
-    base = next(iter(report["techniques"]))
+    base = next(iter(report["techniques"].values()))["technique"]
     lines = [f"bench: {report['scene']} {report['resolution'][0]}x{report['resolution'][1]}, {report['spp']} spp, "
              f"median of {report['repeats']} interleaved runs on {report['device']}, {report['bvh']} BVH"]
     if not report["gpu"]:
         lines.append("No GPU here: these figures describe a CPU, where idle SIMD lanes cost little; "
                      "the SIMD-efficiency counters (python -m toolkit compare) are what predict GPU behaviour.")
-    lines.append(f"{'technique':<38}{'samples/s':>12}{'ratio to ' + base:>22}")
+    both = any("ratio_to_lanes_off" in row for row in report["techniques"].values())
+    lines.append(f"{'technique':<52}{'samples/s':>12}{'ratio to ' + base:>26}{'lanes':>12}"
+                 + (f"{'on / off':>10}" if both else ""))
     for name, row in report["techniques"].items():
-        lines.append(f"{name:<38}{row['samples_per_second']:>12,.0f}{row[f'ratio_to_{base}']:>22.2f}")
+        lanes = row.get("lanes") or "-"
+        if row.get("vector_width"):
+            lanes += f" ({row['vector_width']})"
+        lines.append(f"{name:<52}{row['samples_per_second']:>12,.0f}{row[f'ratio_to_{base}']:>26.2f}{lanes:>12}"
+                     + (f"{row['ratio_to_lanes_off']:>10.2f}" if "ratio_to_lanes_off" in row else ""))
+    lines.append("lanes: the setting, with the widest vector the compiler reported in its build log "
+                 "(1: no kernel vectorized); ratios to " + base + " are within one lanes setting")
     return "\n".join(lines)

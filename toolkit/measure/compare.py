@@ -17,10 +17,11 @@ PHASES = ["generate", "extend", "walk", "shadow", "compact", "connect"]
 
 
 def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, out_dir="out/compare",
-            device=None, progress=False, plots=True, bvh="wide", general=False):
+            device=None, progress=False, plots=True, bvh="wide", general=False, lanes=None):
     """Render `scene` with each technique; returns {technique: figures} and writes images/plots.
     `warp_width` None: the device's (toolkit.opencl.device_model.choose_warp_width); each row says which.
-    `general`: the general kernels instead of the scene's specialized ones (toolkit.render)."""
+    `general`: the general kernels instead of the scene's specialized ones, `lanes` "on"/"off": SIMD
+    lanes on Intel's CPU runtime (toolkit.render)."""
     scene = as_scene(scene)
     width, height = resolution or (scene.camera.width, scene.camera.height)
     out_dir = Path(out_dir)
@@ -29,7 +30,8 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, ou
     results, table = {}, {}
     for name in techniques:
         result = render(scene, technique=name, spp=spp, seed=seed, resolution=(width, height),
-                        device=device, warp_width=warp_width, progress=progress, bvh=bvh, general=general)
+                        device=device, warp_width=warp_width, progress=progress, bvh=bvh, general=general,
+                        lanes=lanes)
         path = out_dir / f"{scene.name}_{name.replace('/', '_')}.exr"
         write_image(path, result.image.astype(np.float32))
         results[name] = result
@@ -43,6 +45,7 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, ou
             "warp_width": result.stats["warp_width"],
             "warp_width_source": result.stats["warp_width_source"],
             **{k: result.stats[k] for k in ("stream_size", "pool_size", "work_sizes_source") if k in result.stats},
+            **{k: result.stats[k] for k in ("lanes", "vector_width", "vector_widths", "lanes_summary")},
             "rmse": rmse(result.image, ref) if ref is not None else None,
             "nonfinite": result.stats["nonfinite"],
             "out": str(path),
@@ -70,6 +73,7 @@ def format_table(table, warp_width=None):
              f"steps = BVH nodes visited by closest-hit rays per sample ({first['bvh']} BVH, --bvh)",
              *([f"W = {warp_width}: {why} (--warp-width overrides)"] if why and why != "given" else []),
              *in_flight_lines(table),
+             *lanes_lines(table),
              head, "-" * len(head)]
     for name, row in table.items():
         eff = row["simd_efficiency"]
@@ -93,6 +97,15 @@ def in_flight_lines(table):
             if option in row:
                 seen.setdefault((option, row[option], row.get("work_sizes_source")), []).append(name)
     return [f"{option} = {size:,}: {why} ({', '.join(names)})" for (option, size, why), names in seen.items()]
+
+
+def lanes_lines(table):
+    """Whether the rows ran work-items as SIMD lanes, and how wide (toolkit/opencl/lanes.py)."""
+    seen = {}
+    for name, row in table.items():
+        if "lanes_summary" in row:
+            seen.setdefault(row["lanes_summary"], []).append(name)
+    return [f"{summary} ({', '.join(names)})" for summary, names in seen.items()]
 
 
 DRAIN_NOTE = ("Shaded, from the dashed line on: the final drain of a pass. Every sample of the budget has started, "

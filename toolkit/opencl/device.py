@@ -7,8 +7,8 @@ Zen 5, for one) is skipped, with the compiler's first error line as the reason.
 
 Ranking among usable devices (`RANKING`): a GPU first; then PoCL (the newest version first: a
 distribution's PoCL, whose newer LLVM knows newer CPUs, before pip's 3.0); then Intel's CPU
-runtime; then any other implementation. Intel's runtime (with its vectorizer off, see
-toolkit/opencl/runtimes.py) is faster on our kernels than PoCL on a 2-core AMD EPYC (1.4x for pt_naive
+runtime; then any other implementation. Intel's runtime (with SIMD lanes off, see
+toolkit/opencl/lanes.py) is faster on our kernels than PoCL on a 2-core AMD EPYC (1.4x for pt_naive
 and bdpt_parallel_connect), but PoCL comes first: it is open source, it is what the project's
 figures and tests are measured on, and Intel's runtime is the fallback for CPUs that PoCL 3.0
 cannot compile for. Pick Intel's with `--device intel` for speed. Oclgrind is a simulator for
@@ -32,6 +32,7 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.opencl import runtimes  # noqa: F401  (registers pip's OpenCL runtimes before the first OpenCL call)
+from toolkit.opencl import lanes
 from toolkit.core.package_data import user_cache_folder
 from toolkit.opencl.program import LOCAL_SIZE, KernelBuildError, build, expand_includes, kernel, launch
 from toolkit.opencl.runtimes import intel_cpu_library
@@ -287,21 +288,24 @@ def _cpu_name():
 
 
 @lru_cache(maxsize=None)
-def _context_and_queue(device):
+def _context_and_queue(device, setting=None):
     # Keep the Context object alive beside its queue: Intel's runtime invalidates a context whose
     # last Python reference is gone although a queue still holds it (queue.context then fails).
+    # One context per SIMD-lanes setting (toolkit/opencl/lanes.py): its builds follow it.
     context = cl.Context([device])
+    lanes.register(context, setting)
     return context, cl.CommandQueue(context)
 
 
 def _queue_for_device(device):
-    return _context_and_queue(device)[1]
+    return _context_and_queue(device, lanes.setting_for(device))[1]
 
 
-def get_queue(selector=None):
-    """One shared context and in-order queue per device (builds are cached per context)."""
+def get_queue(selector=None, lanes_setting=None):
+    """One shared context and in-order queue per device and lanes setting (builds are cached per
+    context). `lanes_setting`: "on", "off" or None (TOOLKIT_LANES, else the device's default)."""
     _, device = pick_device(selector or os.environ.get("PYOPENCL_CTX") or None)
-    return _queue_for_device(device)
+    return _context_and_queue(device, lanes.setting_for(device, lanes_setting))[1]
 
 
 def describe(device):

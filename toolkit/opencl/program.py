@@ -18,6 +18,7 @@ import pyopencl as cl
 
 from toolkit.core.layout import c_header
 from toolkit.core.package_data import data_dir
+from toolkit.opencl import lanes
 
 # The default work-group size. A program is built for one local size (the LOCAL_SIZE define: the
 # kernels' reqd_work_group_size and __local arrays) and must be launched with it: the techniques
@@ -114,10 +115,13 @@ def build(context, name, defines=None, directory=None, arg_info=False):
     so a kernel of your own can include the toolkit's headers. `defines["LOCAL_SIZE"]` (default
     LOCAL_SIZE) is the work-group size the program must be launched with (launch's local_size).
     `arg_info`: keep the kernels' parameter names (-cl-kernel-arg-info), for
-    kernel.get_arg_info (tests/test_kernel_args.py compares them with the names the host passes)."""
+    kernel.get_arg_info (tests/test_kernel_args.py compares them with the names the host passes).
+    The context's SIMD-lanes setting (toolkit/opencl/lanes.py) is applied to every kernel;
+    vector_widths(program) says what the compiler did with it."""
     defines = dict(defines or {})
     defines.setdefault("LOCAL_SIZE", LOCAL_SIZE)
-    source = expand_includes(name, directory)
+    setting = lanes.of_context(context)
+    source = lanes.source_prefix(setting) + expand_includes(name, directory)
     options = define_options(defines)
     if arg_info:
         options.append("-cl-kernel-arg-info")
@@ -132,16 +136,10 @@ def build(context, name, defines=None, directory=None, arg_info=False):
                                     device.driver_version, cl.VERSION_TEXT]).encode()).hexdigest()
     if (key, context.int_ptr) in _memo:
         build_log.append((name, 0.0, True))
+        lanes_log.append((name, setting, _widths[_memo[(key, context.int_ptr)].int_ptr]))
         return _memo[(key, context.int_ptr)]
     start = time.perf_counter()
-    program = cl.Program(context, source)
-    try:
-        with warnings.catch_warnings():
-            # pyopencl warns about any non-empty log; we show real warnings ourselves below.
-            warnings.simplefilter("ignore", cl.CompilerWarning)
-            program = program.build(options=options, cache_dir=_cache_dir())
-    except cl.RuntimeError as error:
-        raise KernelBuildError(_format_build_error(name, relocate(str(error), source), options)) from None
+    program, retrieved = _compile(cl.Program(context, source), name, source, options)
     log = relocate(_build_log_text(program), source)
     if verbose and log.strip():
         print(f"--- build log of {name} on {device.name.strip()} ---\n{log}", file=sys.stderr)
@@ -151,8 +149,50 @@ def build(context, name, defines=None, directory=None, arg_info=False):
     if real:
         warnings.warn(KernelBuildWarning(f"{name}: " + "\n".join(real)), stacklevel=2)
     build_log.append((name, time.perf_counter() - start, False))
+    # A program from pyopencl's binary cache has no log of its own: pyopencl hands over the one
+    # it stored with the binary (`retrieved`), which is where the widths then come from.
+    _widths[program.int_ptr] = lanes.vector_widths(log + "\n" + retrieved)
+    lanes_log.append((name, setting, _widths[program.int_ptr]))
     _memo[(key, context.int_ptr)] = program
     return program
+
+
+def _compile(program, name, source, options):
+    """(the built program, the build log pyopencl kept with a cached binary or "")."""
+    saved = os.environ.get("PYOPENCL_COMPILER_OUTPUT")
+    os.environ["PYOPENCL_COMPILER_OUTPUT"] = "1"   # pyopencl then warns with the stored log itself
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            # pyopencl warns about any non-empty log; we show real warnings ourselves (build).
+            warnings.simplefilter("always", cl.CompilerWarning)
+            program = program.build(options=options, cache_dir=_cache_dir())
+    except cl.RuntimeError as error:
+        raise KernelBuildError(_format_build_error(name, relocate(str(error), source), options)) from None
+    finally:
+        if saved is None:
+            del os.environ["PYOPENCL_COMPILER_OUTPUT"]
+        else:
+            os.environ["PYOPENCL_COMPILER_OUTPUT"] = saved
+    for other in (w for w in caught if not issubclass(w.category, cl.CompilerWarning)):
+        warnings.warn_explicit(other.message, other.category, other.filename, other.lineno)
+    return program, "\n".join(str(w.message) for w in caught if issubclass(w.category, cl.CompilerWarning))
+
+
+_widths = {}      # {program.int_ptr: {kernel: vector width}} (lanes.vector_widths)
+lanes_log = []    # (name, lanes setting, {kernel: width}) per build() call, like build_log
+
+
+def vector_widths(built):
+    """{kernel: work-items per vector} that the compiler reported for a program build() made."""
+    return dict(_widths.get(built.int_ptr, {}))
+
+
+def vector_widths_since(mark):
+    """{kernel: width} of every build() call since len(lanes_log) was `mark` (a render's programs)."""
+    merged = {}
+    for _, _, widths in lanes_log[mark:]:
+        merged.update(widths)
+    return merged
 
 
 def _cache_dir():

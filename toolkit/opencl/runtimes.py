@@ -13,14 +13,13 @@ builds on any x86-64 CPU; the device picker (toolkit/opencl/device.py) uses it o
 
 Set `OCL_ICD_VENDORS` yourself to take full control: the toolkit then registers nothing.
 
-Intel's runtime vectorizes a kernel across work-items (16 of them in one AVX-512 register). Our
-kernels are the divergent code the talk is about: each work-item follows its own ray, so the
-vectorized code runs every branch for all lanes. Measured on a 2-core AMD EPYC, quiet machine,
-cornell_box 128x128: pt_naive 386k samples/s vectorized against 1.89M with the vectorizer off,
-bdpt_parallel_connect 86k against 313k. The vectorized code also gave wrong, run-to-run varying
-images for the compaction-based techniques with a finite max_depth (pt_compact_regen,
-both BDPT techniques; tests/test_implementations.py holds that case), so the vectorizer is off
-unless CL_CONFIG_USE_VECTORIZER is set already.
+Intel's runtime can vectorize a kernel across work-items (SIMD lanes: 8 of them in one AVX2
+register, 16 with AVX-512). Measured on a 2-core AMD EPYC, quiet machine, cornell_box 128x128,
+with the vectorizer on for every kernel: pt_naive 386k samples/s against 1.89M scalar,
+bdpt_parallel_connect 86k against 313k; the vectorized code also gave wrong, run-to-run varying
+images then (issue 17), not seen today (issue 22). So the toolkit keeps lanes off unless asked,
+per build and not through CL_CONFIG_USE_VECTORIZER, which the runtime reads once for the whole
+process: see toolkit/opencl/lanes.py.
 """
 import hashlib
 import os
@@ -83,7 +82,6 @@ def register_pip_runtimes():
     library = intel_cpu_library()
     if library is None:
         return None
-    os.environ.setdefault("CL_CONFIG_USE_VECTORIZER", "False")   # see the module's docstring
     icd_lines = {}
     if SYSTEM_VENDORS.is_dir():  # OCL_ICD_VENDORS replaces this folder, so keep its drivers
         for icd in sorted(SYSTEM_VENDORS.glob("*.icd")):
