@@ -3,7 +3,8 @@
 It inlines `#include "file.h"` from cl/ (with #line markers so compiler messages name our
 files and lines), adds `-D` defines that describe the scene (absent features are not
 compiled), and memoises builds per (source text with includes, defines, device). Across
-processes pyopencl's binary cache and PoCL's kernel cache keep compiled code on disk.
+processes pyopencl's binary cache (kernel_cache.py: built without it where it cannot be used)
+and PoCL's kernel cache keep compiled code on disk.
 """
 import hashlib
 import os
@@ -18,6 +19,7 @@ import pyopencl as cl
 
 from toolkit.core.layout import c_header
 from toolkit.core.package_data import data_dir
+from toolkit.opencl.kernel_cache import build_with_cache
 
 # The default work-group size. A program is built for one local size (the LOCAL_SIZE define: the
 # kernels' reqd_work_group_size and __local arrays) and must be launched with it: the techniques
@@ -136,10 +138,8 @@ def build(context, name, defines=None, directory=None, arg_info=False):
     start = time.perf_counter()
     program = cl.Program(context, source)
     try:
-        with warnings.catch_warnings():
-            # pyopencl warns about any non-empty log; we show real warnings ourselves below.
-            warnings.simplefilter("ignore", cl.CompilerWarning)
-            program = program.build(options=options, cache_dir=_cache_dir())
+        # pyopencl warns about any non-empty log (left out there); we show real warnings ourselves below.
+        program = build_with_cache(program, options, cl.CompilerWarning)
     except cl.RuntimeError as error:
         raise KernelBuildError(_format_build_error(name, relocate(str(error), source), options)) from None
     log = relocate(_build_log_text(program), source)
@@ -153,11 +153,6 @@ def build(context, name, defines=None, directory=None, arg_info=False):
     build_log.append((name, time.perf_counter() - start, False))
     _memo[(key, context.int_ptr)] = program
     return program
-
-
-def _cache_dir():
-    directory = os.environ.get("TOOLKIT_CACHE_DIR")
-    return directory or None  # None: pyopencl's default per-user cache
 
 
 def _build_log_text(program):
