@@ -141,6 +141,9 @@ def test_malformed_or_foreign_verdicts_are_probed_again(fresh_probes, queue):
         assert probe_cache.read_verdict(fresh_probes) is None, verdict
     fresh_probes.write_text(json.dumps({"usable": False, "reason": "error: x", "cpu": here}))
     assert probe_cache.read_verdict(fresh_probes) == (False, "error: x")
+    assert device.probe(queue.device) == (False, "error: x")      # a kept failure: the error names its file
+    unusable = device.Candidate(0, 0, queue.device.platform, queue.device, False, "error: x")
+    assert str(fresh_probes) in device.explain_no_usable_device([unusable])
     fresh_probes.parent.chmod(0o777)       # a folder others can write: its verdicts are not read
     assert probe_cache.read_verdict(fresh_probes) is None
     fresh_probes.parent.chmod(0o700)

@@ -30,7 +30,8 @@ def unsafe_reason(path):
     if info.st_uid != os.getuid():
         return f"it belongs to user id {info.st_uid}, not to this user ({os.getuid()})"
     if info.st_mode & (stat.S_IWGRP | stat.S_IWOTH):
-        return f"others can write to it (mode {stat.S_IMODE(info.st_mode):o})"
+        mode = stat.S_IMODE(info.st_mode)
+        return f"others can write to it (mode {mode:o}; `chmod go-w` it if its contents are yours)"
     return None
 
 

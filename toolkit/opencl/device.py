@@ -2,8 +2,9 @@
 
 "Usable" is measured, not assumed: each device builds and runs a small probe kernel
 (`cl/probe.cl`, which uses what the toolkit's kernels use) once; the verdict is cached on disk
-per device, driver version and CPU (toolkit/opencl/probe_cache.py). A device whose compiler fails (PoCL 3.0's LLVM 14 on an AMD
-Zen 5, for one) is skipped, with the compiler's first error line as the reason.
+per device, driver version and CPU (toolkit/opencl/probe_cache.py). A device whose compiler
+fails (PoCL 3.0's LLVM 14 on an AMD Zen 5, for one) is skipped, with the compiler's first error
+line as the reason.
 
 Ranking among usable devices (`RANKING`): a GPU first; then PoCL (the newest version first: a
 distribution's PoCL, whose newer LLVM knows newer CPUs, before pip's 3.0); then Intel's CPU
@@ -256,8 +257,10 @@ def explain_no_usable_device(found):
     """The error when no device can build: the cause, and the fixes that apply here."""
     lines = ["No OpenCL device can build the toolkit's kernels:"]
     for c in found:
+        note = probe_note(c.device) if not c.usable else ""
         lines.append(f"  {c.selector} {describe(c.device)}, {c.implementation} ({c.compiler}): "
-                     f"{c.reason or 'a simulator, only used when selected with --device'}")
+                     f"{c.reason or 'a simulator, only used when selected with --device'}"
+                     + (f" ({note})" if note.startswith("cached") else ""))
     unknown_cpu = [c for c in found if "unknown target CPU" in c.reason]
     if unknown_cpu:
         c = unknown_cpu[0]
