@@ -11,6 +11,8 @@ import pytest
 import toolkit
 from toolkit.verify.same_image import PT_FAMILY, SAME_DEVICE
 from toolkit.core.simd import PhaseCounter
+from toolkit.opencl.device import get_queue
+from toolkit.opencl.device_model import is_gpu
 from toolkit.techniques import TECHNIQUES, VARIANTS
 
 PT = list(PT_FAMILY)
@@ -166,3 +168,7 @@ def test_compare_json_and_bench_from_the_command_line(tmp_path):
     report = json.loads(run.stdout.strip().splitlines()[-1])
     assert report["techniques"]["pt_naive"]["ratio_to_pt_naive"] == 1.0
     assert "samples/s" in run.stdout
+    # "gpu": whether the measured device is one (issue 24: Oclgrind, which reports every device
+    # type, made a CPU-only machine say true and lose the CPU caveat).
+    assert report["gpu"] is is_gpu(get_queue().device)     # the subprocess picks the same device
+    assert ("Measured on a CPU" in run.stdout) is not report["gpu"]

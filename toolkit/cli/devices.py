@@ -7,7 +7,7 @@ import pyopencl as cl
 from toolkit.core.validate import InputError
 from toolkit.opencl import lanes, program, runtimes
 from toolkit.opencl.device import (HOW_TO_GET_OPENCL, RANKING, NoOpenCLError, candidates, describe, get_queue,
-                                   has_gpu, pick_device)
+                                   has_gpu, pick_device, probe_note)
 from toolkit.opencl.device_model import device_warp_width, is_gpu
 from toolkit.opencl.work_sizes import device_work_sizes
 
@@ -51,7 +51,8 @@ def _device_lines(c):
             f"global memory: {c.device.global_mem_size / 2**30:.1f} GiB",
             *_lanes_lines(c),
             f"       SIMD counters: warps of {width} ({why}; --warp-width overrides)",
-            f"       in flight: {device_work_sizes(c.device).text()}; options stream_size / pool_size override"]
+            f"       in flight: {device_work_sizes(c.device).text()}; options stream_size / pool_size override"] + \
+        ([f"       probe: {probe_note(c.device)}"] if probe_note(c.device) else [])
 
 
 def _lanes_lines(c):
@@ -89,7 +90,11 @@ def _environment_lines():
             lines.append(f"({variable}={os.environ[variable]} is set)")
     if runtimes.registered_vendors:
         lines.append(f"Intel's CPU runtime from pip is registered beside the system's drivers "
-                     f"(OCL_ICD_VENDORS={runtimes.registered_vendors}).")
+                     f"(OCL_ICD_VENDORS={runtimes.registered_vendors})"
+                     + "".join(f"; passed over: {why}" for why in runtimes.vendors_refused) + ".")
+    elif runtimes.vendors_refused:
+        lines.append("Intel's CPU runtime from pip is NOT registered: no vendors folder that only this user can "
+                     "write (" + "; ".join(runtimes.vendors_refused) + ").")
     elif os.environ.get("OCL_ICD_VENDORS"):
         lines.append(f"(OCL_ICD_VENDORS={os.environ['OCL_ICD_VENDORS']} is set: the toolkit registers no runtime)")
     if not has_gpu():

@@ -9,7 +9,7 @@ from toolkit.cli.options import BVH, DEVICE, GENERAL, LANES, SCENE, positive, re
 from toolkit.core.images import write_image
 from toolkit.core.validate import check_output
 from toolkit.measure.reference import reference_at, reference_problem, rmse
-from toolkit.measure.strategies import format_strategies, write_strategies
+from toolkit.measure.strategies import check_strategies_folder, format_strategies, write_strategies
 from toolkit.techniques import TECHNIQUES
 from toolkit.techniques.strategy_images import DEFAULT_MAX_EDGES
 
@@ -77,7 +77,7 @@ def cmd_render_strategies(args):
     if args.general:
         raise ValueError("--strategies builds its own kernels; --general does not apply")
     scene = as_scene(args.scene)
-    check_output(f"{args.strategies}/full.exr")     # before the render: a bad folder must not cost its time
+    check_strategies_folder(args.strategies)     # before the render: a bad folder must not cost its time
     result = render(scene, technique=args.technique, spp=args.spp, seed=args.seed, resolution=args.resolution,
                     device=args.device, count_simd=False, progress=not args.no_progress, bvh=args.bvh,
                     strategy_images=args.strategy_edges, lanes=args.lanes)

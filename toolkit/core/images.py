@@ -7,9 +7,21 @@ import numpy as np
 import OpenImageIO as oiio
 
 
+def _oiio_name(path):
+    """The file name as OpenImageIO takes it: text only (toolkit/core/validate.py utf8_path checks
+    the names given on the command line before any work; this catches the others)."""
+    name = str(path)
+    try:
+        name.encode("utf-8")
+    except UnicodeEncodeError:
+        raise OSError(f"{os.fsencode(name).decode('utf-8', 'backslashreplace')}: the path is not valid UTF-8, "
+                      "which OpenImageIO cannot open") from None
+    return name
+
+
 def read_exr(path):
     """(H, W, 3) float32 pixels; OSError naming the problem for a missing, truncated or corrupt file."""
-    file = oiio.ImageInput.open(str(path))
+    file = oiio.ImageInput.open(_oiio_name(path))
     if file is None:
         raise OSError(f"{path}: {oiio.geterror() or 'cannot open the image'}")
     try:
@@ -31,7 +43,7 @@ def write_image(path, image):
     Each file is written to a temporary file in the same folder, every result checked, then
     renamed over the old one: a failed write (disk full, no permission) raises OSError naming
     the reason and leaves any old file untouched."""
-    path = Path(path)
+    path = Path(_oiio_name(path))
     suffix = path.suffix.lower()
     if suffix not in (".exr", ".png"):
         raise OSError(f"{path}: unsupported image type {path.suffix!r}; use .exr or .png")
@@ -60,6 +72,16 @@ def _write_temporary(oiio, target, pixels, fmt):
     except OSError as error:
         raise OSError(f"{target}: cannot write there: {error.strerror or error}") from None
     os.close(fd)
+    try:
+        return _write_checked(oiio, target, tmp, pixels, fmt)
+    except BaseException:
+        if os.path.exists(tmp):      # on every error (a name OpenImageIO cannot take, Ctrl-C): no leftover
+            os.unlink(tmp)
+        raise
+
+
+def _write_checked(oiio, target, tmp, pixels, fmt):
+    """Write `pixels` to the file `tmp`, read it back and compare; returns tmp or raises OSError."""
     os.chmod(tmp, 0o666 & ~_umask())     # as an ordinary new file (mkstemp makes it private)
     h, w, c = pixels.shape
     out = oiio.ImageOutput.create(tmp)
@@ -78,12 +100,10 @@ def _write_temporary(oiio, target, pixels, fmt):
             file.close()
         ok = back is not None and np.array_equal(np.asarray(back).reshape(pixels.shape), pixels)
         reason = reason or oiio.geterror() or "the file read back differs from the image (disk full?)"
-    if ok:
-        with open(tmp, "rb") as f:     # on disk before the rename makes it the only copy
-            os.fsync(f.fileno())
-    else:
-        os.unlink(tmp)
+    if not ok:
         raise OSError(f"{target}: cannot write the image: {reason or 'unknown error'}")
+    with open(tmp, "rb") as f:     # on disk before the rename makes it the only copy
+        os.fsync(f.fileno())
     return tmp
 
 

@@ -1,50 +1,81 @@
-"""A minimal OBJ reader for the interchange format: `v` and `f` lines only (FORMAT.md)."""
+"""A minimal OBJ reader for the interchange format: `v` and `f` lines only (FORMAT.md).
+
+It reads the file line by line (each line up to its length limit) into compact arrays (8 bytes
+a number) and stops at the scene's vertex and triangle limits as it goes: a file is untrusted,
+and lists of Python numbers built before the limits were checked reached 67 times the file's
+size in memory."""
+from array import array
+
 import numpy as np
+
+from toolkit.core.validate import LIMITS, in_range
 
 
 class ObjError(ValueError):
     pass
 
 
-def read_obj(path):
-    """(vertices float64 (N,3), triangles int64 (M,3), zero-based). Polygons become fans."""
+def read_obj(path, earlier_vertices=0, earlier_triangles=0):
+    """(vertices float64 (N,3), triangles int64 (M,3), zero-based). Polygons become fans.
+    `earlier_vertices` / `earlier_triangles`: the counts of the scene's other meshes read before,
+    so that LIMITS["scene.vertices"] and ["scene.triangles"] hold for the whole scene (an
+    InputError naming the line where a limit was passed)."""
+    vertices, triangles = array("d"), array("q")
+    longest = LIMITS["mesh.line_length"][1]
     try:
-        text = open(path, encoding="utf-8").read()
+        with open(path, encoding="utf-8") as file:
+            # A line is read up to its limit, not whole: one line can be the whole file.
+            for number, line in enumerate(iter(lambda: file.readline(longest + 2), ""), start=1):
+                in_range("mesh.line_length", len(line.rstrip("\r\n")), f"{path}:{number}: line length (characters)")
+                fields = line.split("#", 1)[0].split()
+                if not fields:
+                    continue
+                where = f"{path}:{number}"
+                if fields[0] == "v":
+                    vertices.extend(_vertex(where, fields, line))
+                    _within("scene.vertices", earlier_vertices + len(vertices) // 3, where, "vertex")
+                elif fields[0] == "f":
+                    _within("scene.triangles", earlier_triangles + len(triangles) // 3 + len(fields) - 3, where,
+                            "triangle")
+                    triangles.extend(_fan(where, fields, line, len(vertices) // 3))
+                # vn, vt, o, g, s, usemtl ... are ignored by the format.
     except FileNotFoundError:
         raise ObjError(f"{path}: mesh file not found") from None
     except (OSError, UnicodeDecodeError) as error:
         raise ObjError(f"{path}: cannot read mesh: {error}") from None
-    vertices, triangles = [], []
-    for number, line in enumerate(text.splitlines(), start=1):
-        fields = line.split("#", 1)[0].split()
-        if not fields:
-            continue
-        if fields[0] == "v":
-            try:
-                xyz = [float(x) for x in fields[1:4]]
-            except ValueError:
-                raise ObjError(f"{path}:{number}: vertex has a non-number: {line.strip()!r}") from None
-            if len(xyz) != 3:
-                raise ObjError(f"{path}:{number}: vertex needs 3 coordinates: {line.strip()!r}")
-            if not all(np.isfinite(xyz)):
-                raise ObjError(f"{path}:{number}: vertex coordinate is NaN or infinite: {line.strip()!r}")
-            vertices.append(xyz)
-        elif fields[0] == "f":
-            try:
-                # "7/2/3" keeps only the position index; negative indices count from the end.
-                ids = [int(f.split("/")[0]) for f in fields[1:]]
-            except ValueError:
-                raise ObjError(f"{path}:{number}: face index is not an integer: {line.strip()!r}") from None
-            if len(ids) < 3:
-                raise ObjError(f"{path}:{number}: face needs at least 3 vertices: {line.strip()!r}")
-            for i in ids:  # 1..n, or -n..-1 counting back from the last vertex; 0 is invalid
-                if not (1 <= i <= len(vertices) or -len(vertices) <= i <= -1):
-                    raise ObjError(f"{path}:{number}: face index {i} out of range "
-                                   f"(the file has {len(vertices)} vertices so far)")
-            ids = [i - 1 if i > 0 else len(vertices) + i for i in ids]
-            for k in range(1, len(ids) - 1):
-                triangles.append((ids[0], ids[k], ids[k + 1]))
-        # vn, vt, o, g, s, usemtl ... are ignored by the format.
     if not triangles:
         raise ObjError(f"{path}: mesh has no faces")
-    return np.asarray(vertices, np.float64), np.asarray(triangles, np.int64)
+    return np.frombuffer(vertices, np.float64).reshape(-1, 3), np.frombuffer(triangles, np.int64).reshape(-1, 3)
+
+
+def _within(limit, count, where, what):
+    if count > LIMITS[limit][1]:
+        in_range(limit, count, f"{where}: the scene's {what} count (the reader stopped here)")
+
+
+def _vertex(where, fields, line):
+    try:
+        xyz = [float(x) for x in fields[1:4]]
+    except ValueError:
+        raise ObjError(f"{where}: vertex has a non-number: {line.strip()!r}") from None
+    if len(xyz) != 3:
+        raise ObjError(f"{where}: vertex needs 3 coordinates: {line.strip()!r}")
+    if not all(np.isfinite(xyz)):
+        raise ObjError(f"{where}: vertex coordinate is NaN or infinite: {line.strip()!r}")
+    return xyz
+
+
+def _fan(where, fields, line, count):
+    """The triangles (flat, zero-based) of one face line over the `count` vertices read so far."""
+    try:
+        # "7/2/3" keeps only the position index; negative indices count from the end.
+        ids = [int(f.split("/")[0]) for f in fields[1:]]
+    except ValueError:
+        raise ObjError(f"{where}: face index is not an integer: {line.strip()!r}") from None
+    if len(ids) < 3:
+        raise ObjError(f"{where}: face needs at least 3 vertices: {line.strip()!r}")
+    for i in ids:  # 1..n, or -n..-1 counting back from the last vertex; 0 is invalid
+        if not (1 <= i <= count or -count <= i <= -1):
+            raise ObjError(f"{where}: face index {i} out of range (the file has {count} vertices so far)")
+    ids = [i - 1 if i > 0 else count + i for i in ids]
+    return [v for k in range(1, len(ids) - 1) for v in (ids[0], ids[k], ids[k + 1])]

@@ -15,7 +15,7 @@ from toolkit.core.layout import MATERIAL_TYPES
 from toolkit.core.obj import ObjError, read_obj
 from toolkit.core.package_data import data_dir
 from toolkit.core.validate import LIMITS, InputError, check_keys, finite_number, in_range, json_depth, \
-    regular_file_inside, whole_number
+    regular_file_inside, utf8_path, whole_number
 
 FORMAT = "toolkit-scene/1"
 # The parameters of each material type (MATERIAL_TYPES: the codes shared with the kernels as MAT_*,
@@ -229,7 +229,7 @@ def load_scene(path):
 
 
 def _load_scene(path):
-    path = Path(path)
+    path = utf8_path(path, "scene")
     if path.is_dir():
         path = path / "scene.json"
     if not path.exists() and not path.is_symlink():
@@ -299,7 +299,7 @@ def _parse_shapes(where, path, shapes, index_of):
             in_range("shape.emission", float(e), f"{swhere}.emission component")
         try:
             regular_file_inside(path.parent / shape["mesh"], path.parent, "mesh", "mesh.bytes")
-            v, t = read_obj(path.parent / shape["mesh"])   # checked above; named as written
+            v, t = read_obj(path.parent / shape["mesh"], offset, sum(len(x) for x in triangles))   # checked above
         except (ObjError, InputError) as error:
             raise SceneError(f"{swhere}: {error}") from None
         vertices.append(v)

@@ -38,8 +38,11 @@ LIMITS = {
                                "(float64 rebasing keeps 1e-10 of the extent)"),
     "camera.distance": (0.0, 100.0, "camera origin from the scene's centre, in extents: float32 hit "
                                     "points stay within the ray offset (1e-5 extents)"),
-    "scene.triangles": (1, 1 << 24, "after dropping degenerate ones"),
+    "scene.triangles": (1, 1 << 24, "as read (the reader stops there), and after dropping degenerate ones"),
+    "scene.vertices": (1, 1 << 26, "`v` lines of all meshes (the reader stops there): 3 per triangle leaves room "
+                                   "for meshes that share no vertex"),
     "mesh.bytes": (1, 1 << 31, "size of one OBJ file"),
+    "mesh.line_length": (0, 1 << 16, "characters of one line of an OBJ file"),
     "scene.json.bytes": (1, 1 << 24, "size of scene.json"),
     "scene.json.depth": (0, 16, "nesting of JSON objects and lists"),
     "spp": (1, 1 << 24, "samples per pixel of one render"),
@@ -172,11 +175,23 @@ def regular_file_inside(path, folder, what, size_limit):
     return resolved
 
 
+def utf8_path(path, what):
+    """`path` as a Path, if its name is valid UTF-8; else an InputError naming it. A file system
+    allows any bytes in a name, but OpenImageIO (every image read or written), JSON reports and
+    the printed summaries take only text: checked before any work, not after the render."""
+    try:
+        str(path).encode("utf-8")
+    except UnicodeEncodeError:
+        shown = os.fsencode(path).decode("utf-8", "backslashreplace")
+        raise InputError(f"{what} {shown}: the path is not valid UTF-8; rename it or choose another") from None
+    return Path(path)
+
+
 def check_output(path):
     """Refuse an output image path before any work is done: it must end in .exr (an sRGB .png
     is written beside it) or .png (sRGB 8-bit only), must not be a folder, and its folder must
     accept a new file (tried with a temporary file that is removed at once)."""
-    path = Path(path)
+    path = utf8_path(path, "--out")
     if path.suffix.lower() not in (".exr", ".png"):
         raise InputError(f"--out {path}: unsupported image type {path.suffix or '(none)'!r}; use .exr "
                          "(linear float, with an sRGB .png beside it) or .png (sRGB 8-bit)")
@@ -186,7 +201,7 @@ def check_output(path):
 def writable_file(path, what="a file"):
     """`path` (an --out) must not be a folder, and its folder must accept a new file: tried with
     a temporary file that is removed at once. Returns the Path; else an InputError."""
-    path = Path(path)
+    path = utf8_path(path, "--out")
     if path.is_dir():
         raise InputError(f"--out {path}: is a folder, not {what}")
     try:
@@ -195,6 +210,21 @@ def writable_file(path, what="a file"):
             pass
     except OSError as error:
         raise InputError(f"--out {path}: cannot write there: {error.strerror or error}") from None
+    return path
+
+
+def writable_folder(path, what="--out"):
+    """`path` (a folder of outputs) can be made and written: tried with a temporary file that is
+    removed at once. Returns the Path; else an InputError naming the problem."""
+    path = utf8_path(path, what)
+    if path.exists() and not path.is_dir():
+        raise InputError(f"{what} {path}: is a file, not a folder")
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path, prefix=".toolkit-", suffix=".probe"):
+            pass
+    except OSError as error:
+        raise InputError(f"{what} {path}: cannot write there: {error.strerror or error}") from None
     return path
 
 
@@ -228,12 +258,20 @@ def local_size(value, where="local_size"):
 def render_args(spp, seed, width, height, warp_width=None):
     """The numeric arguments of a render (CLI and toolkit.render alike); warp_width None: the device's."""
     spp, seed = whole_number("spp", spp), whole_number("seed", seed)
-    width = whole_number("camera.width", width, "resolution width")
-    height = whole_number("camera.height", height, "resolution height")
     if warp_width is not None and warp_width not in (1, 2, 4, 8, 16, 32, 64, 128):
         raise InputError(f"warp width must be a power of two up to 128, got {warp_width!r}")
+    width, height = camera_size(width, height, spp)
+    return spp, seed, width, height
+
+
+def camera_size(width, height, spp=1):
+    """(width, height) of a camera within LIMITS and within memory_bytes' estimate of what it
+    needs (at `spp`), checked before anything is allocated for it: every command that allocates
+    for a camera (render, crosscheck, bench --peer embree) asks this first."""
+    width = whole_number("camera.width", width, "resolution width")
+    height = whole_number("camera.height", height, "resolution height")
     need, have = memory_bytes(width, height, spp), physical_memory()
     if need > LIMITS["memory.fraction"][1] * have:
         raise InputError(f"resolution {width}x{height} needs about {need / 2**30:.1f} GiB for the film "
                          f"and buffers, more than half of this machine's {have / 2**30:.1f} GiB")
-    return spp, seed, width, height
+    return width, height

@@ -7,7 +7,8 @@ import statistics
 import numpy as np
 
 from toolkit.api import as_scene, render
-from toolkit.opencl.device import has_gpu
+from toolkit.opencl.device import get_queue
+from toolkit.opencl.device_model import is_gpu
 from toolkit.techniques import family
 
 
@@ -47,8 +48,11 @@ def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats
             "technique": name, "samples_per_second": median[(name, setting)], "runs": rates[(name, setting)],
             f"ratio_to_{base}": median[(name, setting)] / median[(base, setting)], **widths[(name, setting)],
             **({"ratio_to_lanes_off": median[(name, setting)] / median[off]} if off and setting == "on" else {})}
-    return {"scene": scene.name, "device": device_name, "gpu": has_gpu(), "spp": spp, "bvh": bvh, "general": general,
-            "resolution": list(resolution), "repeats": repeats, "lanes": list(lanes), "techniques": report}
+    # Whether the device measured is a GPU (Oclgrind, which claims every device type, is not):
+    # on a CPU the caveat of format_bench applies.
+    return {"scene": scene.name, "device": device_name, "gpu": is_gpu(get_queue(device).device), "spp": spp,
+            "bvh": bvh, "general": general, "resolution": list(resolution), "repeats": repeats, "lanes": list(lanes),
+            "techniques": report}
 
 
 def _row_name(name, setting, settings):
@@ -60,7 +64,7 @@ def format_bench(report):
     lines = [f"bench: {report['scene']} {report['resolution'][0]}x{report['resolution'][1]}, {report['spp']} spp, "
              f"median of {report['repeats']} interleaved runs on {report['device']}, {report['bvh']} BVH"]
     if not report["gpu"]:
-        lines.append("No GPU here: these figures describe a CPU, where idle SIMD lanes cost little; "
+        lines.append("Measured on a CPU, not a GPU: these figures describe a CPU, where idle SIMD lanes cost little; "
                      "the SIMD-efficiency counters (python -m toolkit compare) are what predict GPU behaviour.")
     both = any("ratio_to_lanes_off" in row for row in report["techniques"].values())
     lines.append(f"{'technique':<52}{'samples/s':>12}{'ratio to ' + base:>26}{'lanes':>12}"

@@ -4,12 +4,12 @@ Prints a table (seconds, samples/s, SIMD efficiency per phase, RMSE against the 
 against each other) and saves plots: efficiency and stream occupancy per iteration, and an
 image strip with false-colour error images.
 """
-from pathlib import Path
 
 import numpy as np
 
 from toolkit.api import as_scene, render
 from toolkit.core.images import to_srgb8, write_image
+from toolkit.core.validate import writable_folder
 from toolkit.measure.reference import hard_pixels
 from toolkit.measure.reference import reference_at, rmse
 
@@ -22,10 +22,9 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, ou
     `warp_width` None: the device's (toolkit.opencl.device_model.choose_warp_width); each row says which.
     `general`: the general kernels instead of the scene's specialized ones, `lanes` "on"/"off": SIMD
     lanes on Intel's CPU runtime (toolkit.render)."""
+    out_dir = writable_folder(out_dir)      # before the renders: a bad folder must not cost their time
     scene = as_scene(scene)
     width, height = resolution or (scene.camera.width, scene.camera.height)
-    out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
     ref, _ = reference_at(scene, width, height)
     results, table = {}, {}
     for name in techniques:

@@ -14,43 +14,75 @@ Strategies of paths up to `max_edges` edges get their own images; longer paths a
 one more weighted image, so that nothing is left out of the sum. The kernels keep strategies
 apart only when built with STRATEGY_IMAGES (cl/bdpt.h): the normal kernels do not change.
 
+The folder: a second run into the same folder must not leave images of the first that its
+strategies.json no longer lists (a smaller K writes fewer). So the folder must be new, empty, or
+hold only what an earlier run wrote (the names below and strategies.json), checked before the
+render: a folder of other files is refused rather than mixed with, or cleared of, files that are
+not ours. After writing, the images of an earlier run that this one did not write are removed.
+
 Variance share: a strategy's image, as an estimate of its part of the BDPT image, has a variance
 per pixel; the share is its sum over pixels (of the luminance) over the sum for all listed
 strategies. Covariances between the strategies of one sample (which share vertices) are left out.
 """
 import json
+import os
+import re
 from pathlib import Path
 
 import numpy as np
 
-from toolkit.core.images import write_image
+from toolkit.core.images import write_atomically, write_image
+from toolkit.core.validate import InputError, writable_folder
+
+# Every name write_strategies writes (the module docstring: only these may be in the folder).
+OUR_FILE = re.compile(r"(s\d+_t\d+_(un)?weighted|longer_weighted|full)\.(exr|png)|strategies\.json")
+
+
+def check_strategies_folder(folder):
+    """Before the render: `folder` can be written, and is new, empty or an earlier output of
+    write_strategies; else an InputError that names what else it holds."""
+    folder = writable_folder(folder, "--strategies")
+    others = sorted(name for name in os.listdir(folder) if not OUR_FILE.fullmatch(name))
+    if others:
+        raise InputError(f"--strategies {folder}: holds {', '.join(others[:3])}{' ...' if len(others) > 3 else ''}, "
+                         "which --strategies did not write; give a new or empty folder (the images of an earlier "
+                         "--strategies run there are replaced)")
+    return folder
 
 
 def write_strategies(folder, image, result, scene_name, technique):
     """s<S>_t<T>_weighted.exr / _unweighted.exr per strategy, longer_weighted.exr, full.exr and
     strategies.json (each strategy's share of the variance and of the image). Returns the report."""
-    folder = Path(folder)
-    folder.mkdir(parents=True, exist_ok=True)
+    folder = check_strategies_folder(folder)
     images, longer = result.images()
     variance = result.variance()
     total_var = sum(variance.values())
     full_sum = float(image.sum())
-    rows = []
+    rows, written = [], []
     for (s, t), (weighted, unweighted) in images.items():
-        write_image(folder / f"s{s}_t{t}_weighted.exr", weighted.astype(np.float32))
-        write_image(folder / f"s{s}_t{t}_unweighted.exr", unweighted.astype(np.float32))
+        written += write_image(folder / f"s{s}_t{t}_weighted.exr", weighted.astype(np.float32))
+        written += write_image(folder / f"s{s}_t{t}_unweighted.exr", unweighted.astype(np.float32))
         rows.append({"s": s, "t": t, "edges": s + t - 1,
                      "image_share": float(weighted.sum()) / full_sum if full_sum > 0 else 0.0,
                      "variance_share": variance[(s, t)] / total_var if total_var > 0 else 0.0,
                      "variance": variance[(s, t)]})
-    write_image(folder / "longer_weighted.exr", longer.astype(np.float32))
-    write_image(folder / "full.exr", image.astype(np.float32))
+    written += write_image(folder / "longer_weighted.exr", longer.astype(np.float32))
+    written += write_image(folder / "full.exr", image.astype(np.float32))
     report = {"scene": scene_name, "technique": technique, "max_edges": result.max_edges, "spp": result.spp,
               "resolution": [result.width, result.height],
               "longer_paths_image_share": float(longer.sum()) / full_sum if full_sum > 0 else 0.0,
-              "strategies": rows}
-    (folder / "strategies.json").write_text(json.dumps(report, indent=1))
+              "strategies": rows, "files": sorted(path.name for path in written)}
+    write_atomically(folder / "strategies.json",
+                     lambda tmp: Path(tmp).write_text(json.dumps(report, indent=1), encoding="utf-8"))
+    _remove_earlier(folder, set(report["files"]) | {"strategies.json"})
     return report
+
+
+def _remove_earlier(folder, kept):
+    """Remove the images of an earlier run in `folder` that this run did not write."""
+    for name in os.listdir(folder):
+        if OUR_FILE.fullmatch(name) and name not in kept and (folder / name).is_file():
+            (folder / name).unlink()
 
 
 def format_strategies(report):

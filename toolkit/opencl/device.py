@@ -2,8 +2,9 @@
 
 "Usable" is measured, not assumed: each device builds and runs a small probe kernel
 (`cl/probe.cl`, which uses what the toolkit's kernels use) once; the verdict is cached on disk
-per device and driver version. A device whose compiler fails (PoCL 3.0's LLVM 14 on an AMD
-Zen 5, for one) is skipped, with the compiler's first error line as the reason.
+per device, driver version and CPU (toolkit/opencl/probe_cache.py). A device whose compiler
+fails (PoCL 3.0's LLVM 14 on an AMD Zen 5, for one) is skipped, with the compiler's first error
+line as the reason.
 
 Ranking among usable devices (`RANKING`): a GPU first; then PoCL (the newest version first: a
 distribution's PoCL, whose newer LLVM knows newer CPUs, before pip's 3.0); then Intel's CPU
@@ -19,8 +20,6 @@ choice; `TOOLKIT_HIDE_PLATFORMS` (comma-separated parts of platform names) makes
 count as unusable, e.g. to run on Intel's runtime where PoCL also works.
 `python -m toolkit devices` prints every device, usable or why not, and the ranking.
 """
-import hashlib
-import json
 import os
 import platform as host_platform
 import re
@@ -34,6 +33,8 @@ import pyopencl as cl
 from toolkit.opencl import runtimes  # noqa: F401  (registers pip's OpenCL runtimes before the first OpenCL call)
 from toolkit.opencl import lanes
 from toolkit.core.package_data import user_cache_folder
+from toolkit.opencl.device_model import is_gpu
+from toolkit.opencl.probe_cache import read_verdict, verdict_file, write_verdict
 from toolkit.opencl.program import LOCAL_SIZE, KernelBuildError, build, expand_includes, kernel, launch
 from toolkit.opencl.runtimes import intel_cpu_library
 
@@ -66,7 +67,7 @@ class Candidate:
 
     @property
     def is_gpu(self):
-        return bool(self.device.type & cl.device_type.GPU)
+        return is_gpu(self.device)
 
     @property
     def implementation(self):
@@ -140,45 +141,45 @@ def candidates(probe_all=True):
 PROBE_ITEMS = 256
 
 
-def _probe_key(device):
-    text = "\0".join([device.platform.name, device.platform.version, device.name,
-                      device.driver_version, device.version, expand_includes("probe.cl"), cl.VERSION_TEXT])
-    return hashlib.sha256(text.encode()).hexdigest()[:24]
+def _probe_identity(device):
+    """What a probe's verdict depends on besides the CPU (probe_cache.py adds that)."""
+    return "\0".join([device.platform.name, device.platform.version, device.name, device.driver_version,
+                      device.version, expand_includes("probe.cl"), cl.VERSION_TEXT])
 
 
-def _probe_cache_file(key):
-    return user_cache_folder() / "probes" / f"{key}.json"
-
-
-_probed = {}
+_probed = {}          # verdict file: (usable, reason), per process
+probe_notes = {}      # verdict file: where the verdict came from (`python -m toolkit devices` shows it)
 
 
 def probe(device):
     """(usable, reason) for a device: build and run cl/probe.cl and check what it wrote.
-    Cached in memory and on disk per device, driver version and probe source."""
-    key = _probe_key(device)
-    if key in _probed:
-        return _probed[key]
-    cache = _probe_cache_file(key)
-    try:
-        verdict = json.loads(cache.read_text())
-        _probed[key] = (bool(verdict["usable"]), str(verdict["reason"]))
-        return _probed[key]
-    except (OSError, ValueError, KeyError, TypeError):
-        pass
-    _probed[key] = _run_probe(device)
-    try:
-        cache.parent.mkdir(parents=True, exist_ok=True)
-        staging = cache.with_suffix(f".{os.getpid()}.tmp")
-        staging.write_text(json.dumps({"usable": _probed[key][0], "reason": _probed[key][1],
-                                       "device": device.name.strip(), "platform": device.platform.name.strip()}))
-        staging.replace(cache)
-    except OSError:
-        pass  # no cache: the probe runs again next time
-    return _probed[key]
+    Cached in memory and on disk per device, driver version, probe source and CPU
+    (toolkit/opencl/probe_cache.py: what is kept, and what is not)."""
+    file = verdict_file(_probe_identity(device))
+    if file in _probed:
+        return _probed[file]
+    cached = read_verdict(file)
+    if cached is not None:
+        _probed[file] = cached
+        probe_notes[file] = f"cached verdict in {file} (delete it to probe again)"
+        return cached
+    usable, reason, lasting = _run_probe(device)
+    _probed[file] = usable, reason
+    if lasting:
+        problem = write_verdict(file, usable, reason, device.name.strip())
+        probe_notes[file] = f"probed now; verdict {problem or f'kept in {file}'}"
+    else:
+        probe_notes[file] = "probed now; not kept (an OpenCL error says nothing lasting about the device)"
+    return _probed[file]
+
+
+def probe_note(device):
+    """Where the device's probe verdict came from, or "" if it was not probed in this process."""
+    return probe_notes.get(verdict_file(_probe_identity(device)), "")
 
 
 def _run_probe(device):
+    """(usable, reason, lasting): `lasting` when the verdict holds for later runs (see probe_cache.py)."""
     try:
         queue = _queue_for_device(device)
         program = build(queue.context, "probe.cl")
@@ -193,15 +194,15 @@ def _run_probe(device):
         cl.enqueue_copy(queue, host_sums, sums)
         cl.enqueue_copy(queue, counter, counter_buffer)
         queue.finish()
-    except KernelBuildError as error:
-        return False, first_error_line(str(error))
+    except KernelBuildError as error:   # the compiler's verdict lasts; a build it could not run does not
+        return False, first_error_line(str(error)), "BUILD_PROGRAM_FAILURE" in str(error)
     except cl.Error as error:
-        return False, f"OpenCL error while probing: {str(error).splitlines()[0]}"
+        return False, f"OpenCL error while probing: {str(error).splitlines()[0]}", False
     expected_sums = np.arange(PROBE_ITEMS).reshape(groups, LOCAL_SIZE).sum(axis=1)
     if not (np.all(np.abs(host_lengths - 1) < 1e-5) and np.array_equal(host_sums, expected_sums)
             and counter[0] == PROBE_ITEMS):
-        return False, "the probe kernel ran but computed wrong numbers"
-    return True, ""
+        return False, "the probe kernel ran but computed wrong numbers", True
+    return True, "", True
 
 
 def first_error_line(log):
@@ -258,8 +259,10 @@ def explain_no_usable_device(found):
     """The error when no device can build: the cause, and the fixes that apply here."""
     lines = ["No OpenCL device can build the toolkit's kernels:"]
     for c in found:
+        note = probe_note(c.device) if not c.usable else ""
         lines.append(f"  {c.selector} {describe(c.device)}, {c.implementation} ({c.compiler}): "
-                     f"{c.reason or 'a simulator, only used when selected with --device'}")
+                     f"{c.reason or 'a simulator, only used when selected with --device'}"
+                     + (f" ({note})" if note.startswith("cached") else ""))
     unknown_cpu = [c for c in found if "unknown target CPU" in c.reason]
     if unknown_cpu:
         c = unknown_cpu[0]
@@ -319,4 +322,6 @@ def describe_implementation(device):
 
 
 def has_gpu():
-    return any(e[3].type & cl.device_type.GPU for e in list_devices())
+    """Whether this machine has a GPU (device_model.is_gpu: Oclgrind's simulator, which reports
+    every device type, is not one)."""
+    return any(is_gpu(device) for _, _, _, device in list_devices())

@@ -21,8 +21,10 @@ def vendor_of(vendor="", vendor_id=None):
 
 
 def is_gpu(device):
-    """A real GPU never has the CPU bit; Oclgrind's simulator has both."""
-    return bool(device.type & cl.device_type.GPU) and not device.type & cl.device_type.CPU
+    """A real GPU never has the CPU bit; Oclgrind's simulator has both (it reports every type),
+    and is never a GPU, whatever it reports."""
+    return (bool(device.type & cl.device_type.GPU) and not device.type & cl.device_type.CPU
+            and "Oclgrind" not in device.platform.name)
 
 
 def choose_warp_width(is_gpu, vendor="", vendor_id=None, wavefront_width=None, sub_group_sizes=()):

@@ -3,7 +3,8 @@
 It inlines `#include "file.h"` from cl/ (with #line markers so compiler messages name our
 files and lines), adds `-D` defines that describe the scene (absent features are not
 compiled), and memoises builds per (source text with includes, defines, device). Across
-processes pyopencl's binary cache and PoCL's kernel cache keep compiled code on disk.
+processes pyopencl's binary cache (kernel_cache.py: built without it where it cannot be used)
+and PoCL's kernel cache keep compiled code on disk.
 """
 import hashlib
 import os
@@ -19,6 +20,7 @@ import pyopencl as cl
 from toolkit.core.layout import c_header
 from toolkit.core.package_data import data_dir
 from toolkit.opencl import lanes
+from toolkit.opencl.kernel_cache import build_with_cache
 
 # The default work-group size. A program is built for one local size (the LOCAL_SIZE define: the
 # kernels' reqd_work_group_size and __local arrays) and must be launched with it: the techniques
@@ -162,10 +164,7 @@ def _compile(program, name, source, options):
     saved = os.environ.get("PYOPENCL_COMPILER_OUTPUT")
     os.environ["PYOPENCL_COMPILER_OUTPUT"] = "1"   # pyopencl then warns with the stored log itself
     try:
-        with warnings.catch_warnings(record=True) as caught:
-            # pyopencl warns about any non-empty log; we show real warnings ourselves (build).
-            warnings.simplefilter("always", cl.CompilerWarning)
-            program = program.build(options=options, cache_dir=_cache_dir())
+        return build_with_cache(program, options, cl.CompilerWarning)
     except cl.RuntimeError as error:
         raise KernelBuildError(_format_build_error(name, relocate(str(error), source), options)) from None
     finally:
@@ -173,9 +172,6 @@ def _compile(program, name, source, options):
             del os.environ["PYOPENCL_COMPILER_OUTPUT"]
         else:
             os.environ["PYOPENCL_COMPILER_OUTPUT"] = saved
-    for other in (w for w in caught if not issubclass(w.category, cl.CompilerWarning)):
-        warnings.warn_explicit(other.message, other.category, other.filename, other.lineno)
-    return program, "\n".join(str(w.message) for w in caught if issubclass(w.category, cl.CompilerWarning))
 
 
 _widths = {}      # {program.int_ptr: {kernel: vector width}} (lanes.vector_widths)
@@ -193,11 +189,6 @@ def vector_widths_since(mark):
     for _, _, widths in lanes_log[mark:]:
         merged.update(widths)
     return merged
-
-
-def _cache_dir():
-    directory = os.environ.get("TOOLKIT_CACHE_DIR")
-    return directory or None  # None: pyopencl's default per-user cache
 
 
 def _build_log_text(program):

@@ -13,6 +13,12 @@ builds on any x86-64 CPU; the device picker (toolkit/opencl/device.py) uses it o
 
 Set `OCL_ICD_VENDORS` yourself to take full control: the toolkit then registers nothing.
 
+The folder decides which libraries the loader runs, and its name is easy to guess, so it is
+kept where only this user can write (the cache folder, else a 0700 folder of the user's own in
+the temporary folder) and a folder found there is checked first: another user's, one that others
+can write, a symbolic link or one with other files is refused, and then nothing is registered;
+`python -m toolkit devices` says why (`vendors_refused`).
+
 Intel's runtime can vectorize a kernel across work-items (SIMD lanes: 8 of them in one AVX2
 register, 16 with AVX-512). Measured on a 2-core AMD EPYC, quiet machine, cornell_box 128x128,
 with the vectorizer on for every kernel: pt_naive 386k samples/s against 1.89M scalar,
@@ -23,11 +29,14 @@ process: see toolkit/opencl/lanes.py.
 """
 import hashlib
 import os
+import shutil
+import stat
 import tempfile
 from importlib import metadata
 from pathlib import Path
 
 from toolkit.core.package_data import APP_NAME, user_cache_folder
+from toolkit.core.private_folder import UnsafeFolder, private_folder, unsafe_reason
 
 SYSTEM_VENDORS = Path("/etc/OpenCL/vendors")
 
@@ -46,39 +55,72 @@ def intel_cpu_library():
     return None
 
 
-def _vendors_folder(icd_lines):
-    """A folder of `.icd` files (one per library), written once per distinct content."""
-    key = hashlib.sha256("\n".join(sorted(icd_lines.values())).encode()).hexdigest()[:16]
-    for root in (user_cache_folder(), Path(tempfile.gettempdir()) / f"{APP_NAME}-{os.getuid()}"):
-        folder = root / f"opencl-vendors-{key}"
+def vendors_key(icd_lines):
+    """The vendors folder's name part: a hash of the `.icd` lines it holds."""
+    return hashlib.sha256("\n".join(sorted(icd_lines.values())).encode()).hexdigest()[:16]
+
+
+def vendor_roots():
+    """Where the vendors folder may live, in order: the user's cache folder, else (a read-only
+    home) a folder of this user's own in the temporary folder."""
+    return [user_cache_folder(), Path(tempfile.gettempdir()) / f"{APP_NAME}-{os.getuid()}"]
+
+
+def vendors_folder(icd_lines, roots, refused):
+    """A folder of `.icd` files (one per library), written once per distinct content, in the
+    first of `roots` that this user alone can write; None if there is none. Why each root was
+    passed over is appended to `refused`.
+
+    Anyone can compute the folder's name, so it is used only if it is this user's own and nobody
+    else can write to it or to the root above it (toolkit/core/private_folder.py), and only if
+    it holds exactly the `.icd` files expected: a planted folder is refused, never loaded."""
+    folder_name = f"opencl-vendors-{vendors_key(icd_lines)}"
+    for root in roots:
+        folder = Path(root) / folder_name
         try:
-            if not folder.is_dir():
-                staging = Path(tempfile.mkdtemp(prefix="vendors-", dir=_mkdir(root)))
+            private_folder(root)
+            if not os.path.lexists(folder):
+                staging = Path(tempfile.mkdtemp(prefix="vendors-", dir=root))   # made 0700
                 for name, line in icd_lines.items():
                     (staging / name).write_text(line + "\n")
                 try:
                     staging.rename(folder)  # atomic: a parallel process sees all files or none
                 except OSError:
-                    if not folder.is_dir():
+                    shutil.rmtree(staging, ignore_errors=True)
+                    if not os.path.lexists(folder):
                         raise
+            problem = unsafe_reason(folder) or _unexpected_contents(folder, icd_lines)
+            if problem:
+                raise UnsafeFolder(f"{folder} is not used: {problem}")
             return folder
-        except OSError:
-            continue  # read-only home: try the temporary folder
+        except UnsafeFolder as error:
+            refused.append(str(error))
+        except OSError as error:   # a read-only home: try the temporary folder
+            refused.append(f"{root}: cannot write there ({error.strerror or error})")
     return None
 
 
-def _mkdir(path):
-    path.mkdir(parents=True, exist_ok=True)
-    return path
+def _unexpected_contents(folder, icd_lines):
+    """What is wrong with the files of a vendors folder, or None when it holds exactly the
+    `.icd` files expected, each a regular file of this user's own."""
+    try:
+        names = sorted(os.listdir(folder))
+        if names != sorted(icd_lines):
+            return f"it holds {', '.join(names) or 'no file'}, not the expected {', '.join(sorted(icd_lines))}"
+        for name, line in icd_lines.items():
+            info = os.lstat(folder / name)
+            if not stat.S_ISREG(info.st_mode) or info.st_uid != os.getuid() or info.st_mode & 0o022:
+                return f"{name} is not a regular file of this user's own that only they can write"
+            if (folder / name).read_text().strip() != line:
+                return f"{name} names another library than expected"
+    except (OSError, UnicodeDecodeError) as error:
+        return f"cannot read it: {error}"
+    return None
 
 
-def register_pip_runtimes():
-    """Point the ICD loader at the system's drivers plus pip's Intel CPU runtime.
-
-    Returns the vendors folder used, or None when nothing was registered (no Intel runtime,
-    `OCL_ICD_VENDORS` already set, or `TOOLKIT_NO_PIP_RUNTIMES=1`)."""
-    if os.environ.get("OCL_ICD_VENDORS") or os.environ.get("TOOLKIT_NO_PIP_RUNTIMES") == "1":
-        return None
+def pip_icd_lines():
+    """{file name: library} of the vendors folder: the system's drivers plus pip's Intel CPU
+    runtime; None without that runtime (then there is nothing to register)."""
     library = intel_cpu_library()
     if library is None:
         return None
@@ -90,10 +132,25 @@ def register_pip_runtimes():
             except OSError:
                 continue
     icd_lines["toolkit-intel-cpu.icd"] = str(library)
-    folder = _vendors_folder(icd_lines)
+    return icd_lines
+
+
+def register_pip_runtimes():
+    """Point the ICD loader at the system's drivers plus pip's Intel CPU runtime.
+
+    Returns the vendors folder used, or None when nothing was registered (no Intel runtime,
+    `OCL_ICD_VENDORS` already set, `TOOLKIT_NO_PIP_RUNTIMES=1`, or no folder that only this user
+    can write: `vendors_refused` then says why)."""
+    if os.environ.get("OCL_ICD_VENDORS") or os.environ.get("TOOLKIT_NO_PIP_RUNTIMES") == "1":
+        return None
+    icd_lines = pip_icd_lines()
+    if icd_lines is None:
+        return None
+    folder = vendors_folder(icd_lines, vendor_roots(), vendors_refused)
     if folder is not None:
         os.environ["OCL_ICD_VENDORS"] = str(folder)
     return folder
 
 
+vendors_refused = []   # why a vendors folder was passed over (`python -m toolkit devices` shows it)
 registered_vendors = register_pip_runtimes()

@@ -22,6 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from toolkit.api import as_scene, render
+from toolkit.core.validate import camera_size
 from toolkit.measure.reference import reference_at, rmse
 from toolkit.opencl.device import get_queue
 from toolkit.opencl.device_scene import DeviceScene
@@ -45,6 +46,7 @@ class PeerMissing(RuntimeError):
 def embree_rays(scene, n_random=262_144, repeats=5, seed=0, queue=None, bvhs=("binary", "wide")):
     """Closest-hit rays/s of our traversal (each BVH in `bvhs`) and of Embree on the same rays:
     {"random": {name: rays/s}, "camera": {...}}, medians of `repeats` interleaved runs."""
+    width, height = camera_size(scene.camera.width, scene.camera.height)   # render's memory estimate, first
     queue = queue or get_queue()
     casters = {}
     for bvh in bvhs:
@@ -53,7 +55,7 @@ def embree_rays(scene, n_random=262_144, repeats=5, seed=0, queue=None, bvhs=("b
     embree = EmbreeIntersector(scene, center=ds.center)
     casters["embreex"] = embree.closest
     rays = {"random": random_rays(ds, n_random, np.random.default_rng(seed)),
-            "camera": camera_rays(ds, scene.camera.width, scene.camera.height)}
+            "camera": camera_rays(ds, width, height)}
     rates = {kind: {name: [] for name in casters} for kind in rays}
     for kind, (o, d) in rays.items():
         for cast in casters.values():      # warm-up (first launch compiles on PoCL)

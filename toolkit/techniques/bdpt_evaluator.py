@@ -14,6 +14,7 @@ Light-tracing (t = 1) contributions land on other pixels: every connection write
 (pixel, value) and the host adds the records up per pixel in float64 (no float atomics on
 the device).
 """
+import numbers
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -31,6 +32,8 @@ from toolkit.techniques.base import Technique, pixel_count
 def walk_defines(scene, longest, coalesced_scatter):
     """(MAX_VERTICES, the defines of the walk's kernels) for `scene`: subpaths of at most
     `longest` vertices when its depth is unbounded."""
+    if coalesced_scatter not in (True, False):     # a string "false" would be true
+        raise ValueError(f"coalesced_scatter must be true or false, got {coalesced_scatter!r}")
     # At least 2: the walk stores its first hit (vertex 1) before it checks the depth.
     max_vertices = max(2, min(longest, scene.max_depth + 1)) if scene.max_depth >= 0 else longest
     # Subpath roulette from half the scene's rr_depth (cl/bdpt_walk.h); never without one (a
@@ -139,8 +142,9 @@ class BdptEvaluator:
     uncompacted: PhaseCounter = field(init=False)   # the walk as it would be without compaction
 
     def __post_init__(self):
-        if not 0.0 < self.regenerate_fraction <= 1.0:
-            raise ValueError("regenerate_fraction must be in (0, 1]")
+        fraction = self.regenerate_fraction
+        if isinstance(fraction, bool) or not isinstance(fraction, numbers.Real) or not 0.0 < fraction <= 1.0:
+            raise ValueError(f"regenerate_fraction must be a number in (0, 1], got {fraction!r}")
         self.uncompacted = PhaseCounter(self.tech.warp_width)
 
     def evaluate(self, p, sink):

@@ -38,6 +38,7 @@ from toolkit.opencl.device_scene import DeviceScene
 from toolkit.peers.embree import EmbreeIntersector, camera_rays, random_rays
 from toolkit.opencl.raycast import DeviceRaycaster
 from toolkit.core.scene import Scene, load_scene
+from toolkit.core.validate import camera_size
 
 EDGE_BARYCENTRIC = 1e-4
 TIE_RELATIVE = 1e-5
@@ -141,11 +142,12 @@ def compare_with_embree(scene, n_random=100_000, seed=0, resolution=None, queue=
 def _resolution_of(scene, resolution):
     """(width, height) of the camera rays: the scene's camera, a square side, or a pair."""
     if resolution is None:
-        return scene.camera.width, scene.camera.height
-    if isinstance(resolution, (int, np.integer)):
-        return int(resolution), int(resolution)
-    width, height = (int(r) for r in resolution)
-    return width, height
+        width, height = scene.camera.width, scene.camera.height
+    elif isinstance(resolution, (int, np.integer)):
+        width, height = int(resolution), int(resolution)
+    else:
+        width, height = (int(r) for r in resolution)
+    return camera_size(width, height)     # render's memory estimate, before the rays are made
 
 
 def _closest_figures(origins, dirs, dev, emb, triangles):

@@ -1,13 +1,15 @@
 """The study's runs (its curves): a technique, or a technique for each value of an accuracy knob
 (`--knob max_depth=2,3,4,-1`), and what one repetition of a run needs on a worker."""
 import dataclasses
+import inspect
+import math
 from dataclasses import dataclass
 
 from toolkit.api import _options
 from toolkit.core.scene import check_scene
-from toolkit.core.validate import InputError
+from toolkit.core.validate import LIMITS, InputError
 from toolkit.measure.reference import reference_at, reference_problem
-from toolkit.techniques import get_technique
+from toolkit.techniques import TECHNIQUES, get_technique
 
 DEFAULT_RESOLUTION = (32, 32)                  # every bundled reference averages down to it
 INTEGRATOR_KNOBS = ("max_depth", "rr_depth", "clamp")   # scene integrator settings (FORMAT.md)
@@ -28,29 +30,67 @@ class Run:
 class Repetition:
     """What a worker needs to render one repetition: nothing OpenCL, only names and numbers
     (a Dask worker makes its own context on its own device)."""
-    scene: object                # scene folder (str), or a Scene made in Python (pickled)
+    scene: object                # absolute path of the scene file (str), or a Scene made in Python (pickled)
     run: Run
     spp: int
     seed: int
     device: str = None
     bvh: str = "wide"
+    scene_digest: str = None     # workers.scene_digest of the scene the study loaded (with a path)
 
 
-def parse_value(text):
-    """A knob value from the command line: none/null, a whole number, a number, or a word."""
-    text = text.strip()
-    if text.lower() in ("none", "null", "off"):
+# The integrator knobs' types: (kind, whether "none" is a value).
+INTEGRATOR_KINDS = {"max_depth": (int, False), "rr_depth": (int, False), "clamp": (float, True)}
+TRUE, FALSE = ("true", "1"), ("false", "0")
+
+
+def option_kind(name):
+    """(kind, nullable) of the values of technique option `name`: the type of its default in the
+    techniques' constructors (bool, int, float or str), else, where every default is None, that
+    of its LIMITS row (whole numbers or not); nullable when a default is None (then "none" means
+    the default). None for an option no technique takes (make_runs then names the known ones)."""
+    defaults = [p.default for cls in TECHNIQUES.values() for c in cls.__mro__ if "__init__" in vars(c)
+                for key, p in inspect.signature(c.__init__).parameters.items()
+                if key == name and p.default is not p.empty]
+    if not defaults:
         return None
-    for kind in (int, float):
+    nullable = any(d is None for d in defaults)
+    for default in defaults:
+        if default is not None:
+            return type(default), nullable
+    lows = [low for key, (low, _, _) in LIMITS.items() if key.split(".")[0] in ("technique", "mlt")
+            and key.split(".", 1)[1] == name]
+    return (int if lows and isinstance(lows[0], int) else float if lows else str), nullable
+
+
+def parse_value(text, kind, nullable, where):
+    """One knob value from the command line as `kind` (bool: true/false/1/0; int; a finite
+    float; str), or None for none/null when `nullable`; else an InputError naming `where`."""
+    text = text.strip()
+    if text.lower() in ("none", "null"):
+        if nullable:
+            return None
+        raise InputError(f"{where}: {text!r} is not a value of this knob (it has no 'none')")
+    if kind is bool:
+        if text.lower() in TRUE + FALSE:
+            return text.lower() in TRUE
+        raise InputError(f"{where} takes true or false (or 1 or 0), got {text!r}")
+    if kind in (int, float):
         try:
-            return kind(text)
+            value = kind(text)
         except ValueError:
-            pass
+            what = "a whole number" if kind is int else "a number"
+            raise InputError(f"{where} takes {what}, got {text!r}") from None
+        if kind is float and not math.isfinite(value):
+            raise InputError(f"{where} takes a finite number, got {text!r}")
+        return value
     return text
 
 
 def parse_knob(text):
-    """"max_depth=2,3,4,-1" -> ("max_depth", [2, 3, 4, -1]); resolution values are WxH."""
+    """"max_depth=2,3,4,-1" -> ("max_depth", [2, 3, 4, -1]): each value parsed with the knob's own
+    type (option_kind, INTEGRATOR_KINDS: coalesced_scatter=false is False, not the true string
+    'false'); resolution values are WxH."""
     if not isinstance(text, str) or "=" not in text:
         raise InputError(f"--knob must be NAME=V1,V2,... (like max_depth=2,3,4,-1), got {text!r}")
     name, values = text.split("=", 1)
@@ -60,7 +100,10 @@ def parse_knob(text):
         raise InputError(f"--knob {name}: no values given")
     if name == "resolution":
         return name, [_resolution_value(v) for v in items]
-    return name, [parse_value(v) for v in items]
+    kind = INTEGRATOR_KINDS.get(name) or option_kind(name)
+    if kind is None:
+        return name, [v.strip() for v in items]     # no technique takes it: make_runs says so
+    return name, [parse_value(v, *kind, f"--knob {name}") for v in items]
 
 
 def _resolution_value(text):
@@ -89,7 +132,8 @@ def make_runs(techniques, knob, resolution):
 
 def _knob_run(cls, name, knob_name, value, resolution):
     """The run of technique `name` with one knob set to `value`."""
-    label = f"{name} {knob_name}={'x'.join(map(str, value)) if knob_name == 'resolution' else value}"
+    shown = "x".join(map(str, value)) if knob_name == "resolution" else _shown(value)
+    label = f"{name} {knob_name}={shown}"
     knob = (knob_name, value)
     if knob_name in INTEGRATOR_KNOBS:
         return Run(label, name, integrator=(knob,), resolution=tuple(resolution), knob=knob)
@@ -97,6 +141,11 @@ def _knob_run(cls, name, knob_name, value, resolution):
         return Run(label, name, resolution=tuple(value), knob=knob)
     _options(cls, {knob_name: value})     # an option the technique takes, else a clear error
     return Run(label, name, options=(knob,), resolution=tuple(resolution), knob=knob)
+
+
+def _shown(value):
+    """A knob value as a label shows it: 2.0 as 2 (clamp=2), every other float in full."""
+    return repr(value).removesuffix(".0") if isinstance(value, float) else str(value)
 
 
 def check_run(scene, run):

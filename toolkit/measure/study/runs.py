@@ -2,17 +2,16 @@
 inputs, plan the sample counts (a calibration, or the given counts), render the repetitions, and
 gather their figures (the package docstring says what each figure means)."""
 import time
-from pathlib import Path
 
 from toolkit.api import as_scene
 from toolkit.core.scene import Scene
-from toolkit.core.validate import InputError, finite_number, whole_number
+from toolkit.core.validate import InputError, finite_number, whole_number, writable_folder
 from toolkit.measure.specialization import measure_specialization
 from toolkit.measure.study.calibration import calibrate, plan, probe_seconds
 from toolkit.measure.study.knobs import DEFAULT_RESOLUTION, Repetition, check_run, make_runs, parse_knob
 from toolkit.measure.study.plots import save_plots
 from toolkit.measure.study.report import report_head, run_report, write_report
-from toolkit.measure.study.workers import map_jobs, run_repetition
+from toolkit.measure.study.workers import map_jobs, run_repetition, scene_digest
 
 DEFAULT_TECHNIQUES = ("pt_naive", "pt_compact_regen", "bdpt_parallel_connect", "mlt")
 DEFAULT_BUDGETS = (0.1, 0.2, 0.4, 0.8, 1.6)     # seconds per repetition: the default run takes ~1 minute
@@ -40,10 +39,17 @@ def study(scene=None, techniques=DEFAULT_TECHNIQUES, budgets=DEFAULT_BUDGETS, re
     build time, binary size: toolkit.measure.specialization), under the report's "specialization".
     Returns {"runs": {label: {...}}, ...}: see format_study."""
     started = time.perf_counter()
+    # Where the results go, checked before the study runs (a folder found unwritable at the end
+    # lost every result), as every other input is.
+    out_dir = None if out_dir is None else writable_folder(out_dir)
     given = scene
     scene = as_scene(scene)
-    # What a worker gets: the scene file's path, or a Scene made in Python itself (pickled).
-    shipped = given if isinstance(given, Scene) else str(scene.path)
+    # What a worker gets: the scene file's absolute path with the digest of what was loaded here
+    # (workers.py), or a Scene made in Python itself (pickled).
+    if isinstance(given, Scene):
+        shipped, digest = given, None
+    else:
+        shipped, digest = str(scene.path.resolve()), scene_digest(scene)
     repeats = whole_number("study.repeats", repeats, "repeats")
     seed = whole_number("seed", seed)
     target = finite_number("study.target", target, "target")
@@ -53,7 +59,7 @@ def study(scene=None, techniques=DEFAULT_TECHNIQUES, budgets=DEFAULT_BUDGETS, re
     whole_number("seed", seed + len(budget_list) * repeats - 1, "seed + budgets x repeats - 1 (the last seed)")
 
     def job(run, spp, s):
-        return Repetition(shipped, run, spp, s, device, bvh)
+        return Repetition(shipped, run, spp, s, device, bvh, digest)
 
     calibration = {}
     if unit == "seconds":
@@ -70,8 +76,8 @@ def study(scene=None, techniques=DEFAULT_TECHNIQUES, budgets=DEFAULT_BUDGETS, re
                                                           device=device, bvh=bvh)
     report["study_seconds"] = time.perf_counter() - started
     if out_dir is not None:
-        report["plots"] = save_plots(report, renders, scene, Path(out_dir))
-        write_report(report, Path(out_dir) / "study.json")
+        report["plots"] = save_plots(report, renders, scene, out_dir)
+        write_report(report, out_dir / "study.json")
     return report
 
 
