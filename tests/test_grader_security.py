@@ -175,6 +175,10 @@ REFUSED = {
     '#include_next "extend_in_place.h"': "#include_next",
     '#import "extend_in_place.h"': "#import",
     '#embed "/proc/self/environ"': "#embed",
+    # inlined inside a comment, common.h's own "*/" would end the comment and the next line be read
+    '/*\n#include "extend_in_place.h"\n#include </proc/self/environ>\n*/': "inside a comment",
+    '#define X \\\n#include "extend_in_place.h"': "after a line continuation",
+    '/*\n#include <pyopencl-random123/philox.cl>\n#include </proc/self/environ>\n*/': "inside a comment",
 }
 
 
@@ -183,7 +187,8 @@ def test_an_include_outside_the_allowed_files_is_refused_with_its_line(folder, l
     with pytest.raises(KernelBuildError) as refused:
         expand(folder, "int a;\n" + line + "\n")
     message = str(refused.value)
-    assert message.startswith(f"{A.replaces}:2: error: ") and REFUSED[line] in message, message
+    where = 3 if line.startswith(("/*", "#define")) else 2   # the include's line
+    assert message.startswith(f"{A.replaces}:{where}: error: ") and REFUSED[line] in message, message
 
 
 def test_a_symbolic_link_out_of_the_folder_is_refused(folder):
@@ -232,7 +237,7 @@ def macro_bomb(tmp_path):
 
 def test_a_macro_bomb_is_stopped_by_the_memory_limit_as_a_compiler_crash(tmp_path):
     """Before: a few hundred bytes would reach ~10 GB within the 180 s build limit."""
-    memory = 2**30 + 16 * 2**20 * (os.cpu_count() or 1)   # a worker needs ~0.4 GB (+ thread stacks)
+    memory = 3 * 2**28 + 16 * 2**20 * (os.cpu_count() or 1)   # a worker needs ~0.4 GB (+ thread stacks)
     result = grade(NAME, macro_bomb(tmp_path), limits=Limits(memory=memory))
     reason = result["checks"][0]["reason"]
     assert "error" not in result and result["score"] == 0, result
@@ -240,13 +245,16 @@ def test_a_macro_bomb_is_stopped_by_the_memory_limit_as_a_compiler_crash(tmp_pat
     assert "out of memory: the worker may use" in reason, reason
 
 
-def test_a_build_that_runs_out_of_time_is_a_build_time_out(tmp_path):
-    """Before: "stopped after 10 s: the kernel does not finish (an endless loop...)"."""
-    result = grade(NAME, macro_bomb(tmp_path), limits=Limits(build=2))
+def test_a_build_that_runs_out_of_time_is_a_build_time_out(fake_worker, tmp_path):
+    """Before: "stopped after 10 s: the kernel does not finish (an endless loop...)". (A worker
+    that hangs in the build stands for the compiler: the macro bomb above, given the memory.)"""
+    kernel = tmp_path / "hang.cl"
+    kernel.write_text("// fake: hang\n" + STUB)
+    result = grade(NAME, kernel, limits=Limits(build=1))
     assert {c["reason"] for c in result["checks"]} == {
-        "the kernel does not build: the build was stopped after 2 s: the compiler did not finish (a macro that "
+        "the kernel does not build: the build was stopped after 1 s: the compiler did not finish (a macro that "
         "expands without end?)"}
-    assert result["seconds"] < 2 + Limits().startup
+    assert result["seconds"] < 1 + Limits().startup
 
 
 def children(pid):
@@ -287,7 +295,7 @@ def test_the_worker_dies_with_the_grader(tmp_path, sig):
             time.sleep(0.1)
         workers = children(grader.pid)
         assert workers, grader.communicate()
-        time.sleep(1)   # it imports, starts, builds
+        time.sleep(0.5)   # it imports, starts, builds
         grader.send_signal(sig)
         _, err = grader.communicate(timeout=30)
     finally:
@@ -336,7 +344,7 @@ LINES = st.lists(st.one_of(INCLUDES, MACROS, PRINTFS.map(lambda p: "    " + p), 
 KERNEL = "__kernel void k(__global int* out)\n{\n    int started = 0;\n    out[0] = started;\n}\n"
 
 
-@settings(max_examples=100, deadline=None, database=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@settings(max_examples=80, deadline=None, database=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 @given(head=LINES, body=LINES)
 def test_fuzz_includes_either_refused_or_read_by_the_compiler_from_no_file(folder, head, body):
     """Random include lines, macros, printfs and comment marks at the top of a kernel and in its
@@ -352,7 +360,7 @@ def test_fuzz_includes_either_refused_or_read_by_the_compiler_from_no_file(folde
     assert not file_directives(source), text
 
 
-@settings(max_examples=150, deadline=None, database=None)
+@settings(max_examples=100, deadline=None, database=None)
 @given(lines=st.lists(st.one_of(st.binary(max_size=60), st.builds(
     lambda fields: report_line("n" * 32, **fields)[:-1],
     st.dictionaries(st.sampled_from(["start", "done", "reason", "seconds", "suspect", "fresh"]),

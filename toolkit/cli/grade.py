@@ -5,7 +5,7 @@ import sys
 
 from toolkit.cli.options import DEVICE, number
 from toolkit.grading.grade import ASSIGNMENTS, TIME_LIMIT, grade, submission_file
-from toolkit.grading.limits import check_time_limit
+from toolkit.grading.limits import MAX_TIME_LIMIT, check_time_limit
 from toolkit.grading.report import format_report
 
 
@@ -18,7 +18,8 @@ def add_command(sub):
     p.add_argument("--stub", action="store_true", help="print the assignment's starting file")
     p.add_argument("--json", action="store_true", help="one JSON line per graded file")
     p.add_argument("--time-limit", type=number, default=TIME_LIMIT, metavar="SECONDS",
-                   help=f"per check (default {TIME_LIMIT}); a kernel that runs longer loses the check")
+                   help=f"per check (default {TIME_LIMIT}, at most {MAX_TIME_LIMIT}); a kernel that runs "
+                        "longer loses the check")
     p.set_defaults(run=cmd_grade)
 
 

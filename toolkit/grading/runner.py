@@ -8,6 +8,7 @@ import selectors
 import signal
 import subprocess
 import sys
+import tempfile
 import time
 from collections import Counter
 from pathlib import Path
@@ -40,8 +41,11 @@ def run_checks(name, pending, folder, time_limit, device, shown, limits=Limits()
     each check's start and end. A check that runs past `time_limit` or crashes the worker gets its
     reason, the worker is killed, and a fresh one goes on with the remaining checks. A failed build
     stops the grading: every check then loses its points for that reason. `workdir`: the worker's
-    current and temporary folder. Returns {check: None if it passed, else its one-line reason},
+    current and temporary folder (None: a new one). Returns {check: None if it passed, else its one-line reason},
     {check: seconds}; raises GraderError (with the checks graded so far) if the grader fails."""
+    if workdir is None:
+        with tempfile.TemporaryDirectory(prefix="grade-worker-") as workdir:
+            return run_checks(name, pending, folder, time_limit, device, shown, limits, workdir)
     reasons, times, runs = {}, {}, Counter()
     pending = list(pending)
     while pending:
@@ -165,7 +169,7 @@ class _Worker:
             self.process = subprocess.Popen(
                 command + [str(ours), *checks], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
                 stderr=subprocess.PIPE, pass_fds=(ours,), cwd=workdir, start_new_session=True,
-                env=worker_environment(workdir or os.getcwd(), TOOLKIT_PARENT),
+                env=worker_environment(workdir, TOOLKIT_PARENT),
                 preexec_fn=limit_worker(limits, cpu_seconds(limits, time_limit, len(checks))))
         except BaseException:
             os.close(reports)

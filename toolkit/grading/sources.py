@@ -11,7 +11,8 @@ refused: the compiler would read whatever it names, another student's file or /p
 """
 import re
 
-from toolkit.opencl.program import _INCLUDE, MAX_SOURCE_SIZE, KernelBuildError, Sources, cl_dir
+from toolkit.opencl.program import (INCLUDE_LINE, MAX_SOURCE_SIZE, KernelBuildError, Sources, cl_dir,
+                                    inlined_include)
 
 # A name a student may include: letters, digits, `_`, `-` and dots, not starting with a dot.
 _PLAIN_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
@@ -125,13 +126,25 @@ class SubmissionSources(Sources):
             text = data.decode("utf-8")
         except UnicodeDecodeError as error:
             raise self._error(data[:error.start].count(b"\n") + 1, "your file is not UTF-8 text") from None
+        self._check_includes(text)
+        return text
+
+    def _check_includes(self, text):
+        """Refuse any directive that reads a file unless it is a line that program.py inlines, and
+        any such line that the compiler would not read as a directive (in a comment, or after a
+        line continuation): the inlined header's own `*/` would end that comment early."""
         lines = text.splitlines()
-        for number, directive in directives(text):
+        found = directives(text)
+        for number, directive in found:
             reads_a_file = "include" in directive or directive in _FILE_DIRECTIVES
-            if reads_a_file and not (directive == "include" and _INCLUDE.match(lines[number - 1])):
+            if reads_a_file and not (directive == "include" and INCLUDE_LINE.match(lines[number - 1])):
                 raise self._error(number, f'#{directive}: a file may be included only by `#include "name.h"` '
                                           "on a line of its own, with no comment after it")
-        return text
+        real = {number for number, directive in found if directive == "include"}
+        hidden = [n for n, line in enumerate(lines, start=1) if inlined_include(line) and n not in real]
+        if hidden:
+            raise self._error(hidden[0], "an #include inside a comment or after a line continuation: "
+                                         "remove it, or put it on a line of its own")
 
     def _error(self, line, message):
         """A build error at `line` of the student's file (the worker names their file, not ours)."""

@@ -24,10 +24,16 @@ from toolkit.core.package_data import data_dir
 # and the Compactor take `local_size` and pass it to both build() and launch().
 LOCAL_SIZE = 64
 
-_INCLUDE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
+# The includes we inline ourselves (the grader's sources.py checks a student's file against it).
+INCLUDE_LINE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')
 # pyopencl's own headers (Philox, cl/philox.h): inlined from pyopencl's folder like ours, so that no
 # -I option names this environment's path and kernel caches are shared by every checkout.
 _PYOPENCL_INCLUDE = re.compile(r'^\s*#\s*include\s+<(pyopencl-[\w-]+)/([\w.]+)>\s*$')
+
+
+def inlined_include(line):
+    """Whether expand_includes inlines this line of a file (an include of ours or of pyopencl's)."""
+    return bool(INCLUDE_LINE.match(line) or _PYOPENCL_INCLUDE.match(line))
 
 
 def cl_dir():
@@ -114,7 +120,7 @@ class _Expansion:
         self.seen.add(path.resolve())
         out = [f'#line 1 "{name}"']
         for number, line in enumerate(self.sources.read(path).splitlines(), start=1):
-            match, theirs = _INCLUDE.match(line), _PYOPENCL_INCLUDE.match(line)
+            match, theirs = INCLUDE_LINE.match(line), _PYOPENCL_INCLUDE.match(line)
             if match:
                 out.append(self.include(match.group(1), path, number))
                 out.append(f'#line {number + 1} "{name}"')
