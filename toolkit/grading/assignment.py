@@ -1,6 +1,7 @@
 """What an assignment is to the grader: the toolkit file a submission replaces, the student's stub
 (in tutorials/assignments/<name>/), the grader's own kernels beside it, the toolkit headers a
-submission may include, and its checks, each worth points. A check is a function of a Context (context.py) that raises CheckFailed to lose them."""
+submission may include, and its checks, each worth points. A check is a function of a Context
+(context.py) that raises CheckFailed to lose them."""
 from dataclasses import dataclass, field
 
 import numpy as np

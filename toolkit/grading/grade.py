@@ -12,8 +12,8 @@ what sources.py allows: the toolkit headers its assignment lists, by a plain nam
 
 The checks of one submission run in one worker subprocess, under limits (limits.py), which
 reports them one by one to the grader on a pipe of its own (channel.py: a kernel's printf cannot
-write there); each check has a time limit. A check that hangs past it, or crashes
-the worker, loses its points with the reason ("stopped after 30 s", "the check crashed
+write there); each check has a time limit. A check that hangs past it, or crashes the worker,
+loses its points with the reason ("stopped after 30 s", "the check crashed
 (SIGSEGV)"), the worker is killed and a fresh one goes on with the remaining checks. A kernel
 that does not build loses every check, with the compiler's first error at a line of the
 student's file. Builds are cached in the worker and on disk (pyopencl's binary cache, PoCL's
@@ -27,7 +27,8 @@ If the grader itself fails on a file (its worker does not start, or sends what i
 the result says so ("error") and the checks it did not grade earn 0; a batch goes on.
 
 Where it is: this file grades one file; runner.py runs the worker (worker.py) and enforces the
-limits (limits.py), channel.py is how the worker reports, sources.py what a submission may include; checks/<assignment>.py holds each assignment's checks (assignment.py: what a check is;
+limits (limits.py); channel.py is how the worker reports, sources.py what a submission may
+include; checks/<assignment>.py holds each assignment's checks (assignment.py: what a check is;
 context.py: what it works with); report.py formats the result; toolkit/cli/grade.py is the command.
 """
 import shutil

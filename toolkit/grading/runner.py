@@ -41,8 +41,9 @@ def run_checks(name, pending, folder, time_limit, device, shown, limits=Limits()
     each check's start and end. A check that runs past `time_limit` or crashes the worker gets its
     reason, the worker is killed, and a fresh one goes on with the remaining checks. A failed build
     stops the grading: every check then loses its points for that reason. `workdir`: the worker's
-    current and temporary folder (None: a new one). Returns {check: None if it passed, else its one-line reason},
-    {check: seconds}; raises GraderError (with the checks graded so far) if the grader fails."""
+    current and temporary folder (None: a new one). Returns {check: None if it passed, else its
+    one-line reason}, {check: seconds}; raises GraderError (with the checks graded so far) if the
+    grader fails."""
     if workdir is None:
         with tempfile.TemporaryDirectory(prefix="grade-worker-") as workdir:
             return run_checks(name, pending, folder, time_limit, device, shown, limits, workdir)
@@ -94,7 +95,7 @@ def _worker_session(name, checks, folder, time_limit, device, shown, limits, wor
                 started = time.monotonic()
                 deadline = started + (limits.build if report["start"] == "build" else time_limit)
                 continue
-            others_ran = expected.ended > 2   # the build and this check end every session's first check
+            others_ran = expected.ended > 2   # other checks than the build and this one
             if report["suspect"] and others_ran and runs[report["done"]] < MAX_RUNS:
                 return
             yield report["done"], report["reason"], report["seconds"]
