@@ -126,15 +126,23 @@ def test_a_batch_grades_every_file_when_the_grader_fails_on_some(fake_worker, tm
                for c in broken["checks"])
 
 
-def test_a_check_failing_in_the_host_code_runs_again_once_in_a_fresh_worker(fake_worker, tmp_path):
-    """Before: a forged suspect line started fresh workers for ever (38 in 40 s)."""
+def test_a_check_failing_in_the_host_code_runs_again_once_in_a_fresh_worker(fake_worker, tmp_path, monkeypatch):
+    """Before: a forged suspect line started fresh workers for ever (38 in 40 s). Each worker
+    runs in a folder of its own, with a clean environment, under its limits."""
+    monkeypatch.setenv("GRADER_SECRET", "hunter2")
     count = tmp_path / "workers"
     kernel = tmp_path / "suspect.cl"
     kernel.write_text(f"// fake: suspect {count}\n" + STUB)
     result = grade(NAME, kernel)
     assert {c["reason"] for c in result["checks"]} == {"RuntimeError: fake"}
+    workers = [json.loads(line) for line in count.read_text().splitlines()]
     # each check but the first fails after others ran in its worker, and runs once more, fresh
-    assert len(count.read_text().splitlines()) == len(CHECKS) <= runner.MAX_RUNS * len(CHECKS)
+    assert len(workers) == len(CHECKS) <= runner.MAX_RUNS * len(CHECKS)
+    for worker in workers:
+        assert Path(worker["cwd"]).name == "worker" and Path(worker["cwd"]).parent.name.startswith("grade-")
+        assert not Path(worker["cwd"]).exists()   # removed with the grading folder
+        assert "GRADER_SECRET" not in worker["env"] and worker["env"]["TMPDIR"] == worker["cwd"]
+        assert worker["limits"]["RLIMIT_DATA"] == Limits().memory and worker["limits"]["RLIMIT_CORE"] == 0
 
 
 # --- what a submission may include -------------------------------------------------------------
