@@ -2,10 +2,10 @@
 explains how a submission is graded; tutorials/assignments/README.md is the students' side)."""
 import json
 import sys
-from pathlib import Path
 
 from toolkit.cli.options import DEVICE, number
-from toolkit.grading.grade import ASSIGNMENTS, TIME_LIMIT, grade
+from toolkit.grading.grade import ASSIGNMENTS, TIME_LIMIT, grade, submission_file
+from toolkit.grading.limits import MAX_TIME_LIMIT, check_time_limit
 from toolkit.grading.report import format_report
 
 
@@ -18,12 +18,14 @@ def add_command(sub):
     p.add_argument("--stub", action="store_true", help="print the assignment's starting file")
     p.add_argument("--json", action="store_true", help="one JSON line per graded file")
     p.add_argument("--time-limit", type=number, default=TIME_LIMIT, metavar="SECONDS",
-                   help=f"per check (default {TIME_LIMIT}); a kernel that runs longer loses the check")
+                   help=f"per check (default {TIME_LIMIT}, at most {MAX_TIME_LIMIT}); a kernel that runs "
+                        "longer loses the check")
     p.set_defaults(run=cmd_grade)
 
 
 def cmd_grade(args):
-    """--stub prints the student's starting file; otherwise every file given is graded, in order."""
+    """--stub prints the student's starting file; otherwise every file given is graded, in order.
+    Exit status 1 if the grader failed on some file (each is graded all the same), 2 for bad input."""
     a = ASSIGNMENTS[args.assignment]
     if args.stub:
         sys.stdout.write((a.folder / a.stub).read_text())
@@ -31,13 +33,16 @@ def cmd_grade(args):
     if not args.solution and not args.kernel:
         raise ValueError(f"give --kernel PATH (your file; start from `python -m toolkit grade {a.name} --stub`) "
                          "or --solution")
-    if args.time_limit <= 0:
-        raise ValueError("--time-limit must be a positive number of seconds")
+    check_time_limit(args.time_limit)
     files = [None] if args.solution else args.kernel
     for path in files:
-        if path is not None and not Path(path).is_file():
-            raise ValueError(f"no such kernel file: {path}")
+        if path is not None:
+            submission_file(path)   # every file is checked before the first is graded
+    failed = False
     for path in files:
         result = grade(a.name, path, solution=args.solution, time_limit=args.time_limit, device=args.device)
         print(json.dumps(result) if args.json else format_report(result), flush=True)
-    return 0
+        failed = failed or "error" in result
+    if failed:   # the grader's own failure on some file (its report says which): grade those again
+        print("error: the grader failed on some files; their reports say why", file=sys.stderr)
+    return 1 if failed else 0

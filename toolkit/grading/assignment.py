@@ -1,6 +1,7 @@
 """What an assignment is to the grader: the toolkit file a submission replaces, the student's stub
-(in tutorials/assignments/<name>/), the grader's own kernels beside it, and its checks, each worth
-points. A check is a function of a Context (context.py) that raises CheckFailed to lose them."""
+(in tutorials/assignments/<name>/), the grader's own kernels beside it, the toolkit headers a
+submission may include, and its checks, each worth points. A check is a function of a Context
+(context.py) that raises CheckFailed to lose them."""
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -33,6 +34,7 @@ class Assignment:
     stub: str              # the student's starting file, in tutorials/assignments/<name>/
     helpers: tuple = ()    # grader kernels in that folder, copied beside the submission
     run_first: tuple = ()  # checks that run before the others (the report keeps the checks' order)
+    headers: tuple = ()    # the toolkit's cl/ headers that a submission may include (sources.py)
     checks: list = field(default_factory=list)
     build: object = None   # the "build" step: builds what every check builds (see builds())
 
@@ -50,8 +52,8 @@ class Assignment:
 
     def builds(self, function):
         """Decorator: the function builds everything the checks build, the student's programs and the
-        toolkit's reference ones. The build step has BUILD_LIMIT seconds (a cold compiler cache), a
-        check only its time limit (runner.py)."""
+        toolkit's reference ones. The build step has Limits.build seconds (a cold compiler cache), a
+        check only its time limit (limits.py)."""
         self.build = function
         return function
 

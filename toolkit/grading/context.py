@@ -1,9 +1,11 @@
 """What a check works with: the device queue, the folder holding the submission, the bundled
-scenes on the device, and the techniques built from the submission or from the toolkit's files."""
+scenes on the device, and the techniques built from the submission or from the toolkit's files.
+A build from the submission finds its files through sources() (sources.py: what it may include)."""
 import numpy as np
 import pyopencl as cl
 
 from toolkit.core.scene import bundled_scene_dir, load_scene
+from toolkit.grading.sources import SubmissionSources
 from toolkit.opencl import program
 from toolkit.opencl.device import get_queue
 from toolkit.opencl.device_scene import DeviceScene
@@ -12,8 +14,9 @@ from toolkit.opencl.device_scene import DeviceScene
 class Context:
     """What a check works with: the device queue and the folder holding the submission."""
 
-    def __init__(self, folder, device=None, shown="compact.h"):
+    def __init__(self, folder, assignment, device=None, shown="compact.h"):
         self.folder = folder
+        self.assignment = assignment
         self.shown = shown   # the name of the student's file, for messages
         self.queue = get_queue(device)
         self._scenes = {}
@@ -27,12 +30,16 @@ class Context:
     def technique(self, cls, student=True, scene="cornell_box", **attributes):
         """An instance of technique `cls` built from the submission (or the toolkit's own files)."""
         if student:
-            attributes["source_dir"] = self.folder
+            attributes["source_dir"] = self.sources()
         variant = type(cls.__name__, (cls,), attributes)
         return variant(self.queue, self.scene(scene)[1])
 
     def build(self, name, defines=None):
-        return program.build(self.queue.context, name, defines, directory=self.folder)
+        return program.build(self.queue.context, name, defines, directory=self.sources())
+
+    def sources(self, folder=None):
+        """Where a build of the submission (in `folder`, by default the submission's) finds its files."""
+        return SubmissionSources(folder or self.folder, self.assignment.replaces, self.assignment.headers)
 
     def buffer(self, array):
         return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR,

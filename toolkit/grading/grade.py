@@ -7,11 +7,13 @@
 A submission is copied into a fresh folder under the name of the toolkit file it replaces
 (`compact.h`, `bdpt_parallel_connect.cl`, `mis.h`, `pt_inplace_regen.cl`) and built in its place:
 program.build looks includes up in that folder first, then in cl/ (Technique.source_dir does the
-same for a technique). The toolkit itself is never edited.
+same for a technique). The toolkit itself is never edited. The student's file may include only
+what sources.py allows: the toolkit headers its assignment lists, by a plain name.
 
-The checks of one submission run in one worker subprocess, which reports them one by one (a line
-of JSON each) to the grader; each check has a time limit. A check that hangs past it, or crashes
-the worker, loses its points with the reason ("stopped after 30 s", "the check crashed
+The checks of one submission run in one worker subprocess, under limits (limits.py), which
+reports them one by one to the grader on a pipe of its own (channel.py: a kernel's printf cannot
+write there); each check has a time limit. A check that hangs past it, or crashes the worker,
+loses its points with the reason ("stopped after 30 s", "the check crashed
 (SIGSEGV)"), the worker is killed and a fresh one goes on with the remaining checks. A kernel
 that does not build loses every check, with the compiler's first error at a line of the
 student's file. Builds are cached in the worker and on disk (pyopencl's binary cache, PoCL's
@@ -21,8 +23,12 @@ and make a later check fail in the host code. So the checks of one piece run bef
 the whole file (Assignment.run_first), and a check that fails with a host exception after other
 checks ran in its worker is run again in a fresh one.
 
+If the grader itself fails on a file (its worker does not start, or sends what is not a report),
+the result says so ("error") and the checks it did not grade earn 0; a batch goes on.
+
 Where it is: this file grades one file; runner.py runs the worker (worker.py) and enforces the
-limits; checks/<assignment>.py holds each assignment's checks (assignment.py: what a check is;
+limits (limits.py); channel.py is how the worker reports, sources.py what a submission may
+include; checks/<assignment>.py holds each assignment's checks (assignment.py: what a check is;
 context.py: what it works with); report.py formats the result; toolkit/cli/grade.py is the command.
 """
 import shutil
@@ -32,33 +38,72 @@ from pathlib import Path
 
 from toolkit.grading.assignment import assignments_dir
 from toolkit.grading.checks import ASSIGNMENTS
-from toolkit.grading.runner import TIME_LIMIT, run_checks
-from toolkit.opencl.program import cl_dir
+from toolkit.grading.limits import check_time_limit, stop_on_signals
+from toolkit.grading.runner import TIME_LIMIT, GraderError, Limits, run_checks
+from toolkit.opencl.program import MAX_SOURCE_SIZE, cl_dir
 
-__all__ = ["ASSIGNMENTS", "TIME_LIMIT", "assignments_dir", "grade"]
+__all__ = ["ASSIGNMENTS", "TIME_LIMIT", "Limits", "assignments_dir", "grade"]
 
 
-def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None):
-    """Grade one file (`kernel`) or the toolkit's own (`solution`) for assignment `name`.
-    Returns {"assignment", "file", "score", "max", "seconds", "checks": [{name, points, earned, reason}]}."""
+def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None, limits=Limits()):
+    """Grade one file (`kernel`) or the toolkit's own (`solution`) for assignment `name`. Returns
+    {"assignment", "file", "score", "max", "seconds", "checks": [{name, points, earned, reason}]},
+    and "error" when the grader failed on it (the checks it did not grade earn 0)."""
     a = ASSIGNMENTS[name]
-    source = cl_dir() / a.replaces if solution else Path(kernel)
-    if not source.is_file():
-        raise ValueError(f"no such kernel file: {source}")
+    check_time_limit(time_limit)
+    source = cl_dir() / a.replaces if solution else submission_file(kernel)
     shown = str(source) if not solution else f"the toolkit's {a.replaces}"
     start = time.perf_counter()
-    with tempfile.TemporaryDirectory(prefix="grade-") as folder:
-        shutil.copyfile(source, Path(folder) / a.replaces)
+    refused = None if solution else _refused(source)
+    if refused:
+        return _result(a, shown, {"build": refused}, {}, None, time.perf_counter() - start)
+    order = ["build"] + list(a.run_first) + [c.name for c in a.checks if c.name not in a.run_first]
+    error = None
+    with stop_on_signals(), tempfile.TemporaryDirectory(prefix="grade-") as root:
+        folder, workdir = Path(root) / "submission", Path(root) / "worker"
+        folder.mkdir()
+        workdir.mkdir()
+        shutil.copyfile(source, folder / a.replaces)
         for helper in a.helpers:
-            shutil.copyfile(a.folder / helper, Path(folder) / helper)
-        order = list(a.run_first) + [c.name for c in a.checks if c.name not in a.run_first]
-        reasons, times = run_checks(name, ["build"] + order, folder, time_limit, device, source.name)
-    problem = reasons.pop("build")
+            shutil.copyfile(a.folder / helper, folder / helper)
+        try:
+            reasons, times = run_checks(name, order, folder, time_limit, device, source.name, limits, workdir)
+        except GraderError as failed:
+            reasons, times, error = failed.reasons, failed.times, str(failed)
+    return _result(a, shown, reasons, times, error, time.perf_counter() - start)
+
+
+def submission_file(kernel):
+    """The path of a student's file; a ValueError if there is no such file."""
+    path = Path(kernel)
+    if not path.is_file():
+        raise ValueError(f"no such kernel file: {path}")
+    return path
+
+
+def _refused(path):
+    """Why a student's file is not built at all, or None: more than MAX_SOURCE_SIZE bytes, or a
+    symbolic link to a file in another folder (another student's, or the toolkit's)."""
+    if path.is_symlink() and path.resolve().parent != path.absolute().parent.resolve():
+        return f"{path.name} is a symbolic link to a file in another folder: submit the file itself"
+    if path.stat().st_size > MAX_SOURCE_SIZE:
+        return f"{path.name} has {path.stat().st_size:,} bytes, more than the {MAX_SOURCE_SIZE:,} a build may have"
+    return None
+
+
+def _result(a, shown, reasons, times, error, seconds):
+    """The result of grading one file (see grade()) from each check's reason (None: it passed)."""
+    problem = reasons.pop("build", None)
     rows = []
     for c in a.checks:
-        reason = f"the kernel does not build: {problem}" if problem else reasons[c.name]
+        if problem:
+            reason = f"the kernel does not build: {problem}"
+        else:
+            reason = reasons[c.name] if c.name in reasons else f"not graded: {error}"
         rows.append({"name": c.name, "points": c.points, "earned": 0 if reason else c.points,
                      "what": c.what, "reason": reason, "seconds": round(times.get(c.name, 0.0), 2)})
-    return {"assignment": name, "file": shown, "score": sum(r["earned"] for r in rows),
-            "max": sum(r["points"] for r in rows), "seconds": round(time.perf_counter() - start, 2),
-            "checks": rows}
+    result = {"assignment": a.name, "file": shown, "score": sum(r["earned"] for r in rows),
+              "max": sum(r["points"] for r in rows), "seconds": round(seconds, 2), "checks": rows}
+    if error:
+        result["error"] = error
+    return result

@@ -9,5 +9,7 @@ def format_report(result):
         if r["reason"]:
             line += f"\n            -> {r['reason']}"
         lines.append(line)
+    if result.get("error"):
+        lines.append(f"  the grader failed on this file: {result['error']} (the checks it did not grade earn 0)")
     lines.append(f"  graded in {result['seconds']:.1f} s")
     return "\n".join(lines)

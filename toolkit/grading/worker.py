@@ -1,32 +1,45 @@
 """The worker subprocess that runs the checks of one submission (runner.py starts it):
 
-    python -m toolkit.grading.worker NAME FOLDER SHOWN DEVICE CHECK...
+    python -m toolkit.grading.worker NAME FOLDER SHOWN DEVICE REPORT_FD CHECK...
 
-runs the checks in order, each announced ({"start": check}) and reported ({"done": check,
-"reason": ...}) as a line of JSON on stdout, so the grader can time each one and knows which one
-crashed. A student's kernel runs only here."""
-import json
+reads the run's nonce from stdin, then runs the checks in order, each announced ({"start": check})
+and reported ({"done": check, "reason": ...}) as a line of JSON on the pipe REPORT_FD (channel.py),
+so the grader can time each one and knows which one crashed. A student's kernel runs only here;
+its printf goes to stdout, which the grader discards."""
 import os
 import re
 import sys
 import time
 
 from toolkit.grading.assignment import CheckFailed
+from toolkit.grading.channel import report_line
 from toolkit.grading.checks import ASSIGNMENTS
 from toolkit.grading.context import Context
 from toolkit.opencl.program import KernelBuildError
 
 
-def run_worker(args):
+class Reports:
+    """The worker's end of the report pipe."""
+
+    def __init__(self, fd, nonce):
+        os.set_inheritable(fd, False)   # not for the compiler's or anyone else's subprocesses
+        self.fd, self.nonce = fd, nonce
+
+    def say(self, **fields):
+        self.write(report_line(self.nonce, **fields))
+
+    def write(self, line):
+        while line:
+            line = line[os.write(self.fd, line):]
+
+
+def run_worker(args, reports):
     """Run the checks `args` names (see the module docstring), "build" among them."""
     name, folder, shown, device, *names = args
-    os.environ.setdefault("OCLGRIND_DATA_RACES", "1")   # Oclgrind's race detector (the compaction `races` check)
-    os.environ.setdefault("PYOPENCL_CACHE_FAILURE_FATAL", "")   # pyopencl reads it when its cache fails
     a = ASSIGNMENTS[name]
-    c = Context(folder, device or None, shown)   # fails (no device): the grader reports it as a crash
-    ran = 0   # checks run in this worker so far (the build does not count)
+    c = Context(folder, a, device or None, shown)   # fails (no device): the grader reports it as a crash
     for check_name in names:
-        _say(start=check_name)
+        reports.say(start=check_name)
         suspect, start = False, time.perf_counter()
         try:
             if check_name == "build":
@@ -42,19 +55,9 @@ def run_worker(args):
             text = str(error).strip().splitlines()
             reason = f"{type(error).__name__}: {text[0] if text else ''}".strip()
             suspect = True   # ... even in a later check, if it corrupted this process's memory
-        _say(done=check_name, reason=reason, suspect=suspect, fresh=ran == 0, seconds=time.perf_counter() - start)
-        if check_name == "build":
-            if reason:
-                break
-        else:
-            ran += 1
-
-
-def _say(**message):
-    """One report to the grader: a line of JSON, tagged, on a line of its own (a kernel's printf
-    may have left a line unfinished)."""
-    sys.stdout.write("\n" + json.dumps(dict({"grade-worker": 1}, **message)) + "\n")
-    sys.stdout.flush()
+        reports.say(done=check_name, reason=reason, suspect=suspect, seconds=time.perf_counter() - start)
+        if check_name == "build" and reason:
+            break
 
 
 def _build_reason(log, replaces, shown):
@@ -66,5 +69,11 @@ def _build_reason(log, replaces, shown):
     return first.replace(f"{replaces}:", f"{shown}:")
 
 
+def main(argv):
+    *args, fd = argv[:5]
+    reports = Reports(int(fd), sys.stdin.readline().strip())
+    run_worker(args + argv[5:], reports)
+
+
 if __name__ == "__main__":
-    run_worker(sys.argv[1:])
+    main(sys.argv[1:])

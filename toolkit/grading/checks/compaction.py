@@ -19,7 +19,7 @@ from toolkit.techniques import PtCompactRegen
 # The checks of one piece (Oclgrind's, then immediate_compact_slot on the toolkit's scan) run
 # before those that run the student's scan on PoCL, where a racy scan can corrupt memory.
 ASSIGNMENT = Assignment("compaction", "Immediate stream compaction", "compact.h", "compact_stub.cl",
-                        ("compaction_checks.cl",), ("races", "compact", "edges", "one_atomic"))
+                        ("compaction_checks.cl",), ("races", "compact", "edges", "one_atomic"), headers=("common.h",))
 
 
 @ASSIGNMENT.builds
@@ -43,7 +43,7 @@ def _compaction_program(c, reference_scan=False):
             shutil.copyfile(Path(c.folder) / "compaction_checks.cl", directory / "compaction_checks.cl")
             (directory / "compact.h").write_text(_with_reference_scan((Path(c.folder) / "compact.h").read_text()))
     return program.build(c.queue.context, "compaction_checks.cl", {"LOCAL_SIZE": program.LOCAL_SIZE},
-                         directory=directory)
+                         directory=c.sources(directory))
 
 
 _SCAN_DEFINITION = re.compile(r"\bcompact_group_scan(\s*\([^()]*\)\s*\{)")
@@ -201,7 +201,7 @@ def _check_races(c):
                           "(Linux x86-64)")
     context = cl.Context([found[0]])
     queue = cl.CommandQueue(context)
-    built = program.build(context, "compaction_checks.cl", {"LOCAL_SIZE": program.LOCAL_SIZE}, directory=c.folder)
+    built = program.build(context, "compaction_checks.cl", {"LOCAL_SIZE": program.LOCAL_SIZE}, directory=c.sources())
     n = program.LOCAL_SIZE + 5   # a full group and a partial one
     rng = np.random.default_rng(9)
     masks = [(rng.random(n) < p).astype(np.int32) for p in (0.5, 0.3)]

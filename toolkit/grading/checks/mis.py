@@ -11,7 +11,8 @@ from toolkit.measure.reference import reference_at, relative_mean_error, z_test
 from toolkit.opencl import program
 from toolkit.techniques import BdptParallelConnect
 
-ASSIGNMENT = Assignment("mis", "MIS weights for BDPT: balance and power heuristics", "mis.h", "mis_stub.cl")
+ASSIGNMENT = Assignment("mis", "MIS weights for BDPT: balance and power heuristics", "mis.h", "mis_stub.cl",
+                        headers=("common.h", "bdpt_vertex.h"))
 
 
 @ASSIGNMENT.builds
@@ -23,7 +24,7 @@ def build(c):
             tech = c.technique(BdptParallelConnect, student, scene=scene_name)
             for power in (False, True):
                 defines = dict(ds.features(), MAX_VERTICES=tech.max_vertices, MIS_POWER=power)
-                program.build(c.queue.context, "bdpt_test.cl", defines, directory=c.folder if student else None)
+                program.build(c.queue.context, "bdpt_test.cl", defines, directory=c.sources() if student else None)
 
 
 _PATHS = 100   # real paths per scene
@@ -41,7 +42,7 @@ def _split_weights(c, tech, scene_name, paths, student=True, power=False):
     _, ds = c.scene(scene_name)
     # The device scene's features: they say which BVH layout (binary or wide) the kernel traverses.
     defines = dict(ds.features(), MAX_VERTICES=tech.max_vertices, MIS_POWER=power)
-    built = program.build(c.queue.context, "bdpt_test.cl", defines, directory=c.folder if student else None)
+    built = program.build(c.queue.context, "bdpt_test.cl", defines, directory=c.sources() if student else None)
     kernel = program.kernel(built, "bdpt_test_mis_splits")
     camera = ds.camera(64, 64)
     out = []

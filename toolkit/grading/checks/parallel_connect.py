@@ -9,7 +9,8 @@ from toolkit.opencl import program
 from toolkit.techniques import BdptNaiveConnect, BdptParallelConnect
 
 ASSIGNMENT = Assignment("parallel_connect", "Parallel connect indexing: scan and binary search",
-                        "bdpt_parallel_connect.cl", "parallel_connect_stub.cl", ("parallel_connect_checks.cl",))
+                        "bdpt_parallel_connect.cl", "parallel_connect_stub.cl", ("parallel_connect_checks.cl",),
+                        headers=("bdpt_walk.h",))
 
 
 @ASSIGNMENT.builds
