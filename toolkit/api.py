@@ -1,4 +1,5 @@
 """`toolkit.render(...)`: the one entry point that the CLI, compare, bench and tests share."""
+import contextlib
 import inspect
 import sys
 import time
@@ -9,6 +10,7 @@ from pathlib import Path
 import numpy as np
 
 from toolkit.opencl import program
+from toolkit.opencl.kernel_times import KernelTimes, profiling_queue
 from toolkit.opencl.device import describe, get_queue
 from toolkit.opencl.lanes import checked as checked_lanes, describe as describe_lanes, of_context as lanes_of_context
 from toolkit.opencl.lanes import width as lane_width
@@ -73,7 +75,7 @@ def _strategy_images(cls, technique, max_edges):
 
 def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, device=None,
            warp_width=None, count_simd=True, progress=False, options=None, bvh="wide", local_size=64,
-           general=False, strategy_images=None, lanes=None):
+           general=False, strategy_images=None, lanes=None, time_phases=False):
     """Render a scene (a Scene, a folder, a scene.json or None for the bundled Cornell box).
 
     `resolution` (width, height) keeps the scene's camera and field of view. `technique` is a
@@ -97,6 +99,9 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     runtime (toolkit/opencl/lanes.py; None: TOOLKIT_LANES, else off); the image stays the same
     within toolkit.same_image. stats["lanes"] says what the device did, stats["vector_widths"]
     each kernel's width from the compiler's log.
+    `time_phases=True` runs on a profiling queue of the same context and puts each kernel's launches
+    and device seconds in stats["kernel_times"] (toolkit/opencl/kernel_times.py), with the lane-steps
+    behind the SIMD efficiencies in stats["simd_lane_steps"] (toolkit/measure/phases.py reads both).
     """
     # Every argument is checked before any work (kernel builds, BVH) starts.
     cls, options, strategy_max_edges = _checked(technique, options, strategy_images, resolution, bvh, device)
@@ -106,17 +111,22 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     spp, seed, width, height = render_args(spp, seed, width, height, warp_width)
     local_size = checked_local_size(local_size)
     queue = get_queue(device, lanes)
+    if time_phases:
+        queue = profiling_queue(queue)
     builds = len(program.lanes_log)   # the programs this render builds (or finds built) follow
     device_scene = DeviceScene(queue, scene, bvh=bvh)
     tech = cls(queue, device_scene, warp_width=warp_width, count_simd=count_simd, local_size=local_size,
                general=bool(general), **options,
                **({"strategy_max_edges": strategy_max_edges} if strategy_max_edges else {}))
-    film, seconds = _run(tech, f"{technique} {scene.name} {width}x{height}", width, height, spp, seed, progress)
+    times = KernelTimes(queue) if time_phases else None
+    with times or _nothing():
+        film, seconds = _run(tech, f"{technique} {scene.name} {width}x{height}", width, height, spp, seed, progress)
     image, stderr = film.image(), film.stderr()
     stats = {"scene": scene.name, "technique": technique, "spp": spp, "resolution": [width, height],
              **_stats(tech, film, image, seconds), "bvh": device_scene.bvh_stats(),
              "triangles": int(len(scene.triangles)), "degrees_of_freedom": film.degrees_of_freedom,
-             **_lanes_stats(queue, program.vector_widths_since(builds)), **tech.extra_stats()}
+             **_lanes_stats(queue, program.vector_widths_since(builds)), **tech.extra_stats(),
+             **(_phase_stats(tech, times) if times else {})}
     if film.nonfinite_samples:
         # A non-finite sample is a bug to fix where it comes from; never only inside the stats.
         warnings.warn(f"{technique} on {scene.name}: {film.nonfinite_samples} non-finite sample(s) "
@@ -148,6 +158,22 @@ def _lanes_stats(queue, widths):
     setting = lanes_of_context(queue.context)
     return {"lanes": setting, "vector_width": lane_width(widths), "vector_widths": widths,
             "lanes_summary": describe_lanes(setting, widths)}
+
+
+def _nothing():
+    return contextlib.nullcontext()
+
+
+def _phase_stats(tech, times):
+    """Each kernel's launches and device seconds, and the lane-steps (active, issued) of each SIMD
+    counter: what a per-phase table needs beside the efficiencies."""
+    def lane_steps(counter):
+        return {phase: [counter.active[phase], counter.issued[phase]] for phase in counter.active}
+    per_kernel = times.per_kernel()
+    return {"kernel_times": {name: {"launches": n, "seconds": s} for name, (n, s) in per_kernel.items()},
+            "kernel_span_seconds": times.span_seconds,
+            "simd_lane_steps": lane_steps(tech.simd) if tech.count_simd else {},
+            "traversal_lane_steps": lane_steps(tech.traversal) if tech.count_simd else {}}
 
 
 def _run(tech, what, width, height, spp, seed, progress):

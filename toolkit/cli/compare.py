@@ -23,6 +23,9 @@ def add_command(sub):
                         "64 on AMD, 16 on Intel GPUs; `devices` shows it)")
     p.add_argument("--json", action="store_true", help="print a JSON object as the last line of stdout")
     p.add_argument("--out", default="out/compare", help="folder for images and plots (default out/compare)")
+    p.add_argument("--plot", default=None, metavar="PNG",
+                   help="where the figure of time per phase, lane efficiency and the talk's model goes "
+                        "(default <out>/<scene>_phases.png)")
     p.add_argument("--no-progress", action="store_true")
     p.set_defaults(run=cmd_compare)
 
@@ -31,7 +34,7 @@ def cmd_compare(args):
     table = compare(args.scene, technique_list(args.techniques), args.spp, resolution=args.resolution,
                     seed=args.seed, warp_width=args.warp_width, out_dir=args.out, device=args.device,
                     progress=not args.no_progress, bvh=args.bvh, general=args.general,
-                    lanes=args.lanes)
+                    lanes=args.lanes, phase_plot=args.plot)
     print(format_table(table))
     first = next(iter(table.values()))
     print("plots: " + ", ".join(first.get("plots", {}).values()))

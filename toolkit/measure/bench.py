@@ -4,8 +4,6 @@ so a slow moment of the machine does not favour one technique. SIMD counters are
 """
 import statistics
 
-import numpy as np
-
 from toolkit.api import as_scene, render
 from toolkit.opencl.device import get_queue
 from toolkit.opencl.device_model import is_gpu

@@ -10,18 +10,22 @@ import numpy as np
 from toolkit.api import as_scene, render
 from toolkit.core.images import to_srgb8, write_image
 from toolkit.core.validate import writable_folder
-from toolkit.measure.reference import hard_pixels
+from toolkit.measure.phase_plot import save_phase_plot
+from toolkit.measure.phases import format_phases, phase_rows
+from toolkit.techniques import get_technique
 from toolkit.measure.reference import reference_at, rmse
 
 PHASES = ["generate", "extend", "walk", "shadow", "compact", "connect"]
 
 
 def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, out_dir="out/compare",
-            device=None, progress=False, plots=True, bvh="wide", general=False, lanes=None):
+            device=None, progress=False, plots=True, bvh="wide", general=False, lanes=None, phase_plot=None):
     """Render `scene` with each technique; returns {technique: figures} and writes images/plots.
     `warp_width` None: the device's (toolkit.opencl.device_model.choose_warp_width); each row says which.
     `general`: the general kernels instead of the scene's specialized ones, `lanes` "on"/"off": SIMD
-    lanes on Intel's CPU runtime (toolkit.render)."""
+    lanes on Intel's CPU runtime (toolkit.render). Each row also has its time per phase (kernel) beside its
+    lane efficiency ("phases", toolkit/measure/phases.py), all from this one run; `phase_plot`: where the
+    figure of them goes (default <out_dir>/<scene>_phases.png, with the other plots)."""
     out_dir = writable_folder(out_dir)      # before the renders: a bad folder must not cost their time
     scene = as_scene(scene)
     width, height = resolution or (scene.camera.width, scene.camera.height)
@@ -30,7 +34,7 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, ou
     for name in techniques:
         result = render(scene, technique=name, spp=spp, seed=seed, resolution=(width, height),
                         device=device, warp_width=warp_width, progress=progress, bvh=bvh, general=general,
-                        lanes=lanes)
+                        lanes=lanes, time_phases=True)
         path = out_dir / f"{scene.name}_{name.replace('/', '_')}.exr"
         write_image(path, result.image.astype(np.float32))
         results[name] = result
@@ -48,11 +52,17 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, ou
             "rmse": rmse(result.image, ref) if ref is not None else None,
             "nonfinite": result.stats["nonfinite"],
             "out": str(path),
+            "family": get_technique(name)[0].family, "device": result.stats["device"],
+            **{k: result.stats[k] for k in ("kernel_times", "kernel_span_seconds", "simd_lane_steps",
+                                            "traversal_lane_steps")},
+            "phases": phase_rows(result.stats),
         }
     for a in techniques:
         table[a]["rmse_vs"] = {b: rmse(results[a].image, results[b].image) for b in techniques if b != a}
     if plots:
         plot_paths = save_plots(scene.name, results, ref, out_dir, next(iter(table.values()))["warp_width"])
+        title = f"{scene.name} {width}x{height}, {spp} spp: time per phase and lane efficiency"
+        plot_paths["phases"] = str(save_phase_plot(phase_plot or out_dir / f"{scene.name}_phases.png", table, title))
         for name in techniques:
             table[name]["plots"] = plot_paths
     return table
@@ -82,6 +92,7 @@ def format_table(table, warp_width=None):
         lines.append(f"{name:<28}{row['seconds']:>9.2f}{row['samples_per_second']:>12,.0f}{cells}"
                      f"{eff.get('overall', float('nan')):>10.1%}{trav:>10.1%}{row['traversal_steps']:>8.1f}{r}")
     names = list(table)
+    lines += ["", format_phases(table), ""]
     if len(names) > 1:
         lines.append("RMSE between techniques: " + ", ".join(
             f"{a} vs {b} {table[a]['rmse_vs'][b]:.5f}" for i, a in enumerate(names) for b in names[i + 1:]))

@@ -32,7 +32,6 @@ import pyopencl as cl
 
 from toolkit.opencl import runtimes  # noqa: F401  (registers pip's OpenCL runtimes before the first OpenCL call)
 from toolkit.opencl import lanes
-from toolkit.core.package_data import user_cache_folder
 from toolkit.opencl.device_model import is_gpu
 from toolkit.opencl.probe_cache import read_verdict, verdict_file, write_verdict
 from toolkit.opencl.program import LOCAL_SIZE, KernelBuildError, build, expand_includes, kernel, launch

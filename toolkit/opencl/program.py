@@ -19,7 +19,7 @@ import pyopencl as cl
 
 from toolkit.core.layout import c_header
 from toolkit.core.package_data import data_dir
-from toolkit.opencl import lanes
+from toolkit.opencl import kernel_times, lanes
 from toolkit.opencl.kernel_cache import build_with_cache
 
 # The default work-group size. A program is built for one local size (the LOCAL_SIZE define: the
@@ -342,7 +342,9 @@ def launch(queue, kernel, n, *args, local_size=LOCAL_SIZE):
         if last[i] is not fingerprint and last[i] != fingerprint:
             own.set_arg(i, value)
             last[i] = fingerprint
-    return cl.enqueue_nd_range_kernel(queue, own, (padded(n, local_size),), (local_size,))
+    event = cl.enqueue_nd_range_kernel(queue, own, (padded(n, local_size),), (local_size,))
+    kernel_times.note(queue, kernel.function_name, event)   # kept only while a phase timing records
+    return event
 
 
 _UNSET = object()
