@@ -241,20 +241,42 @@ HELPER int4 hit_triangles(__global const TriGroup* g, float3 o, const RayShear* 
     return ~mixed & (det != zero) & (t > (float4)(tmin)) & (t < (float4)(tmax));
 }
 
-/* Push the children a node's box test hit onto the stack, nearest on top (insertion sort of
- * at most four entries above `base`), so they are visited front to back. */
+/* One compare-and-swap of a sorting network: afterwards (ta, ra) is the nearer entry. */
+HELPER void order_pair(float* ta, int* ra, float* tb, int* rb) {
+    bool swap = *tb < *ta;
+    float t = *ta; int r = *ra;
+    *ta = swap ? *tb : *ta; *ra = swap ? *rb : *ra;
+    *tb = swap ? t : *tb;   *rb = swap ? r : *rb;
+}
+
+/* Push the children a node's box test hit onto the stack, nearest on top, so they are visited
+ * front to back; returns the new top. Written without branches or loops that depend on the
+ * ray: where work-items run as SIMD lanes (Intel's CPU runtime with lanes on), each store
+ * whose address or condition differs between lanes becomes a masked scatter, a test and a
+ * branch per lane, and an insertion sort with a data-dependent loop did that per shift
+ * (the kernel's build remarks counted 15 scatters). Here a five-step sorting network orders the
+ * four entry distances (misses are INFINITY, so they sort last), and all four entries are
+ * stored unconditionally in [top, top + 4): the `hits` nearest ones reversed at the bottom,
+ * nearest on top, the misses above them, where the next push overwrites them (the stack has
+ * room for that: BVH_STACK_SLACK). */
+#define BVH_STACK_SLACK (BVH_WIDTH - 1)
 HELPER int push_hit_children(int* stack_ref, float* stack_t, int top, int4 child, float4 enter) {
-    int base = top;
-    for (int i = 0; i < BVH_WIDTH; ++i) {
-        float ti = lane(enter, i);
-        if (ti == INFINITY) continue;
-        int j = top++;
-        while (j > base && stack_t[j - 1] < ti) {  /* keep farther entries below */
-            stack_ref[j] = stack_ref[j - 1]; stack_t[j] = stack_t[j - 1]; --j;
-        }
-        stack_ref[j] = lane_int(child, i); stack_t[j] = ti;
-    }
-    return top;
+    float t0 = enter.s0, t1 = enter.s1, t2 = enter.s2, t3 = enter.s3;
+    int r0 = child.s0, r1 = child.s1, r2 = child.s2, r3 = child.s3;
+    order_pair(&t0, &r0, &t1, &r1); order_pair(&t2, &r2, &t3, &r3);
+    order_pair(&t0, &r0, &t2, &r2); order_pair(&t1, &r1, &t3, &r3);
+    order_pair(&t1, &r1, &t2, &r2);                   /* now t0 <= t1 <= t2 <= t3 */
+    int hits = (t0 != INFINITY) + (t1 != INFINITY) + (t2 != INFINITY) + (t3 != INFINITY);
+    /* Entry k (k-th nearest) goes to top + hits - 1 - k if it is a hit, else to top + k. */
+    int p0 = hits > 0 ? top + hits - 1 : top;
+    int p1 = hits > 1 ? top + hits - 2 : top + 1;
+    int p2 = hits > 2 ? top + hits - 3 : top + 2;
+    int p3 = hits > 3 ? top : top + 3;
+    stack_ref[p0] = r0; stack_t[p0] = t0;
+    stack_ref[p1] = r1; stack_t[p1] = t1;
+    stack_ref[p2] = r2; stack_t[p2] = t2;
+    stack_ref[p3] = r3; stack_t[p3] = t3;
+    return top + hits;
 }
 
 /* Closest hit in (tmin, tmax). `steps` counts visited nodes and leaves (traversal divergence counter). */
@@ -262,8 +284,8 @@ HELPER Hit trace_closest(const SceneView* scene, float3 o, float3 d, float tmin,
     Hit hit = {tmax, 0.0f, 0.0f, -1};
     float3 inv_d = 1.0f / d;
     RayShear shear = ray_shear(d);
-    int stack_ref[BVH_STACK_SIZE];
-    float stack_t[BVH_STACK_SIZE];
+    int stack_ref[BVH_STACK_SIZE + BVH_STACK_SLACK];
+    float stack_t[BVH_STACK_SIZE + BVH_STACK_SLACK];
     int top = 0;
     int visited = 0;
     stack_ref[top] = 0; stack_t[top] = tmin; ++top;   /* the root */
@@ -299,8 +321,8 @@ HELPER Hit trace_closest(const SceneView* scene, float3 o, float3 d, float tmin,
 HELPER bool trace_any(const SceneView* scene, float3 o, float3 d, float tmin, float tmax, int* steps) {
     float3 inv_d = 1.0f / d;
     RayShear shear = ray_shear(d);
-    int stack_ref[BVH_STACK_SIZE];
-    float stack_t[BVH_STACK_SIZE];
+    int stack_ref[BVH_STACK_SIZE + BVH_STACK_SLACK];
+    float stack_t[BVH_STACK_SIZE + BVH_STACK_SLACK];
     int top = 0;
     int visited = 0;
     bool blocked = false;

@@ -22,6 +22,12 @@ variable TOOLKIT_LANES=on|off, the default wherever the implementation lets the 
 runtime: its vectorized code is slower on our kernels today (issue 22's figures: pt_naive 3-5x).
 A GPU always runs warps (`hardware`); PoCL's compiler decides by itself and its build log does not
 say whether it vectorized a kernel's work-items, so there the toolkit reports no lanes.
+
+To see what the vectorizer did, build with VOLCANO_STATS=All in the environment: the build log
+then counts, per kernel, the gathers and scatters it needed (a remark "Kernel was 8-way vectorized"
+followed by the two counts); CL_CONFIG_DUMP_ASM=True writes the generated code to the working folder.
+AVX2 has gathers but no scatters: a store whose address differs between lanes becomes a test,
+a branch and a store per lane (why cl/bvh.h pushes its stack without branches).
 """
 import os
 import re
