@@ -45,7 +45,8 @@ def test_the_reasons_name_the_choice():
 
 
 def _fake_device(kind, vendor, vendor_id, extensions="", **properties):
-    return SimpleNamespace(type=kind, vendor=vendor, vendor_id=vendor_id, extensions=extensions, **properties)
+    return SimpleNamespace(type=kind, vendor=vendor, vendor_id=vendor_id, extensions=extensions,
+                           platform=SimpleNamespace(name=f"{vendor} OpenCL"), **properties)
 
 
 def test_device_properties_are_read_only_where_the_extension_is_there():
@@ -69,7 +70,7 @@ def test_device_properties_are_read_only_where_the_extension_is_there():
         def wavefront_width_amd(self):
             raise cl.LogicError("clGetDeviceInfo failed: INVALID_VALUE")
     broken = Failing(type=gpu, vendor="Advanced Micro Devices, Inc.", vendor_id=0x1002,
-                     extensions="cl_amd_device_attribute_query")
+                     extensions="cl_amd_device_attribute_query", platform=SimpleNamespace(name="AMD APP"))
     assert device_warp_width(broken)[0] == 64
 
 

@@ -92,7 +92,8 @@ def format_table(table, warp_width=None):
         lines.append(f"{name:<28}{row['seconds']:>9.2f}{row['samples_per_second']:>12,.0f}{cells}"
                      f"{eff.get('overall', float('nan')):>10.1%}{trav:>10.1%}{row['traversal_steps']:>8.1f}{r}")
     names = list(table)
-    lines += ["", format_phases(table), ""]
+    if all("phases" in row for row in table.values()):   # rows read back from an older JSON have none
+        lines += ["", format_phases(table), ""]
     if len(names) > 1:
         lines.append("RMSE between techniques: " + ", ".join(
             f"{a} vs {b} {table[a]['rmse_vs'][b]:.5f}" for i, a in enumerate(names) for b in names[i + 1:]))
