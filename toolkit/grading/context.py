@@ -27,10 +27,11 @@ class Context:
             self._scenes[name] = (scene, DeviceScene(self.queue, scene))
         return self._scenes[name]
 
-    def technique(self, cls, student=True, scene="cornell_box", **attributes):
-        """An instance of technique `cls` built from the submission (or the toolkit's own files)."""
+    def technique(self, cls, student=True, scene="cornell_box", folder=None, **attributes):
+        """An instance of technique `cls` built from the submission (or the toolkit's own files); from
+        `folder` (a variant of the submission, beside it) if given."""
         if student:
-            attributes["source_dir"] = self.sources()
+            attributes["source_dir"] = self.sources(folder)
         variant = type(cls.__name__, (cls,), attributes)
         return variant(self.queue, self.scene(scene)[1])
 

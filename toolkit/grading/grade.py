@@ -36,7 +36,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from toolkit.grading.assignment import assignments_dir
+from toolkit.grading.assignment import SKIPPED, assignments_dir
 from toolkit.grading.checks import ASSIGNMENTS
 from toolkit.grading.limits import check_time_limit, stop_on_signals
 from toolkit.grading.runner import TIME_LIMIT, GraderError, Limits, run_checks
@@ -92,7 +92,9 @@ def _refused(path):
 
 
 def _result(a, shown, reasons, times, error, seconds):
-    """The result of grading one file (see grade()) from each check's reason (None: it passed)."""
+    """The result of grading one file (see grade()) from each check's reason (None: it passed).
+    A skipped check (this machine cannot run it) counts neither way: the score is rescaled from
+    the points graded to the whole, and "note" says so."""
     problem = reasons.pop("build", None)
     rows = []
     for c in a.checks:
@@ -100,10 +102,32 @@ def _result(a, shown, reasons, times, error, seconds):
             reason = f"the kernel does not build: {problem}"
         else:
             reason = reasons[c.name] if c.name in reasons else f"not graded: {error}"
+        skipped = bool(reason) and reason.startswith(SKIPPED)
         rows.append({"name": c.name, "points": c.points, "earned": 0 if reason else c.points,
-                     "what": c.what, "reason": reason, "seconds": round(times.get(c.name, 0.0), 2)})
-    result = {"assignment": a.name, "file": shown, "score": sum(r["earned"] for r in rows),
-              "max": sum(r["points"] for r in rows), "seconds": round(seconds, 2), "checks": rows}
+                     "what": c.what, "reason": reason, "hint": None if skipped or not reason else _hint(c, reason),
+                     "skipped": skipped, "seconds": round(times.get(c.name, 0.0), 2)})
+    whole = sum(r["points"] for r in rows)
+    graded = sum(r["points"] for r in rows if not r["skipped"])
+    earned = sum(r["earned"] for r in rows)
+    result = {"assignment": a.name, "file": shown, "score": round(earned * whole / graded) if graded else 0,
+              "max": whole, "seconds": round(seconds, 2), "checks": rows}
+    if graded < whole:
+        names = ", ".join(r["name"] for r in rows if r["skipped"])
+        result["note"] = (f"{names} could not run on this machine (skipped): the score is {earned} of the {graded} "
+                          f"points graded, rescaled to {result['score']} of {whole}")
     if error:
         result["error"] = error
     return result
+
+
+def _hint(check, reason):
+    """What to look at for a lost check: the idea of the check, or what a build error, a hang or
+    a crash usually means."""
+    if reason.startswith("the kernel does not build"):
+        return "fix the compiler's first error; the ones after it often follow from it"
+    if reason.startswith("stopped after") or reason.startswith("the build was stopped"):
+        return ("a loop whose condition never becomes false, or a barrier inside a branch that not every "
+                "work-item of the group takes")
+    if reason.startswith("the check crashed") or reason.startswith("the worker"):
+        return "an index out of the buffer's range: check each index against the size the buffer has"
+    return check.hint

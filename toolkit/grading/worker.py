@@ -11,7 +11,7 @@ import re
 import sys
 import time
 
-from toolkit.grading.assignment import CheckFailed
+from toolkit.grading.assignment import SKIPPED, CheckFailed, CheckSkipped
 from toolkit.grading.channel import report_line
 from toolkit.grading.checks import ASSIGNMENTS
 from toolkit.grading.context import Context
@@ -49,6 +49,8 @@ def run_worker(args, reports):
             reason = None
         except CheckFailed as failed:
             reason = str(failed)
+        except CheckSkipped as skipped:
+            reason = SKIPPED + str(skipped)
         except KernelBuildError as error:
             reason = _build_reason(str(error), a.replaces, shown)
         except Exception as error:   # a broken kernel can make the host code fail anywhere
