@@ -36,14 +36,24 @@ WRONG = {
     # compact_group_scan writes to address 64 for values above 1, which only `scan` feeds it:
     # the worker dies with SIGSEGV in that check and a fresh worker grades the rest.
     ("compaction", "crash_in_scan"): {"scan"},
-    ("parallel_connect", "wrong_base"): {"search", "search_edges", "image"},
+    # A right scan, done by local id 0 alone: its loop goes round LOCAL_SIZE times (`parallel`).
+    ("compaction", "serial_scan"): {"parallel"},
+    # One atomic_cmpxchg per survivor, behind a macro: counted in the preprocessed file.
+    ("compaction", "atomic_cmpxchg"): {"one_atomic"},
+    # The search leaves out the last sample; `image` runs on the toolkit's find_sample and keeps its points.
+    ("parallel_connect", "wrong_base"): {"search", "search_edges"},
     ("parallel_connect", "count_off_by_one"): {"count"},
-    ("mis", "power_not_squared"): {"power"},
+    # A right search that walks the samples one by one (`logarithmic` counts its rounds).
+    ("parallel_connect", "linear_search"): {"logarithmic"},
+    # power = balance: the known densities show it too (`heuristic`).
+    ("mis", "power_not_squared"): {"power", "heuristic"},
+    # Uniform weights sum to one and keep the image unbiased, and earn no more than a third.
+    ("mis", "uniform_weights"): {"heuristic", "balance", "power"},
     ("mis", "no_delta_skip"): {"balance_sum", "balance", "power"},
     ("inplace_regen", "budget_off_by_one"): {"ids", "any_alive", "regenerated"},
     ("inplace_regen", "any_alive_only_started"): {"any_alive", "image"},
 }
-ENDLESS_LIMIT = 5   # seconds per check for the endless loop (its two hanging checks cost 2 x this)
+ENDLESS_LIMIT = 5   # seconds per check for the endless loop (its hanging check costs this)
 
 
 @lru_cache(maxsize=None)
@@ -63,12 +73,18 @@ def lost(result):
 
 
 def assert_points_add_up(result):
+    """The score is the points earned, rescaled to 100 from the points graded when a check was
+    skipped; every lost check says why and gives a hint (the idea, not a line)."""
     assert result["max"] == 100
-    assert result["score"] == sum(c["earned"] for c in result["checks"])
+    graded = sum(c["points"] for c in result["checks"] if not c["skipped"])
+    assert result["score"] == round(sum(c["earned"] for c in result["checks"]) * 100 / graded)
+    assert ("note" in result) == (graded < 100)
     for c in result["checks"]:
         assert c["earned"] in (0, c["points"])
         assert (c["reason"] is None) == (c["earned"] == c["points"]), c
         assert c["reason"] is None or "\n" not in c["reason"]    # one line a student can act on
+        assert (c["hint"] is not None) == (c["reason"] is not None and not c["skipped"]), c
+        assert c["hint"] is None or (len(c["hint"]) > 30 and "line" not in c["hint"]), c
     assert result["seconds"] < LIMIT, result
 
 
@@ -110,7 +126,7 @@ def test_a_crashing_check_costs_its_points_and_a_fresh_worker_grades_the_rest():
     result = graded("compaction", "crash_in_scan")
     reasons = {c["name"]: c["reason"] for c in result["checks"]}
     assert reasons["scan"].startswith("the check crashed (SIGSEGV"), reasons["scan"]
-    assert result["score"] == 80
+    assert result["score"] == 85
 
 
 def test_every_fixture_is_graded_by_a_test():
@@ -136,11 +152,11 @@ def test_endless_loop_is_stopped_and_the_grader_goes_on():
     result = graded("parallel_connect", "endless_loop", ENDLESS_LIMIT)
     reasons = {c["name"]: c["reason"] for c in result["checks"]}
     print(reasons)
-    assert lost(result) == {"count", "image"}
+    # `image` runs on the toolkit's count kernel, so only `count` hangs
+    assert lost(result) == {"count"}
     assert reasons["count"].startswith(f"stopped after {ENDLESS_LIMIT} s")
-    assert result["score"] == 45
     assert_points_add_up(result)
-    assert result["seconds"] < 2 * ENDLESS_LIMIT + 30
+    assert result["seconds"] < ENDLESS_LIMIT + 30
 
 
 def run_cli(*args):

@@ -5,7 +5,8 @@ def format_report(result):
     lines = [f"{result['assignment']}: {result['file']}: {result['score']}/{result['max']}"]
     width = max(len(r["name"]) for r in result["checks"])
     for r in result["checks"]:
-        line = f"  {r['earned']:3d}/{r['points']:<3d} {r['name']:<{width}}  {r['what']}"
+        earned = " --" if r.get("skipped") else f"{r['earned']:3d}"   # skipped: neither earned nor lost
+        line = f"  {earned}/{r['points']:<3d} {r['name']:<{width}}  {r['what']}"
         if r["reason"]:
             line += f"\n            -> {r['reason']}"
         if r.get("hint"):
