@@ -8,7 +8,7 @@ import pytest
 from toolkit.grading import instrument
 from toolkit.grading.assignment import SKIPPED
 from toolkit.grading.checks import ASSIGNMENTS
-from toolkit.grading.grade import _result
+from toolkit.grading.grade import _result, selected_checks
 
 needs_cpp = pytest.mark.skipif(shutil.which("cpp") is None, reason="no C preprocessor")
 
@@ -43,7 +43,7 @@ def test_atomics_behind_macros_are_counted_and_fences_are_not():
 def test_every_loop_of_the_counted_copy_ticks():
     _, code, _ = instrument.preprocessed(HIDDEN, {})
     copy = instrument.counted_copy(code, "f", "f")
-    assert copy.startswith("grade_counted_f(") or "grade_counted_f(" in copy
+    assert copy.startswith("int grade_counted_f(")   # with its return type (-Werror: no implicit int)
     assert copy.count(f"++*{instrument.COUNTER}") == 3   # while, for, goto
     assert f"int* {instrument.COUNTER})" in copy
 
@@ -63,3 +63,21 @@ def test_a_skipped_check_is_left_out_and_the_score_rescaled():
     rows = {r["name"]: r for r in result["checks"]}
     assert rows["races"]["skipped"] and rows["races"]["hint"] is None and rows["twice"]["hint"]
     assert result["score"] == round(80 * 100 / 90) and "rescaled to 89 of 100" in result["note"]
+
+
+@needs_cpp
+def test_the_preprocessors_own_macros_stay_out_of_the_instrumented_file():
+    # cpp defines __STDC_VERSION__ and others even with -undef; the OpenCL compiler defines its
+    # own, and a second #define of one is an error there (every instrumented build failed so)
+    _, _, defines = instrument.preprocessed("#define KEPT 3\nint x = KEPT;", {})
+    assert defines == "#define KEPT 3"
+
+
+def test_only_the_checks_asked_for_are_reported_and_the_score_rescaled():
+    a = ASSIGNMENTS["compaction"]
+    reasons = {"build": None, "scan": "the exclusive scan is wrong", "compact": None}
+    result = _result(a, "mine.cl", reasons, {}, None, 1.0, selected_checks(a, ["compact", "scan"]))
+    assert [r["name"] for r in result["checks"]] == ["scan", "compact"]   # in the report's order
+    assert result["score"] == round(20 * 100 / 35) and "only scan, compact graded" in result["note"]
+    with pytest.raises(ValueError, match="no check nonsense: its checks are scan, parallel"):
+        selected_checks(a, ["scan", "nonsense"])

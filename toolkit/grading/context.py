@@ -14,12 +14,17 @@ from toolkit.opencl.device_scene import DeviceScene
 class Context:
     """What a check works with: the device queue and the folder holding the submission."""
 
-    def __init__(self, folder, assignment, device=None, shown="compact.h"):
+    def __init__(self, folder, assignment, device=None, shown="compact.h", checks=None):
         self.folder = folder
         self.assignment = assignment
         self.shown = shown   # the name of the student's file, for messages
+        self.checks = None if checks is None else set(checks)   # what this worker runs (None: all)
         self.queue = get_queue(device)
         self._scenes = {}
+
+    def runs(self, *names):
+        """Whether any of the checks `names` runs here: the build step builds only what they need."""
+        return self.checks is None or bool(self.checks.intersection(names))
 
     def scene(self, name="cornell_box"):
         if name not in self._scenes:

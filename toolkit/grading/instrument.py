@@ -11,6 +11,7 @@ The preprocessor runs with no include path and no system macros, under a time an
 import re
 import shutil
 import subprocess
+from functools import lru_cache
 
 from toolkit.grading.assignment import CheckFailed, CheckSkipped
 from toolkit.opencl.program import INCLUDE_LINE, MAX_SOURCE_SIZE, define_options
@@ -27,6 +28,17 @@ _ATOMIC = re.compile(r"(atomic|atom)_(add|sub|inc|dec|xchg|cmpxchg|min|max|and|o
 _NOT_RMW = re.compile(r"fence|synchronize|load|store|init|lock_free")
 
 
+_CPP_OPTIONS = ["-P", "-dD", "-undef", "-nostdinc", "-w", "-x", "c", "-std=c11"]
+
+
+@lru_cache(maxsize=None)
+def _predefined(cpp):
+    """Names that `cpp` defines by itself even with -undef (__STDC__, __STDC_VERSION__, ...): the
+    OpenCL compiler defines its own, and a second #define of them is an error there."""
+    run = subprocess.run([cpp, *_CPP_OPTIONS, "-"], input="", capture_output=True, text=True, timeout=20)
+    return frozenset(re.findall(r"^\s*#\s*define\s+(\w+)", run.stdout, re.M))
+
+
 def preprocessed(text, defines):
     """(include lines, expanded code, #define lines) of the student's file `text` built with `defines`."""
     lines = text.splitlines()
@@ -37,7 +49,7 @@ def preprocessed(text, defines):
         raise CheckSkipped("this check needs a C preprocessor (cpp, from gcc or clang), which is not installed")
     options = [o for o in define_options(defines or {}) if o.startswith("-D")]
     try:
-        run = subprocess.run([cpp, "-P", "-dD", "-undef", "-nostdinc", "-w", "-x", "c", "-std=c11", *options, "-"],
+        run = subprocess.run([cpp, *_CPP_OPTIONS, *options, "-"],
                              input=kept, capture_output=True, text=True, timeout=20, errors="replace")
     except subprocess.TimeoutExpired:
         raise CheckFailed("the C preprocessor did not finish on your file (a macro that expands without end?)")
@@ -45,7 +57,7 @@ def preprocessed(text, defines):
         first = (run.stderr.strip().splitlines() or ["its output is too large"])[0]
         raise CheckFailed(f"the C preprocessor refused your file: {first}")
     code, directives = [], []
-    names = {o[2:].split("=")[0] for o in options}
+    names = {o[2:].split("=")[0] for o in options} | _predefined(cpp)
     for line in run.stdout.splitlines():
         m = re.match(r"\s*#\s*(define|undef)\s+(\w+)", line)
         if not m:
@@ -100,6 +112,17 @@ def definitions(toks):
     return found
 
 
+def _declaration_start(toks, i):
+    """Index of the first token of the declaration whose name is toks[i] (its return type,
+    `static inline`, attributes): just after the previous `;`, `}` or directive line."""
+    while i > 0 and toks[i - 1] not in (";", "}", "#"):
+        i -= 1
+    if i > 0 and toks[i - 1] == "#":   # a #pragma line that cpp kept: start on the line after it
+        while i < len(toks) and "\n" not in toks[i]:
+            i += 1
+    return i
+
+
 def _has_loop(toks, start, end):
     return any(t in _LOOPS for t in toks[start:end])
 
@@ -117,6 +140,7 @@ def counted_copy(code, name, what):
     _refuse_looping_calls(toks, defined, name, what)
     out = list(toks)
     out[start] = f"grade_counted_{name}"
+    start = _declaration_start(toks, start)   # the copy keeps its return type and qualifiers
     close = _matching(toks, params)
     out[close] = f", int* {COUNTER})"
     i = body

@@ -19,11 +19,14 @@ ASSIGNMENT = Assignment("mis", "MIS weights for BDPT: balance and power heuristi
 
 @ASSIGNMENT.builds
 def build(c):
-    """Everything the checks build."""
+    """Everything the checks that run build: the image renders with the student's BDPT (on the
+    Cornell box); the weights of real paths come from bdpt_test.cl, on paths of the toolkit's BDPT."""
+    if c.runs("image"):
+        c.technique(BdptParallelConnect, scene="cornell_box")
     for scene_name in ("cornell_box", "cornell_spheres"):
         _, ds = c.scene(scene_name)
+        tech = c.technique(BdptParallelConnect, student=False, scene=scene_name)
         for student in (True, False):
-            tech = c.technique(BdptParallelConnect, student, scene=scene_name)
             for power in (False, True):
                 defines = dict(ds.features(), MAX_VERTICES=tech.max_vertices, MIS_POWER=power)
                 program.build(c.queue.context, "bdpt_test.cl", defines, directory=c.sources() if student else None)
