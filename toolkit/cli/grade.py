@@ -4,7 +4,7 @@ import json
 import sys
 
 from toolkit.cli.options import DEVICE, number
-from toolkit.grading.grade import ASSIGNMENTS, TIME_LIMIT, grade, submission_file
+from toolkit.grading.grade import ASSIGNMENTS, TIME_LIMIT, grade, selected_checks, submission_file
 from toolkit.grading.limits import MAX_TIME_LIMIT, check_time_limit
 from toolkit.grading.report import format_report
 
@@ -20,7 +20,15 @@ def add_command(sub):
     p.add_argument("--time-limit", type=number, default=TIME_LIMIT, metavar="SECONDS",
                    help=f"per check (default {TIME_LIMIT}, at most {MAX_TIME_LIMIT}); a kernel that runs "
                         "longer loses the check")
+    p.add_argument("--only", type=check_names, metavar="CHECK,...",
+                   help="run only these checks (e.g. to grade again what a fix should change); the score is "
+                        "rescaled from their points")
     p.set_defaults(run=cmd_grade)
+
+
+def check_names(text):
+    """'scan,parallel' -> ['scan', 'parallel'] (grade() says which names an assignment has)."""
+    return [n.strip() for n in text.split(",") if n.strip()]
 
 
 def cmd_grade(args):
@@ -34,13 +42,15 @@ def cmd_grade(args):
         raise ValueError(f"give --kernel PATH (your file; start from `python -m toolkit grade {a.name} --stub`) "
                          "or --solution")
     check_time_limit(args.time_limit)
+    selected_checks(a, args.only)   # a wrong name is refused before any file is graded
     files = [None] if args.solution else args.kernel
     for path in files:
         if path is not None:
             submission_file(path)   # every file is checked before the first is graded
     failed = False
     for path in files:
-        result = grade(a.name, path, solution=args.solution, time_limit=args.time_limit, device=args.device)
+        result = grade(a.name, path, solution=args.solution, time_limit=args.time_limit, device=args.device,
+                       only=args.only)
         print(json.dumps(result) if args.json else format_report(result), flush=True)
         failed = failed or "error" in result
     if failed:   # the grader's own failure on some file (its report says which): grade those again

@@ -18,12 +18,23 @@ class CheckFailed(Exception):
     """A check's one-line reason for losing its points."""
 
 
+# A skipped check's reason starts with this (the worker writes it; only the grader's code raises
+# CheckSkipped): it is left out of the score, which is rescaled to the points graded (grade.py).
+SKIPPED = "skipped: "
+
+
+class CheckSkipped(Exception):
+    """This machine cannot run the check (a tool it needs is missing): it earns no points and
+    costs none."""
+
+
 @dataclass
 class Check:
     name: str
     points: int
     what: str
     run: object
+    hint: str = ""   # the idea a student who lost these points should look at (not the line)
 
 
 @dataclass
@@ -42,11 +53,12 @@ class Assignment:
     def folder(self):
         return assignments_dir() / self.name
 
-    def check(self, name, points, what):
-        """Decorator: the function is check `name`, worth `points`; `what` is its line in the report.
-        The report lists the checks in the order they are declared."""
+    def check(self, name, points, what, hint):
+        """Decorator: the function is check `name`, worth `points`; `what` is its line in the report,
+        `hint` the idea behind it, shown when its points are lost. The report lists the checks in the
+        order they are declared."""
         def register(function):
-            self.checks.append(Check(name, points, what, function))
+            self.checks.append(Check(name, points, what, function, hint))
             return function
         return register
 

@@ -14,12 +14,17 @@ from toolkit.opencl.device_scene import DeviceScene
 class Context:
     """What a check works with: the device queue and the folder holding the submission."""
 
-    def __init__(self, folder, assignment, device=None, shown="compact.h"):
+    def __init__(self, folder, assignment, device=None, shown="compact.h", checks=None):
         self.folder = folder
         self.assignment = assignment
         self.shown = shown   # the name of the student's file, for messages
+        self.checks = None if checks is None else set(checks)   # what this worker runs (None: all)
         self.queue = get_queue(device)
         self._scenes = {}
+
+    def runs(self, *names):
+        """Whether any of the checks `names` runs here: the build step builds only what they need."""
+        return self.checks is None or bool(self.checks.intersection(names))
 
     def scene(self, name="cornell_box"):
         if name not in self._scenes:
@@ -27,10 +32,11 @@ class Context:
             self._scenes[name] = (scene, DeviceScene(self.queue, scene))
         return self._scenes[name]
 
-    def technique(self, cls, student=True, scene="cornell_box", **attributes):
-        """An instance of technique `cls` built from the submission (or the toolkit's own files)."""
+    def technique(self, cls, student=True, scene="cornell_box", folder=None, **attributes):
+        """An instance of technique `cls` built from the submission (or the toolkit's own files); from
+        `folder` (a variant of the submission, beside it) if given."""
         if student:
-            attributes["source_dir"] = self.sources()
+            attributes["source_dir"] = self.sources(folder)
         variant = type(cls.__name__, (cls,), attributes)
         return variant(self.queue, self.scene(scene)[1])
 

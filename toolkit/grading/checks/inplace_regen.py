@@ -49,7 +49,8 @@ def _pools():
             ("1000 slots, the budget runs out: ", alive, 100, 100 + free // 2)]
 
 
-@ASSIGNMENT.check("ids", 30, "free slots start the next samples of the budget, once each; live slots are left alone")
+@ASSIGNMENT.check("ids", 30, "free slots start the next samples of the budget, once each; live slots are left alone",
+                  "a shared atomic counter hands out sample ids, one per free slot; an id at or past the budget starts nothing")
 def _check_ids(c):
     for what, alive, first, budget in _pools():
         ids, flags, _, _ = _regenerate(c, alive, first, budget)
@@ -72,7 +73,9 @@ def _check_ids(c):
             raise CheckFailed(f"{what}slot {wrong[0]}: alive is {flags[wrong[0]]} after the step")
 
 
-@ASSIGNMENT.check("any_alive", 15, "any_alive: set when a slot holds a live path, left 0 when all are done")
+@ASSIGNMENT.check("any_alive", 15, "any_alive: set when a slot holds a live path, left 0 when all are done",
+                  "any_alive tells the host whether another step is needed: a slot counts if it holds a live path after this "
+                  "step, whether that path is old or just started")
 def _check_any_alive(c):
     n = 1000
     one = np.zeros(n, np.int32)
@@ -86,7 +89,8 @@ def _check_any_alive(c):
             raise CheckFailed(f"{what}: any_alive is {got}, expected {expected}")
 
 
-@ASSIGNMENT.check("regenerated", 10, "regenerated[] marks the lanes that started a sample (SIMD counters)")
+@ASSIGNMENT.check("regenerated", 10, "regenerated[] marks the lanes that started a sample (SIMD counters)",
+                  "the SIMD counters need to know which lanes did the work of starting a sample in this step, and only those")
 def _check_regenerated(c):
     for what, alive, first, budget in _pools():
         free = np.flatnonzero(alive == 0)
@@ -98,7 +102,9 @@ def _check_regenerated(c):
                               f"{int(expected.sum())} started a sample")
 
 
-@ASSIGNMENT.check("image", 45, "pt_inplace_regen with your kernel: the toolkit's image, sample for sample")
+@ASSIGNMENT.check("image", 45, "pt_inplace_regen with your kernel: the toolkit's image, sample for sample",
+                  "each sample id must be started exactly once, with the pass's seed and sample base, so that the image is "
+                  "the toolkit's sample for sample")
 def _check_regen_image(c):
     films = [c.technique(PtInplaceRegen, student, stream_size=256).render(15, 9, 8, seed=2)   # 1080 samples,
              for student in (True, False)]                                                  # 256 slots

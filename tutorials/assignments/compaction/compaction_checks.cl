@@ -1,17 +1,8 @@
 /* Grader kernels of assignment 1 (toolkit/grading/checks/compaction.py): the toolkit's compaction kernels
  * (cl/compact.cl: scan_blocks, compact_immediate) built with the student's compact.h, and one
  * kernel that compacts twice in a row, as pt_compact_regen_extend does (paths, then shadow rays).
- * Every atomic_add / atomic_inc on a counter also counts itself in the int after the counter,
- * so the grader can tell one atomic per work-group from one per survivor. */
-__attribute__((overloadable)) static inline int grade_atomic_add(volatile __global int* p, int v) { atomic_inc(p + 1); return atomic_add(p, v); }
-__attribute__((overloadable)) static inline int grade_atomic_inc(volatile __global int* p) { atomic_inc(p + 1); return atomic_inc(p); }
-__attribute__((overloadable)) static inline int grade_atomic_add(volatile __local int* p, int v) { return atomic_add(p, v); }
-__attribute__((overloadable)) static inline int grade_atomic_inc(volatile __local int* p) { return atomic_inc(p); }
-#undef atomic_add
-#undef atomic_inc
-#define atomic_add grade_atomic_add
-#define atomic_inc grade_atomic_inc
-
+ * The atomics are counted in an instrumented build of the student's file (toolkit/grading/
+ * instrument.py): every atomic on a counter also counts itself in the int after the counter. */
 #include "compact.cl"
 
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
