@@ -4,6 +4,7 @@ The tutorials are executed during the build, in their fast mode, by myst-nb; the
 the suite's notebook test (tests/test_docs.py), so the suite executes them once, here.
 """
 import filecmp
+import json
 import os
 import shutil
 import sys
@@ -18,6 +19,14 @@ sys.path[:0] = [str(ROOT), str(DOCS / "_ext")]          # the checkout's toolkit
 os.environ.setdefault("TOOLKIT_FAST_NOTEBOOKS", "1")
 os.environ["PYTHONPATH"] = os.pathsep.join([str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p])
 os.environ.pop("MPLBACKEND", None)
+# A "python3" kernel that runs this interpreter, ahead of any kernelspec of the user's that
+# might run another one (JUPYTER_PATH comes first).
+KERNELS = DOCS / "_build" / "jupyter"
+(KERNELS / "kernels" / "python3").mkdir(parents=True, exist_ok=True)
+(KERNELS / "kernels" / "python3" / "kernel.json").write_text(json.dumps({
+    "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
+    "display_name": "Python 3 (the toolkit's docs)", "language": "python"}))
+os.environ["JUPYTER_PATH"] = os.pathsep.join([str(KERNELS)] + [p for p in [os.environ.get("JUPYTER_PATH")] if p])
 
 
 def copy_into_docs(source, pattern):

@@ -28,6 +28,9 @@ class DroppedSamplesWarning(UserWarning):
 
 @dataclass
 class RenderResult:
+    """What `render` returns: the image (the mean), its per-pixel standard error, the figures of
+    the run (`stats`: seconds, samples/s, SIMD efficiency, device, ...), the SIMD figures of
+    each iteration, and for BDPT the per-strategy images when they were asked for."""
     image: np.ndarray      # (H, W, 3) float64 mean radiance
     stderr: np.ndarray     # (H, W, 3) per-pixel standard error of the mean
     stats: dict = field(default_factory=dict)

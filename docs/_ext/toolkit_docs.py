@@ -22,6 +22,13 @@ HELP_WIDTH = "96"   # columns of the help text: argparse reads COLUMNS; fixed, s
 NOT_OPTIONS = {"self", "queue", "device_scene", "args", "kwargs", "tech"}
 
 
+def help_block(text):
+    """A literal block shown as plain text (not guessed to be Python and coloured)."""
+    block = nodes.literal_block(text=text)
+    block["language"] = "text"
+    return block
+
+
 def subcommands(parser):
     """(name, subparser) for each command of `python -m toolkit`, in the registry's order."""
     actions = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
@@ -35,11 +42,11 @@ class CliHelp(Directive):
         from toolkit.cli import build_parser
         os.environ["COLUMNS"] = HELP_WIDTH
         parser = build_parser()
-        result = [nodes.literal_block(text=parser.format_help())]
+        result = [help_block(parser.format_help())]
         for name, sub in subcommands(parser):
             section = nodes.section(ids=[f"command-{name}"], names=[f"command-{name}"])
             section += nodes.title(text=f"python -m toolkit {name}")
-            section += nodes.literal_block(text=sub.format_help())
+            section += help_block(sub.format_help())
             result.append(section)
         return result
 
