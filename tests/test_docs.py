@@ -199,7 +199,8 @@ def test_pages_in_a_browser(served):
     assert dom.count("<img") >= 2, "tutorial 2 shows no figures in the browser"
     errors = console_errors(log)
     SCREENSHOT.unlink(missing_ok=True)
-    _, log = browse(f"--screenshot={SCREENSHOT}", "--window-size=1280,2400", tutorial + "#iteration-by-iteration")
+    # Tall enough to reach section 2's efficiency plot (a browser's screenshot ignores #anchors).
+    _, log = browse(f"--screenshot={SCREENSHOT}", "--hide-scrollbars", "--window-size=1280,7000", tutorial)
     assert SCREENSHOT.is_file() and SCREENSHOT.stat().st_size > 10_000, "no screenshot"
     errors += console_errors(log)
     dom, log = browse("--dump-dom", f"{served}/techniques/pt_compact_regen.html")
