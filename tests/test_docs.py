@@ -152,10 +152,17 @@ def page_text(path):
 
 
 def test_technique_pages_show_their_real_files(site):
-    """Each technique's page shows every line of its kernel and its host module, as they are now."""
+    """Each technique's page shows every line of its kernel and its host module, as they are now,
+    and the options that toolkit.render accepts for it."""
+    from toolkit.api import technique_options
     from toolkit.techniques import TECHNIQUES
     for name in TECHNIQUES:
-        text = page_text(site / "techniques" / f"{name}.html")
+        page = site / "techniques" / f"{name}.html"
+        table = re.search(r"<table.*?</table>", page.read_text(encoding="utf-8"), re.S).group(0)
+        first_cells = re.findall(r"<tr[^>]*>\s*<td[^>]*>(.*?)</td>", table, re.S)
+        options = [re.sub(r"<[^>]+>", "", cell).strip() for cell in first_cells]
+        assert options == list(technique_options(TECHNIQUES[name])), f"{page.name}: options table {options}"
+        text = page_text(page)
         for source in (ROOT / "cl" / f"{name}.cl", ROOT / "toolkit" / "techniques" / f"{name}.py"):
             absent = [line for line in source.read_text(encoding="utf-8").splitlines()
                       if line.strip() and line.strip() not in text]

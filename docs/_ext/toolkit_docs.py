@@ -9,7 +9,6 @@ It also points the two links of the tutorials that leave the tutorials folder (t
 and scenes/FORMAT.md, which Jupyter opens as files) at the site's pages.
 """
 import argparse
-import inspect
 import os
 
 from docutils import nodes
@@ -19,7 +18,6 @@ from docutils.statemachine import StringList
 # Links a notebook makes out of tutorials/, as Jupyter sees them, and the page the site has instead.
 OUTSIDE_LINKS = {"](../README.md)": "](../cli.md)", "](../scenes/FORMAT.md)": "](../scene_format.md)"}
 HELP_WIDTH = "96"   # columns of the help text: argparse reads COLUMNS; fixed, so the page is the same everywhere
-NOT_OPTIONS = {"self", "queue", "device_scene", "args", "kwargs", "tech"}
 
 
 def help_block(text):
@@ -51,29 +49,17 @@ class CliHelp(Directive):
         return result
 
 
-def technique_options(cls):
-    """(option, default, class that takes it) over the technique's constructors, most specific first."""
-    seen, rows = set(), []
-    for klass in cls.__mro__:
-        if "__init__" not in vars(klass):
-            continue
-        for param in inspect.signature(vars(klass)["__init__"]).parameters.values():
-            if param.name in NOT_OPTIONS or param.name in seen or param.default is inspect.Parameter.empty:
-                continue
-            seen.add(param.name)
-            rows.append((param.name, repr(param.default), klass.__name__))
-    return rows
-
-
 class TechniqueOptions(Directive):
-    """A table of the options `toolkit.render(..., options={...})` passes to the technique."""
+    """A table of the options `toolkit.render(..., options={...})` passes to the technique: the
+    same list that render checks options against (toolkit.api.technique_options)."""
     required_arguments = 1
 
     def run(self):
+        from toolkit.api import technique_options
         from toolkit.techniques import TECHNIQUES
-        cls = TECHNIQUES[self.arguments[0]]
+        options = technique_options(TECHNIQUES[self.arguments[0]])
         lines = ["| option | default | taken by |", "| --- | --- | --- |"]
-        lines += [f"| `{name}` | `{default}` | `{owner}` |" for name, default, owner in technique_options(cls)]
+        lines += [f"| `{name}` | `{default!r}` | `{owner}` |" for name, (default, owner) in options.items()]
         container = nodes.container()
         self.state.nested_parse(StringList(lines), self.content_offset, container)
         return container.children
