@@ -65,7 +65,7 @@ def test_render_json_summary_matches_the_written_images(tmp_path):
 
 
 def test_render_json_with_no_other_argument_uses_the_readme_defaults(tmp_path):
-    """The README's `python -m toolkit render --json`: bundled Cornell box, 256x256, 64 spp,
+    """The usage page's (docs/usage.md) `python -m toolkit render --json`: bundled Cornell box, 256x256, 64 spp,
     written under out/ of the working directory."""
     stats = summary(run_cli("render", "--json", cwd=tmp_path))
     assert stats["scene"] == "cornell_box"

@@ -1,4 +1,4 @@
-"""The toolkit's packages import in one direction (README, "Layout"): each package imports only
+"""The toolkit's packages import in one direction (docs/layout.md): each package imports only
 the packages below it, so a learner can read the floors from the ground up and no import circle
 can form between them. The rule is read from the source, every import statement in every file,
 including those inside functions."""

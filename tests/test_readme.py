@@ -1,12 +1,49 @@
-"""The README's layout table keeps up with the code: a learner finds every file there."""
+"""The README stays a short front page, and the layout page (docs/layout.md) keeps up with the
+code: a learner finds every file there."""
+import re
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parent.parent
+LAYOUT = ROOT / "docs" / "layout.md"
+QUICK_START = ["pip install . && python -m toolkit render", 'pip install ".[test]" && python -m pytest']
+DOCS_BUILD = ['pip install ".[docs]"', "python -m sphinx -W -b html docs docs/_build/html"]
+
+
+def readme():
+    return (ROOT / "README.md").read_text(encoding="utf-8")
+
+
+def code_block_after(text, heading):
+    """The command lines of the first ```bash block after `heading` (comments after # dropped)."""
+    part = text[text.index(heading):]
+    block = part[part.index("```bash\n") + 8:]
+    return [line.split("  #")[0].strip() for line in block[:block.index("```")].splitlines()]
+
+
+def test_readme_is_a_short_front_page():
+    lines = readme().splitlines()
+    assert len(lines) < 120, f"README.md has {len(lines)} lines; the details belong on the site (docs/)"
+
+
+def test_quick_start_is_the_two_commands():
+    assert code_block_after(readme(), "## Quick start") == QUICK_START
+
+
+def test_readme_names_the_docs_build_and_ci_runs_the_quick_start():
+    assert code_block_after(readme(), "## Documentation") == DOCS_BUILD
+    assert QUICK_START[1] in (ROOT / ".ci" / "run").read_text(encoding="utf-8")
+
+
+def test_readme_links_resolve():
+    targets = re.findall(r"\]\(([^)#]+)", readme())
+    assert len(targets) >= 8, targets
+    missing = [t for t in targets if not t.startswith("http") and not (ROOT / t).exists()]
+    assert not missing, f"README.md links to files that do not exist: {missing}"
 
 
 def layout_rows():
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
-    table = text[text.index("## Layout"):]
+    text = LAYOUT.read_text(encoding="utf-8") + "\n\n"
+    table = text[text.index("Each file, floor by floor"):]
     table = table[:table.index("\n\n", table.index("| path |"))]
     return [line for line in table.splitlines() if line.startswith("| `")]
 
@@ -29,14 +66,14 @@ def test_layout_table_names_every_file_under_toolkit_and_cl():
     missing = [p.relative_to(ROOT).as_posix() for p in files
                if not any(row_folder(row) == p.parent.relative_to(ROOT).as_posix() and f"`{p.name}`" in row
                           or f"`{p.relative_to(ROOT).as_posix()}`" in row for row in rows)]
-    assert not missing, f"README's layout table does not name: {missing}"
+    assert not missing, f"the layout table (docs/layout.md) does not name: {missing}"
 
 
 def test_floor_table_names_every_package_with_the_import_rule():
     """The floors table lists every package of toolkit/ and says what it may import, as
     tests/test_import_rule.py enforces it."""
     import test_import_rule as rule
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    text = LAYOUT.read_text(encoding="utf-8")
     table = text[text.index("| floor | package |"):]
     table = table[:table.index("\n\n")]
     named = {line.split("|")[2].strip().strip("`").removeprefix("toolkit/").rstrip("/").removesuffix(".py")
@@ -45,9 +82,8 @@ def test_floor_table_names_every_package_with_the_import_rule():
 
 
 def test_where_to_start_reading_names_files_that_exist():
-    text = (ROOT / "README.md").read_text(encoding="utf-8")
+    text = readme()
     part = text[text.index("## Where to start reading"):text.index("## Quick start")]
-    import re
     paths = re.findall(r"`((?:cl|toolkit|tutorials)/[\w/.]+)`", part)
     assert len(paths) > 15
     missing = [p for p in paths if not (ROOT / p).exists()]

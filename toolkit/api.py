@@ -28,6 +28,9 @@ class DroppedSamplesWarning(UserWarning):
 
 @dataclass
 class RenderResult:
+    """What `render` returns: the image (the mean), its per-pixel standard error, the figures of
+    the run (`stats`: seconds, samples/s, SIMD efficiency, device, ...), the SIMD figures of
+    each iteration, and for BDPT the per-strategy images when they were asked for."""
     image: np.ndarray      # (H, W, 3) float64 mean radiance
     stderr: np.ndarray     # (H, W, 3) per-pixel standard error of the mean
     stats: dict = field(default_factory=dict)
@@ -49,14 +52,26 @@ RENDER_ARGUMENTS = {"warp_width", "count_simd", "extra_defines", "local_size", "
                     "strategy_max_edges"}   # the last: render(..., strategy_images=K)
 
 
+def technique_options(cls):
+    """The options `render(..., options={...})` passes to technique class `cls`: {name: (default,
+    the class whose constructor takes it)}, the most specific constructor first. The keyword
+    parameters of its constructors, less render's own arguments (RENDER_ARGUMENTS)."""
+    found = {}
+    for c in cls.__mro__:
+        if "__init__" not in vars(c):
+            continue
+        for name, p in inspect.signature(c.__init__).parameters.items():
+            if name not in RENDER_ARGUMENTS and name not in found and (
+                    p.kind == p.KEYWORD_ONLY or (p.kind == p.POSITIONAL_OR_KEYWORD and p.default is not p.empty)):
+                found[name] = (p.default, c.__name__)
+    return found
+
+
 def _options(cls, options):
     """Technique options must be keyword parameters of the technique's constructors."""
     if not isinstance(options, dict):
         raise InputError(f"options must be a dict, got {type(options).__name__}")
-    known = {name for c in cls.__mro__ if "__init__" in vars(c)
-             for name, p in inspect.signature(c.__init__).parameters.items()
-             if p.kind == p.KEYWORD_ONLY or (p.kind == p.POSITIONAL_OR_KEYWORD and p.default is not p.empty)}
-    known -= RENDER_ARGUMENTS
+    known = technique_options(cls)
     for key in options:
         if key not in known:
             raise InputError(f"unknown option {key!r} for {cls.name} (known: {', '.join(sorted(known)) or 'none'})")

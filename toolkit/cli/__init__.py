@@ -1,4 +1,4 @@
-"""Command line: `python -m toolkit {render,devices,...}`. See README.md for examples."""
+"""Command line: `python -m toolkit {render,devices,...}`. Examples: docs/usage.md."""
 import argparse
 import sys
 import warnings
@@ -19,6 +19,8 @@ COMMANDS = (render, devices, crosscheck, compare, bench, gpucheck, study, grade)
 
 
 def build_parser():
+    """The parser of `python -m toolkit`: the global options and one subcommand per module of
+    COMMANDS (the documentation's command-line page is generated from it)."""
     parser = argparse.ArgumentParser(prog="python -m toolkit", description=__doc__)
     parser.add_argument("--device", help=DEVICE_HELP)
     parser.add_argument("--verbose", action="store_true", help="print every kernel build log in full")

@@ -33,7 +33,7 @@ deviation of ~0.7, not 1: tests/test_study.py). The spread of bias2_j over the p
 exact without bias but hides a bias that only a few pixels have (a clamped light). BDPT's
 light-tracing splats and mlt's chains tie pixels together (a light path lands on several), so
 there the errors are the jackknife of the whole-image figures over the repetitions
-(`repetitions`), and bias2 / se follows Student's t with R - 1 degrees of freedom (`bias2_dof`).
+(`repetitions`), and bias2 / se follows Student's t with R - 1 degrees of freedom (`bias2_dof`)::
 
     time           = the fastest repetition's wall time (timeit's rule: a slower repetition
                      measures whatever else the machine was doing, not the technique; on a busy

@@ -22,6 +22,8 @@ def equal_time(scene, techniques, seconds, resolution=(32, 32), seed=0, device=N
 
 
 def format_equal_time(report, seconds):
+    """The table of `bench --equal-time`: each technique's RMSE after about `seconds` of rendering,
+    over the whole image and over its hardest pixels."""
     lines = [f"equal time (~{seconds:g} s each): RMSE against the reference, over the whole image and over "
              f"the 10% pixels hardest for a path tracer (largest relative error in the reference: caustics)"]
     for name, row in report.items():

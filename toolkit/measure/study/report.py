@@ -57,6 +57,8 @@ def run_report(scene, run, renders, plan, calibration, budgets, repeats, seed, t
 
 
 def write_report(report, path):
+    """Write the study's report (every figure) as JSON to `path`, through a temporary file renamed
+    over it; returns the path."""
     text = json.dumps(report, indent=1, default=_json_default)
     return write_atomically(path, lambda tmp: Path(tmp).write_text(text, encoding="utf-8"))
 
@@ -78,6 +80,8 @@ def _pm(value, se, fmt):
 
 
 def format_study(report):
+    """The study's report as the table `python -m toolkit study` prints: per technique (or knob
+    value) and budget, the time, bias², variance, efficiency, slope and time to the target."""
     unit = "s" if report["budget_unit"] == "seconds" else "spp"
     lines = [f"study: {report['scene']}, {report['repeats']} repetitions per budget on {report['device']}; "
              + ("time budgets turned into sample counts by a calibration (the plan: spp column)"
