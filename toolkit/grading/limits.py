@@ -60,7 +60,6 @@ def worker_environment(folder, python_path):
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(python_path), env.get("PYTHONPATH")) if p)
     env["TMPDIR"] = str(folder)
     env["OCLGRIND_DATA_RACES"] = env.get("OCLGRIND_DATA_RACES", "1")   # the compaction `races` check
-    env["PYOPENCL_CACHE_FAILURE_FATAL"] = env.get("PYOPENCL_CACHE_FAILURE_FATAL", "")  # read on a cache failure
     return env
 
 
