@@ -58,7 +58,27 @@ def test_peer_mitsuba_without_mitsuba_says_how_to_install(tmp_path):
 
 def test_embree_figures_are_measured_on_the_same_rays(cornell_box, queue):
     report = peers.embree_rays(cornell_box, n_random=4096, repeats=1, queue=queue)
-    assert report["rays"] == {"random": 4096, "camera": cornell_box.camera.width * cornell_box.camera.height}
+    assert report["rays"] == {"random": 4096, "camera": cornell_box.camera.width * cornell_box.camera.height,
+                              "surface": 4096}
     for row in report["rays_per_second"].values():
         assert set(row) == {"toolkit binary", "toolkit wide", "embreex"} and min(row.values()) > 0
     assert "wide / embree" in peers.format_embree(report)
+
+
+def test_surface_rays_start_off_their_surface_and_hit_what_embree_hits(cornell_spheres, queue):
+    """The rays `bench --peer embree` starts on surfaces: each origin lies within the kernels' ray
+    offset of a triangle's plane, on its direction's side, and our traversal finds the triangle
+    that Embree finds (disagreements only where the cross-check excuses them: edges, ties)."""
+    from toolkit.opencl.device_scene import DeviceScene
+    from toolkit.opencl.raycast import DeviceRaycaster
+    from toolkit.peers.embree import EmbreeIntersector, surface_rays
+    from toolkit.verify.crosscheck import _closest_figures
+    ds = DeviceScene(queue, cornell_spheres, bvh="wide")
+    origins, dirs = surface_rays(ds, 20_000, np.random.default_rng(3))
+    assert np.allclose(np.linalg.norm(dirs, axis=1), 1.0, atol=1e-6)
+    embree = EmbreeIntersector(cornell_spheres, center=ds.center)
+    dev, emb = DeviceRaycaster(queue, ds).closest(origins, dirs), embree.closest(origins, dirs)
+    assert (emb[0][emb[1] >= 0] > 0).all()                  # nothing is hit at the origin itself
+    figures, _, unexplained = _closest_figures(origins, dirs, dev, emb, embree.triangles)
+    assert figures["hits_device"] > 0.5 * len(origins)        # inside the box most rays hit something
+    assert not unexplained.any(), figures

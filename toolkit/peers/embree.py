@@ -110,3 +110,24 @@ def random_rays(device_scene, n, rng, outside_fraction=0.5, outside_scale=3.0):
     d = rng.standard_normal((n, 3))
     d /= np.linalg.norm(d, axis=1, keepdims=True)
     return origins.astype(np.float32), d.astype(np.float32)
+
+
+def surface_rays(device_scene, n, rng):
+    """n rays that start on the scene's surfaces, as a path tracer's bounce and shadow rays do:
+    origins at uniform points of uniformly chosen triangles (so, on cornell_spheres, mostly on the
+    dense sphere meshes), directions uniform on the sphere, and each origin moved off its surface
+    to the side of its direction by the kernels' own offset (cl/scene.h: ray_offset). Rebased
+    float32 coordinates, as random_rays."""
+    scene = device_scene.scene
+    corners = (scene.vertices - device_scene.center)[scene.triangles[rng.integers(len(scene.triangles), size=n)]]
+    a, b = rng.random((2, n, 1))
+    flip = (a + b) > 1.0                                      # fold the square onto the triangle
+    a, b = np.where(flip, 1.0 - a, a), np.where(flip, 1.0 - b, b)
+    points = corners[:, 0] + a * (corners[:, 1] - corners[:, 0]) + b * (corners[:, 2] - corners[:, 0])
+    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
+    d = rng.standard_normal((n, 3))
+    d /= np.linalg.norm(d, axis=1, keepdims=True)
+    offset = float(device_scene.epsilon) + np.abs(points).max(1, keepdims=True) * 64.0 * np.finfo(np.float32).eps
+    side = np.where((normals * d).sum(1, keepdims=True) >= 0.0, 1.0, -1.0)
+    return (points + side * offset * normals).astype(np.float32), d.astype(np.float32)

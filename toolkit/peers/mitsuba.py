@@ -27,7 +27,7 @@ from toolkit.measure.reference import reference_at, rmse
 from toolkit.opencl.device import get_queue
 from toolkit.opencl.device_scene import DeviceScene
 from toolkit.opencl.raycast import DeviceRaycaster
-from toolkit.peers.embree import EmbreeIntersector, camera_rays, random_rays
+from toolkit.peers.embree import EmbreeIntersector, camera_rays, random_rays, surface_rays
 from toolkit.techniques import family
 
 PEERS = ("embree", "mitsuba")
@@ -45,7 +45,8 @@ class PeerMissing(RuntimeError):
 
 def embree_rays(scene, n_random=262_144, repeats=5, seed=0, queue=None, bvhs=("binary", "wide")):
     """Closest-hit rays/s of our traversal (each BVH in `bvhs`) and of Embree on the same rays:
-    {"random": {name: rays/s}, "camera": {...}}, medians of `repeats` interleaved runs."""
+    {"random": {name: rays/s}, "camera": {...}, "surface": {...}}: rays from
+    random points in and around the box, from the camera, and from the surfaces (embree.py), medians of `repeats` interleaved runs."""
     width, height = camera_size(scene.camera.width, scene.camera.height)   # render's memory estimate, first
     queue = queue or get_queue()
     casters = {}
@@ -55,7 +56,8 @@ def embree_rays(scene, n_random=262_144, repeats=5, seed=0, queue=None, bvhs=("b
     embree = EmbreeIntersector(scene, center=ds.center)
     casters["embreex"] = embree.closest
     rays = {"random": random_rays(ds, n_random, np.random.default_rng(seed)),
-            "camera": camera_rays(ds, width, height)}
+            "camera": camera_rays(ds, width, height),
+            "surface": surface_rays(ds, n_random, np.random.default_rng(seed + 1))}
     rates = {kind: {name: [] for name in casters} for kind in rays}
     for kind, (o, d) in rays.items():
         for cast in casters.values():      # warm-up (first launch compiles on PoCL)
