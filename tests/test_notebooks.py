@@ -36,6 +36,18 @@ def test_notebook_has_no_outputs(path):
                         "clear them before committing (Jupyter: Edit > Clear All Outputs)")
 
 
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_notebook_cells_hold_no_control_characters(path):
+    """A LaTeX command written in a Python string ("\\frac" as "\frac") turns into a control
+    character (form feed, bell, tab, ...) and the formula renders as garbage; newlines are fine."""
+    nb = json.loads(path.read_text(encoding="utf-8"))
+    found = []
+    for i, cell in enumerate(nb["cells"]):
+        source = "".join(cell["source"]) if isinstance(cell["source"], list) else cell["source"]
+        found += [(i, repr(ch)) for ch in sorted(set(source)) if ord(ch) < 32 and ch != "\n"]
+    assert not found, f"{path.name}: (cell, control character) {found}; write the backslash twice"
+
+
 @pytest.fixture
 def python3_kernel(tmp_path, monkeypatch):
     """A 'python3' kernelspec that runs this interpreter, so the notebook sees the same
