@@ -22,7 +22,7 @@ typedef struct {
  * magnitude of the point's coordinates (float32 spacing grows with distance from the origin). */
 HELPER float ray_offset(const SceneView* scene, float3 p) {
     float m = fmax(fabs(p.x), fmax(fabs(p.y), fabs(p.z)));
-    return scene->epsilon + m * 64.0f * FLT_EPSILON;
+    return scene->epsilon + m * RAY_OFFSET_ULPS * FLT_EPSILON;   /* RAY_OFFSET_ULPS: layout.h */
 }
 
 /* p moved off the surface with normal n to the side of direction w. */

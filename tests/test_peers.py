@@ -66,19 +66,25 @@ def test_embree_figures_are_measured_on_the_same_rays(cornell_box, queue):
 
 
 def test_surface_rays_start_off_their_surface_and_hit_what_embree_hits(cornell_spheres, queue):
-    """The rays `bench --peer embree` starts on surfaces: each origin lies within the kernels' ray
-    offset of a triangle's plane, on its direction's side, and our traversal finds the triangle
-    that Embree finds (disagreements only where the cross-check excuses them: edges, ties)."""
+    """The rays `bench --peer embree` starts on surfaces: each origin lies the kernels' ray offset
+    off its triangle, on its direction's side, so it never hits its own triangle again; and our
+    traversal finds the triangle that Embree finds (disagreements only where the cross-check
+    excuses them: edges, ties)."""
     from toolkit.opencl.device_scene import DeviceScene
     from toolkit.opencl.raycast import DeviceRaycaster
-    from toolkit.peers.embree import EmbreeIntersector, surface_rays
+    from toolkit.peers.embree import EmbreeIntersector, surface_points, surface_rays
     from toolkit.verify.crosscheck import _closest_figures
     ds = DeviceScene(queue, cornell_spheres, bvh="wide")
     origins, dirs = surface_rays(ds, 20_000, np.random.default_rng(3))
-    assert np.allclose(np.linalg.norm(dirs, axis=1), 1.0, atol=1e-6)
+    own, points, normals = surface_points(ds, 20_000, np.random.default_rng(3))   # the same draws
+    height = ((origins - points) * normals).sum(1)             # signed distance off the triangle's plane
+    side = np.sign((dirs * normals).sum(1))
+    # At least the scene's epsilon, at most epsilon plus the ulp term and float32 rounding of the
+    # origin (a few ulps of its coordinates, far below epsilon = 1e-5 of the scene's size).
+    assert (height * side >= 0.5 * ds.epsilon).all() and (np.abs(height) <= 2.0 * ds.epsilon).all()
     embree = EmbreeIntersector(cornell_spheres, center=ds.center)
     dev, emb = DeviceRaycaster(queue, ds).closest(origins, dirs), embree.closest(origins, dirs)
-    assert (emb[0][emb[1] >= 0] > 0).all()                  # nothing is hit at the origin itself
+    assert not (dev[1] == own).any() and not (emb[1] == own).any()   # a plane is not hit twice
     figures, _, unexplained = _closest_figures(origins, dirs, dev, emb, embree.triangles)
     assert figures["hits_device"] > 0.5 * len(origins)        # inside the box most rays hit something
     assert not unexplained.any(), figures

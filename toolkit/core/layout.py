@@ -276,6 +276,9 @@ BVH_STACK_SIZE = 64                         # entries of a traversal stack (cl/b
 BVH_WIDTH = 4                               # children of a wide-BVH node, triangles of a TriGroup (float4 lanes)
 BVH_KINDS = ("binary", "wide")              # --bvh: the traversal compiled in (BVH_WIDE for "wide")
 LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)   # Rec. 709 luminance of linear RGB
+# A ray leaving a surface starts the scene's epsilon plus this many float32 ulps of its largest
+# coordinate off it (cl/scene.h: ray_offset); the host's surface rays (peers/embree.py) do the same.
+RAY_OFFSET_ULPS = 64.0
 
 # The scene as kernel arguments, in order: SCENE_PARAMS (kernel parameters), SCENE_INIT (the
 # SceneView made of them) and DeviceScene.args() (the host's values) all come from this list.
@@ -311,6 +314,7 @@ def c_constants():
     lines.append(f"#define BVH_WIDTH {BVH_WIDTH}")
     lines.append("#ifdef BVH_WIDE\n#define BVH_WORD float4\n#else\n#define BVH_WORD BvhNode\n#endif")
     lines += [f"#define LUMINANCE_{c} {_c_literal(w)}" for c, w in zip("RGB", LUMINANCE_WEIGHTS)]
+    lines.append(f"#define RAY_OFFSET_ULPS {_c_literal(RAY_OFFSET_ULPS)}")
     lines.append("/* The scene as kernel parameters, and the SceneView (cl/scene.h) made of them. */")
     scene = list(zip(SCENE_ARGS, SCENE_PARAM_NAMES))
     lines.append("#define SCENE_PARAMS " + ", ".join(f"{t} {param}" for (_, t), param in scene))

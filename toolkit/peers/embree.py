@@ -7,6 +7,8 @@ and then rounded to float32) and the same float32 rays. Triangle indices are the
 """
 import numpy as np
 
+from toolkit.core.layout import RAY_OFFSET_ULPS
+
 NO_HIT = -1
 
 
@@ -95,6 +97,12 @@ def camera_rays(device_scene, width, height):
     return origins, d.astype(np.float32)
 
 
+def uniform_directions(n, rng):
+    """n unit vectors uniform on the sphere (normalised Gaussians), float64 (n, 3)."""
+    d = rng.standard_normal((n, 3))
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
 def random_rays(device_scene, n, rng, outside_fraction=0.5, outside_scale=3.0):
     """n rays in rebased coordinates: origins uniform in the scene's bounding box (and, for
     `outside_fraction` of them, in a box `outside_scale` times larger about the same centre),
@@ -107,27 +115,31 @@ def random_rays(device_scene, n, rng, outside_fraction=0.5, outside_scale=3.0):
     inside = lo + rng.random((n_in, 3)) * (hi - lo)
     outside = mid + (2.0 * rng.random((n_out, 3)) - 1.0) * half * outside_scale
     origins = np.concatenate([inside, outside])
-    d = rng.standard_normal((n, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    return origins.astype(np.float32), d.astype(np.float32)
+    return origins.astype(np.float32), uniform_directions(n, rng).astype(np.float32)
+
+
+def surface_points(device_scene, n, rng):
+    """n uniform points of uniformly chosen triangles (so, on cornell_spheres, mostly of the dense
+    sphere meshes), in rebased float64 coordinates: (triangle (n,), points (n, 3), unit normals (n, 3))."""
+    scene = device_scene.scene
+    triangle = rng.integers(len(scene.triangles), size=n)
+    corners = (scene.vertices - device_scene.center)[scene.triangles[triangle]]
+    a, b = rng.random((2, n, 1))
+    flip = (a + b) > 1.0                                      # fold the square onto the triangle
+    a, b = np.where(flip, 1.0 - a, a), np.where(flip, 1.0 - b, b)
+    edge1, edge2 = corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0]
+    normals = np.cross(edge1, edge2)
+    return triangle, corners[:, 0] + a * edge1 + b * edge2, normals / np.linalg.norm(normals, axis=1, keepdims=True)
 
 
 def surface_rays(device_scene, n, rng):
     """n rays that start on the scene's surfaces, as a path tracer's bounce and shadow rays do:
-    origins at uniform points of uniformly chosen triangles (so, on cornell_spheres, mostly on the
-    dense sphere meshes), directions uniform on the sphere, and each origin moved off its surface
-    to the side of its direction by the kernels' own offset (cl/scene.h: ray_offset). Rebased
-    float32 coordinates, as random_rays."""
-    scene = device_scene.scene
-    corners = (scene.vertices - device_scene.center)[scene.triangles[rng.integers(len(scene.triangles), size=n)]]
-    a, b = rng.random((2, n, 1))
-    flip = (a + b) > 1.0                                      # fold the square onto the triangle
-    a, b = np.where(flip, 1.0 - a, a), np.where(flip, 1.0 - b, b)
-    points = corners[:, 0] + a * (corners[:, 1] - corners[:, 0]) + b * (corners[:, 2] - corners[:, 0])
-    normals = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
-    normals /= np.linalg.norm(normals, axis=1, keepdims=True)
-    d = rng.standard_normal((n, 3))
-    d /= np.linalg.norm(d, axis=1, keepdims=True)
-    offset = float(device_scene.epsilon) + np.abs(points).max(1, keepdims=True) * 64.0 * np.finfo(np.float32).eps
+    origins from surface_points, directions uniform on the sphere, and each origin moved off its
+    surface to its direction's side by the kernels' own offset (cl/scene.h: ray_offset).
+    Rebased float32 (origins, dirs), as random_rays."""
+    _, points, normals = surface_points(device_scene, n, rng)
+    d = uniform_directions(n, rng)
+    offset = (float(device_scene.epsilon)
+              + np.abs(points).max(1, keepdims=True) * RAY_OFFSET_ULPS * np.finfo(np.float32).eps)
     side = np.where((normals * d).sum(1, keepdims=True) >= 0.0, 1.0, -1.0)
     return (points + side * offset * normals).astype(np.float32), d.astype(np.float32)

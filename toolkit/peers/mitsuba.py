@@ -45,8 +45,9 @@ class PeerMissing(RuntimeError):
 
 def embree_rays(scene, n_random=262_144, repeats=5, seed=0, queue=None, bvhs=("binary", "wide")):
     """Closest-hit rays/s of our traversal (each BVH in `bvhs`) and of Embree on the same rays:
-    {"random": {name: rays/s}, "camera": {...}, "surface": {...}}: rays from
-    random points in and around the box, from the camera, and from the surfaces (embree.py), medians of `repeats` interleaved runs."""
+    {"random": {name: rays/s}, "camera": {...}, "surface": {...}}, medians of `repeats` interleaved
+    runs. The rays (embree.py): n_random from random points in and around the box, one per pixel
+    from the camera, and n_random from the surfaces."""
     width, height = camera_size(scene.camera.width, scene.camera.height)   # render's memory estimate, first
     queue = queue or get_queue()
     casters = {}
