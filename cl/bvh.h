@@ -335,10 +335,19 @@ HELPER Hit trace_closest(const SceneView* scene, float3 o, float3 d, float tmin,
         if (stack_t[top] > hit.t * BOX_SLACK) continue;   /* entered beyond the closest hit so far */
         int ref = stack_ref[top];
         ++visited;
-        if (ref >= 0) {
+        /* Inner nodes, one after another: on to the nearest child hit straight away (it was hit
+         * before hit.t, so it needs no cull test), then a leaf. The "while-while" loop of Aila
+         * and Laine (2009): where work-items are SIMD lanes, lanes that are all on inner nodes
+         * step together instead of waiting for each other's leaf tests. */
+        while (ref >= 0) {
             __global const WideNode* n = wide_node(scene, ref);
+            int below = top;
             top = push_hit_children(stack_ref, stack_t, top, n->child, hit_boxes(n, o, inv_d, tmin, hit.t));
-        } else {
+            if (top == below) break;
+            ref = stack_ref[--top];
+            ++visited;
+        }
+        if (ref < 0) {
             __global const TriGroup* g = tri_group(scene, ref);
             float4 t, u, v;
             int4 mask = hit_triangles(g, o, &shear, tmin, next_up(hit.t), &t, &u, &v);
