@@ -102,3 +102,14 @@ def test_a_scene_of_one_leaf(queue, cornell_box):
     binary = DeviceRaycaster(queue, DeviceScene(queue, small, bvh="binary")).closest(o, d)
     for a, b in zip(binary, wide):
         assert np.array_equal(a, b)
+
+
+def test_a_tree_too_deep_for_the_stack_at_eight_children_gets_four(queue, cornell_spheres, monkeypatch):
+    """Eight children a level need more stack entries (cornell_spheres: 34 against 26 at four):
+    where the stack holds too few for the 8-wide tree, the device gets the 4-wide one."""
+    import toolkit.opencl.device_scene as device_scene
+    needs = {w: DeviceScene(queue, cornell_spheres, bvh="wide", wide_width=w).wide.stack_needed for w in WIDTHS}
+    assert needs[4] < needs[8]
+    monkeypatch.setattr(device_scene, "node_width", lambda context: 8)
+    monkeypatch.setattr(device_scene, "BVH_STACK_SIZE", needs[8] - 1)
+    assert DeviceScene(queue, cornell_spheres, bvh="wide").wide.node_width == 4

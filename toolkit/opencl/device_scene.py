@@ -70,6 +70,9 @@ class DeviceScene:
         self.wide = None
         if bvh == "wide":
             self.wide = collapse_wide(self.bvh, tv, wide_width or node_width(queue.context))
+            if self.wide.stack_needed > BVH_STACK_SIZE and wide_width is None and self.wide.node_width == 8:
+                # Eight children a level fill the stack faster: a tree too deep for it gets four.
+                self.wide = collapse_wide(self.bvh, tv, 4)
             if self.wide.stack_needed > BVH_STACK_SIZE:
                 raise ValueError(f"{scene.name}: the wide BVH needs {self.wide.stack_needed} stack entries, "
                                  f"more than the device stack ({BVH_STACK_SIZE})")
