@@ -2,11 +2,11 @@
  * compile time (toolkit/opencl/device_scene.py, `--bvh`):
  * - binary (default without BVH_WIDE): nodes in depth-first order, the left child follows its
  *   parent, `first` is the right; one box test per step, one triangle at a time.
- * - wide (BVH_WIDE): four children per node and four triangles per leaf, each tested with
- *   float4 operations that the OpenCL compiler turns into SSE/AVX instructions. This is SIMD
- *   inside one ray (Embree's single-ray kernels work this way); the talk's streams are SIMD
- *   across rays (one ray per work-item). Both give the same hits: the same float operations
- *   run lane by lane, only the order of visiting differs. */
+ * - wide (BVH_WIDE): eight (or four, NODE_WIDTH) children per node and four triangles per leaf,
+ *   each tested with float8 / float4 operations that the OpenCL compiler turns into SSE/AVX
+ *   instructions. This is SIMD inside one ray (Embree's single-ray kernels work this way); the
+ *   talk's streams are SIMD across rays (one ray per work-item). Both give the same hits: the
+ *   same float operations run lane by lane, only the order of visiting differs. */
 #ifndef BVH_H
 #define BVH_H
 
@@ -181,7 +181,21 @@ HELPER bool trace_any(const SceneView* scene, float3 o, float3 d, float tmin, fl
 
 /* The wide BVH lives in one buffer of 16-byte words (s->nodes): WideNode and TriGroup records
  * (toolkit/core/layout.py), found by their position. A child reference >= 0 is an inner node,
- * < 0 is ~position of a leaf's TriGroup, WIDE_EMPTY an unused lane. */
+ * < 0 is ~position of a leaf's TriGroup, WIDE_EMPTY an unused lane. A node has NODE_WIDTH
+ * children, held in vectors of that width; the host chooses it (toolkit/opencl/device_scene.py,
+ * node_width): 8 (float8, one AVX register) where work-items are threads, 4 where they are lanes. */
+#if NODE_WIDTH == 8
+typedef WideNode8 WideNode;
+typedef float8 floatN;
+typedef int8 intN;
+#elif NODE_WIDTH == 4
+typedef WideNode4 WideNode;
+typedef float4 floatN;
+typedef int4 intN;
+#else
+#error "the wide BVH needs NODE_WIDTH 4 or 8 (DeviceScene.features)"
+#endif
+
 HELPER __global const WideNode* wide_node(const SceneView* scene, int ref) {
     return (__global const WideNode*)(scene->nodes + ref);
 }
@@ -199,20 +213,20 @@ HELPER int lane_int(int4 v, int i) { return i == 0 ? v.s0 : (i == 1 ? v.s1 : (i 
  * functions, so each fmin in the traversal's hottest loop was a function call (perf: fmin and
  * fmax 8% of pt_naive). Same results: fmin's other operand where one is NaN (a slab's
  * 0 * inf); a vector ?: picks lanes like select. tests/test_wide_bvh.py holds the hits. */
-HELPER float4 min4(float4 a, float4 b) { return ((a < b) | (b != b)) ? a : b; }
-HELPER float4 max4(float4 a, float4 b) { return ((a > b) | (b != b)) ? a : b; }
+HELPER floatN minN(floatN a, floatN b) { return ((a < b) | (b != b)) ? a : b; }
+HELPER floatN maxN(floatN a, floatN b) { return ((a > b) | (b != b)) ? a : b; }
 HELPER bool any4(int4 m) { return (m.s0 | m.s1 | m.s2 | m.s3) < 0; }
 
-/* hit_box for the four children at once: entry distances, INFINITY where a child is missed
- * (or the lane is empty). The same operations as hit_box, lane by lane. */
-HELPER float4 hit_boxes(__global const WideNode* n, float3 o, float3 inv_d, float tmin, float tmax) {
-    float4 x0 = (n->lo_x - o.x) * inv_d.x, x1 = (n->hi_x - o.x) * inv_d.x;
-    float4 y0 = (n->lo_y - o.y) * inv_d.y, y1 = (n->hi_y - o.y) * inv_d.y;
-    float4 z0 = (n->lo_z - o.z) * inv_d.z, z1 = (n->hi_z - o.z) * inv_d.z;
-    float4 enter = max4((float4)(tmin), max4(min4(x0, x1), max4(min4(y0, y1), min4(z0, z1))));
-    float4 leave = min4((float4)(tmax), min4(max4(x0, x1), min4(max4(y0, y1), max4(z0, z1)))) * BOX_SLACK;
-    int4 hit = (enter <= leave) & (n->child != (int4)(WIDE_EMPTY));
-    return hit ? enter : (float4)(INFINITY);
+/* hit_box for all children at once: entry distances, INFINITY where a child is missed (or the
+ * lane is empty). The same operations as hit_box, lane by lane. */
+HELPER floatN hit_boxes(__global const WideNode* n, float3 o, float3 inv_d, float tmin, float tmax) {
+    floatN x0 = (n->lo_x - o.x) * inv_d.x, x1 = (n->hi_x - o.x) * inv_d.x;
+    floatN y0 = (n->lo_y - o.y) * inv_d.y, y1 = (n->hi_y - o.y) * inv_d.y;
+    floatN z0 = (n->lo_z - o.z) * inv_d.z, z1 = (n->hi_z - o.z) * inv_d.z;
+    floatN enter = maxN((floatN)(tmin), maxN(minN(x0, x1), maxN(minN(y0, y1), minN(z0, z1))));
+    floatN leave = minN((floatN)(tmax), minN(maxN(x0, x1), minN(maxN(y0, y1), maxN(z0, z1)))) * BOX_SLACK;
+    intN hit = (enter <= leave) & (n->child != (intN)(WIDE_EMPTY));
+    return hit ? enter : (floatN)(INFINITY);
 }
 
 /* hit_triangle for the four triangles of a group at once: the lanes with a hit in (tmin, tmax)
@@ -241,6 +255,10 @@ HELPER int4 hit_triangles(__global const TriGroup* g, float3 o, const RayShear* 
     return ~mixed & (det != zero) & (t > (float4)(tmin)) & (t < (float4)(tmax));
 }
 
+/* Push the children a node's box test hit onto the stack, nearest on top, so they are visited
+ * front to back (a close hit culls the boxes behind it); returns the new top. One way for each
+ * width, each the faster where that width is used. */
+#if NODE_WIDTH == 4
 /* One compare-and-swap of a sorting network: afterwards (ta, ra) is the nearer entry. */
 HELPER void order_pair(float* ta, int* ra, float* tb, int* rb) {
     bool swap = *tb < *ta;
@@ -249,17 +267,16 @@ HELPER void order_pair(float* ta, int* ra, float* tb, int* rb) {
     *tb = swap ? t : *tb;   *rb = swap ? r : *rb;
 }
 
-/* Push the children a node's box test hit onto the stack, nearest on top, so they are visited
- * front to back; returns the new top. Written without branches or loops that depend on the
- * ray: where work-items run as SIMD lanes (Intel's CPU runtime with lanes on), each store
- * whose address or condition differs between lanes becomes a masked scatter, a test and a
- * branch per lane, and an insertion sort with a data-dependent loop did that per shift
- * (the kernel's build remarks counted 15 scatters). Here a five-step sorting network orders the
- * four entry distances (misses are INFINITY, so they sort last), and all four entries are
- * stored unconditionally in [top, top + 4): the `hits` nearest ones reversed at the bottom,
- * nearest on top, the misses above them, where the next push overwrites them (the stack has
- * room for that: BVH_STACK_SLACK). */
-#define BVH_STACK_SLACK (BVH_WIDTH - 1)
+/* Four children, where work-items run as SIMD lanes: written without branches or loops that
+ * depend on the ray. With lanes (Intel's CPU runtime with lanes on), each store whose address
+ * or condition differs between lanes becomes a masked scatter, a test and a branch per lane,
+ * and an insertion sort with a data-dependent loop did that per shift (the kernel's build
+ * remarks counted 15 scatters). Here a five-step sorting network orders the four entry
+ * distances (misses are INFINITY, so they sort last), and all four entries are stored
+ * unconditionally in [top, top + 4): the `hits` nearest ones reversed at the bottom, nearest
+ * on top, the misses above them, where the next push overwrites them (the stack has room for
+ * that: BVH_STACK_SLACK). */
+#define BVH_STACK_SLACK (NODE_WIDTH - 1)
 HELPER int push_hit_children(int* stack_ref, float* stack_t, int top, int4 child, float4 enter) {
     float t0 = enter.s0, t1 = enter.s1, t2 = enter.s2, t3 = enter.s3;
     int r0 = child.s0, r1 = child.s1, r2 = child.s2, r3 = child.s3;
@@ -279,6 +296,30 @@ HELPER int push_hit_children(int* stack_ref, float* stack_t, int top, int4 child
     return top + hits;
 }
 
+#else
+/* Eight children, where each work-item is a thread: an insertion sort of the hit children only.
+ * Most nodes have one or two of their eight hit (surface rays on cornell_spheres: 1.5), so it
+ * shifts little, and a branch costs a thread little. The sorting network of the 4-wide push,
+ * grown to 19 compare-and-swaps and eight stores, made these rays 27% slower on PoCL. */
+#define BVH_STACK_SLACK 0
+HELPER int push_hit_children(int* stack_ref, float* stack_t, int top, int8 child, float8 enter) {
+    float t[NODE_WIDTH];
+    int ref[NODE_WIDTH];
+    vstore8(enter, 0, t);
+    vstore8(child, 0, ref);
+    int bottom = top;
+    for (int i = 0; i < NODE_WIDTH; ++i) {
+        if (t[i] == INFINITY) continue;
+        int j = top++;
+        for (; j > bottom && stack_t[j - 1] < t[i]; --j) {   /* the farther ones stay below */
+            stack_t[j] = stack_t[j - 1]; stack_ref[j] = stack_ref[j - 1];
+        }
+        stack_t[j] = t[i]; stack_ref[j] = ref[i];
+    }
+    return top;
+}
+#endif
+
 /* Closest hit in (tmin, tmax). `steps` counts visited nodes and leaves (traversal divergence counter). */
 HELPER Hit trace_closest(const SceneView* scene, float3 o, float3 d, float tmin, float tmax, int* steps) {
     Hit hit = {tmax, 0.0f, 0.0f, -1};
@@ -294,10 +335,19 @@ HELPER Hit trace_closest(const SceneView* scene, float3 o, float3 d, float tmin,
         if (stack_t[top] > hit.t * BOX_SLACK) continue;   /* entered beyond the closest hit so far */
         int ref = stack_ref[top];
         ++visited;
-        if (ref >= 0) {
+        /* Inner nodes, one after another: on to the nearest child hit straight away (it was hit
+         * before hit.t, so it needs no cull test), then a leaf. The "while-while" loop of Aila
+         * and Laine (2009): where work-items are SIMD lanes, lanes that are all on inner nodes
+         * step together instead of waiting for each other's leaf tests. */
+        while (ref >= 0) {
             __global const WideNode* n = wide_node(scene, ref);
+            int below = top;
             top = push_hit_children(stack_ref, stack_t, top, n->child, hit_boxes(n, o, inv_d, tmin, hit.t));
-        } else {
+            if (top == below) break;
+            ref = stack_ref[--top];
+            ++visited;
+        }
+        if (ref < 0) {
             __global const TriGroup* g = tri_group(scene, ref);
             float4 t, u, v;
             int4 mask = hit_triangles(g, o, &shear, tmin, next_up(hit.t), &t, &u, &v);

@@ -11,35 +11,40 @@ import numpy as np
 import pytest
 
 from toolkit import render
-from toolkit.core.bvh import GROUP_WORDS, NODE_WORDS
+from toolkit.core.bvh import GROUP_WORDS
 from toolkit.peers.embree import random_rays
 from toolkit.opencl.device_scene import DeviceScene
 from toolkit.peers.embree import camera_rays
-from toolkit.core.layout import TRI_GROUP, WIDE_NODE, WideChild
+from toolkit.core.layout import TRI_GROUP, WIDE_NODES, WideChild
 from toolkit.opencl.raycast import DeviceRaycaster
 
 SCENES = ["cornell_box", "cornell_spheres"]
+# Both node widths on whatever device runs the tests: each has its own push (cl/bvh.h), and a
+# device gets one of them (toolkit/opencl/device_scene.py node_width).
+WIDTHS = [4, 8]
 
 
 def _records(wide):
-    words = wide.words
-    nodes = words[: wide.inner_nodes * NODE_WORDS].reshape(-1).view(WIDE_NODE.dtype)
-    groups = words[wide.inner_nodes * NODE_WORDS:].reshape(-1).view(TRI_GROUP.dtype)
+    words, node_words = wide.words, wide.node_words
+    nodes = words[: wide.inner_nodes * node_words].reshape(-1).view(WIDE_NODES[wide.node_width].dtype)
+    groups = words[wide.inner_nodes * node_words:].reshape(-1).view(TRI_GROUP.dtype)
     return nodes, groups
 
 
+@pytest.mark.parametrize("width", WIDTHS)
 @pytest.mark.parametrize("name", SCENES)
-def test_collapse_keeps_every_triangle_once_and_the_root_box(queue, request, name):
+def test_collapse_keeps_every_triangle_once_and_the_root_box(queue, request, name, width):
     scene = request.getfixturevalue(name)
-    wide = DeviceScene(queue, scene, bvh="wide")
+    wide = DeviceScene(queue, scene, bvh="wide", wide_width=width)
+    assert wide.wide.node_width == width
     nodes, groups = _records(wide.wide)
     slots = groups["tri"][groups["tri"] >= 0]
     assert np.array_equal(np.sort(slots), np.arange(len(scene.triangles)))
     # Every leaf reference points at a group, every inner one at a node; each node is reached once.
     child = nodes["child"]
     inner, leaf = child[child >= 0], child[(child < 0) & (child != WideChild.EMPTY)]
-    assert np.array_equal(np.sort(inner), np.arange(1, len(nodes)) * NODE_WORDS)
-    assert np.array_equal(np.sort(~leaf - len(nodes) * NODE_WORDS), np.arange(len(groups)) * GROUP_WORDS)
+    assert np.array_equal(np.sort(inner), np.arange(1, len(nodes)) * wide.wide.node_words)
+    assert np.array_equal(np.sort(~leaf - len(nodes) * wide.wide.node_words), np.arange(len(groups)) * GROUP_WORDS)
     # Fewer than half as many nodes as the binary BVH's inner nodes: what cuts the traversal steps.
     assert len(nodes) <= 0.5 * max(wide.bvh.inner_nodes, 2)
     # The root's children together span the binary root's box.
@@ -55,12 +60,13 @@ def test_collapse_keeps_every_triangle_once_and_the_root_box(queue, request, nam
             assert np.array_equal(groups[f"v{v}{axis}"][lanes], tris[f"v{v}"][groups["tri"][lanes], k])
 
 
+@pytest.mark.parametrize("width", WIDTHS)
 @pytest.mark.parametrize("name", SCENES)
-def test_wide_and_binary_find_bit_identical_hits(queue, request, name):
+def test_wide_and_binary_find_bit_identical_hits(queue, request, name, width):
     scene = request.getfixturevalue(name)
     answers = {}
     for bvh in ("binary", "wide"):
-        ds = DeviceScene(queue, scene, bvh=bvh)
+        ds = DeviceScene(queue, scene, bvh=bvh, wide_width=width if bvh == "wide" else None)
         caster = DeviceRaycaster(queue, ds)
         o, d = random_rays(ds, 50_000, np.random.default_rng(1))
         co, cd = camera_rays(ds, 64, 64)
@@ -96,3 +102,14 @@ def test_a_scene_of_one_leaf(queue, cornell_box):
     binary = DeviceRaycaster(queue, DeviceScene(queue, small, bvh="binary")).closest(o, d)
     for a, b in zip(binary, wide):
         assert np.array_equal(a, b)
+
+
+def test_a_tree_too_deep_for_the_stack_at_eight_children_gets_four(queue, cornell_spheres, monkeypatch):
+    """Eight children a level need more stack entries (cornell_spheres: 34 against 26 at four):
+    where the stack holds too few for the 8-wide tree, the device gets the 4-wide one."""
+    import toolkit.opencl.device_scene as device_scene
+    needs = {w: DeviceScene(queue, cornell_spheres, bvh="wide", wide_width=w).wide.stack_needed for w in WIDTHS}
+    assert needs[4] < needs[8]
+    monkeypatch.setattr(device_scene, "node_width", lambda context: 8)
+    monkeypatch.setattr(device_scene, "BVH_STACK_SIZE", needs[8] - 1)
+    assert DeviceScene(queue, cornell_spheres, bvh="wide").wide.node_width == 4

@@ -96,8 +96,9 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     `resolution` (width, height) keeps the scene's camera and field of view. `technique` is a
     name from toolkit.techniques.TECHNIQUES, optionally with a variant ("pt_compact_regen/multipass");
     `options` are passed to the technique. Returns a RenderResult with the image, its
-    standard-error image and stats (timings, SIMD efficiency). `bvh` is "wide" (four children
-    per node, tested together with float4 operations: SIMD inside one ray) or "binary"; both
+    standard-error image and stats (timings, SIMD efficiency). `bvh` is "wide" (eight children
+    per node tested together with float8 operations, four with float4 where work-items run as SIMD
+    lanes: SIMD inside one ray) or "binary"; both
     give the same image (tests/test_wide_bvh.py). `local_size` is the work-group size the
     kernels are built and launched with, a power of two 32 .. 256; random numbers are keyed by
     sample, not by work-item, so the image does not depend on it (tests/test_strategies.py).

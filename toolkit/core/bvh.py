@@ -3,10 +3,11 @@
 Nodes are stored depth-first: an inner node's left child follows it, `first` holds the right
 child. Leaves hold at most `leaf_size` triangles, reordered so each leaf's are contiguous.
 
-`collapse_wide` turns the binary BVH into a 4-wide one (BVH_WIDTH): each wide node takes the
-binary node's two children and keeps opening its largest inner child (by surface area, the
-SAH's measure of how often a ray visits it) until it has four. Every binary leaf (at most four
-triangles) becomes one TriGroup, so both BVHs keep the same triangle order and leaves.
+`collapse_wide` turns the binary BVH into a wide one of 4 or 8 children per node (WIDE_NODES): each
+wide node takes the binary node's two children and keeps opening its largest inner child (by
+surface area, the SAH's measure of how often a ray visits it) until it has that many. Every
+binary leaf (at most four triangles, BVH_WIDTH) becomes one TriGroup, so both BVHs keep the
+same triangle order and leaves.
 """
 import sys
 import time
@@ -16,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 from tqdm.auto import tqdm
 
-from toolkit.core.layout import BVH_NODE, BVH_WIDTH, TRI_GROUP, WIDE_NODE, WideChild
+from toolkit.core.layout import BVH_NODE, BVH_WIDTH, TRI_GROUP, WIDE_NODES, WideChild
 
 # Builds of this many triangles or more show a progress bar (1M triangles take about a minute).
 PROGRESS_FROM = 100_000
@@ -128,37 +129,50 @@ class WideBvh:
     """The wide BVH as one buffer of 16-byte words: WideNode records (the root first), then
     TriGroup records. A child reference is a record's position in words, ~position for a leaf."""
     words: np.ndarray        # (n, 4) float32: the buffer the kernels get as `nodes`
+    node_width: int          # children per node: 4 or 8 (WIDE_NODES)
     inner_nodes: int
     leaf_groups: int
     max_depth: int           # wide nodes on the longest root-to-leaf path
     stack_needed: int        # most traversal-stack entries a ray can need (cl/bvh.h)
 
+    @property
+    def node_words(self):
+        return node_words(self.node_width)
 
-NODE_WORDS = WIDE_NODE.dtype.itemsize // 16
+
+def node_words(node_width):
+    """16-byte words of one node of that width."""
+    return WIDE_NODES[node_width].dtype.itemsize // 16
+
+
 GROUP_WORDS = TRI_GROUP.dtype.itemsize // 16
+# The kernels load an 8-wide node's float8 fields with aligned loads: in that BVH every record must
+# start on 32 bytes, so both sizes are an even number of words (the buffer is allocated aligned).
+assert GROUP_WORDS % 2 == 0 and node_words(8) % 2 == 0, "8-wide BVH records must be multiples of 32 bytes"
 
 
-def collapse_wide(bvh, leaf_vertices, width=BVH_WIDTH):
-    """The wide BVH of `bvh`. `leaf_vertices`: (M, 3, 3) float32 triangle vertices in leaf order
-    (the device's triangles), copied into the TriGroups bit for bit."""
+def collapse_wide(bvh, leaf_vertices, node_width, width=BVH_WIDTH):
+    """The wide BVH of `bvh`: nodes of up to `node_width` children (4 or 8), leaves of up to
+    `width` triangles. `leaf_vertices`: (M, 3, 3) float32 triangle vertices in leaf order (the
+    device's triangles), copied into the TriGroups bit for bit."""
     nodes = bvh.nodes
     is_leaf = nodes["count"] > 0
     if is_leaf.any() and nodes["count"].max() > width:
         raise ValueError(f"a TriGroup holds {width} triangles; the BVH has leaves of {nodes['count'].max()}")
     groups, group_of = _tri_groups(nodes, is_leaf, leaf_vertices, width)
-    kids_of, index_of, depth_of, stack_of = _wide_children(nodes, is_leaf, width)
-    wide = WIDE_NODE.zeros(len(kids_of))
+    kids_of, index_of, depth_of, stack_of = _wide_children(nodes, is_leaf, node_width)
+    wide = WIDE_NODES[node_width].zeros(len(kids_of))
     wide["child"] = int(WideChild.EMPTY)
-    group_base = len(kids_of) * NODE_WORDS
+    group_base = len(kids_of) * node_words(node_width)
     for w, kids in enumerate(kids_of):
         for lane, k in enumerate(kids):
             for axis, name in enumerate("xyz"):
                 wide[f"lo_{name}"][w, lane] = nodes["lo"][k, axis]
                 wide[f"hi_{name}"][w, lane] = nodes["hi"][k, axis]
             wide["child"][w, lane] = (~(group_base + int(group_of[k]) * GROUP_WORDS) if is_leaf[k]
-                                      else index_of[k] * NODE_WORDS)
+                                      else index_of[k] * node_words(node_width))
     words = np.concatenate([wide.view(np.float32).reshape(-1, 4), groups.view(np.float32).reshape(-1, 4)])
-    return WideBvh(np.ascontiguousarray(words), len(kids_of), len(groups), max(depth_of), max(stack_of))
+    return WideBvh(np.ascontiguousarray(words), node_width, len(kids_of), len(groups), max(depth_of), max(stack_of))
 
 
 def _tri_groups(nodes, is_leaf, leaf_vertices, width):

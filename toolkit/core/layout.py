@@ -25,15 +25,23 @@ BVH_NODE = Record("BvhNode", [
     ("pad", "int"),
 ], "A flattened BVH node (depth-first order), 48 bytes.")
 
-# The wide BVH (toolkit/core/bvh.py collapses the binary one): one work-item tests the four child
-# boxes of a node at once with float4 operations, so each box coordinate is a float4 holding it
-# for all four children (structure of arrays inside the node).
-WIDE_NODE = Record("WideNode", [
-    ("lo_x", "float4"), ("hi_x", "float4"),   # child boxes, one lane per child
-    ("lo_y", "float4"), ("hi_y", "float4"),
-    ("lo_z", "float4"), ("hi_z", "float4"),
-    ("child", "int4"),  # a child's reference (WideChild below): >= 0 an inner node, < 0 a leaf, or WIDE_EMPTY
-], "A node of the 4-wide BVH, 112 bytes. Records live in one buffer; a reference is the record's position in 16-byte words.")
+# The wide BVH (toolkit/core/bvh.py collapses the binary one): one work-item tests the child boxes
+# of a node at once with vector operations, so each box coordinate is a vector holding it for all
+# children (structure of arrays inside the node). Two widths (cl/bvh.h, NODE_WIDTH; which one a
+# device gets: toolkit/opencl/device_scene.py node_width): 8 children in float8s (one AVX register)
+# where work-items are threads, 4 in float4s where they are SIMD lanes.
+def _wide_node(width):
+    return Record(f"WideNode{width}", [
+        ("lo_x", f"float{width}"), ("hi_x", f"float{width}"),   # child boxes, one lane per child
+        ("lo_y", f"float{width}"), ("hi_y", f"float{width}"),
+        ("lo_z", f"float{width}"), ("hi_z", f"float{width}"),
+        # a child's reference (WideChild below): >= 0 an inner node, < 0 a leaf, or WIDE_EMPTY
+        ("child", f"int{width}"),
+    ], f"A node of the {width}-wide BVH, {28 * width} bytes. Records live in one buffer; a reference is the "
+       "record's position in 16-byte words.")
+
+
+WIDE_NODES = {4: _wide_node(4), 8: _wide_node(8)}   # by NODE_WIDTH
 
 TRI_GROUP = Record("TriGroup", [
     # The vertices of four triangles, one lane per triangle: v0 x, y, z, then v1, then v2. The
@@ -206,7 +214,7 @@ MLT_ITERATION = Record("MltIteration", [
     ("pad1", "int"),
 ], "What the mutate and accept kernels of one Metropolis iteration share.")
 
-RECORDS = [BVH_NODE, WIDE_NODE, TRI_GROUP, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY, BDPT_VERTEX,
+RECORDS = [BVH_NODE, *WIDE_NODES.values(), TRI_GROUP, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY, BDPT_VERTEX,
            SUBPATH, LANE_COUNTS, BDPT_SLOT, BDPT_PASS, BDPT_STEP, BDPT_REGENERATION, MLT_CHAIN, MLT_ITERATION]
 RECORDS += [PT_PASS, PT_REGENERATION]   # the path tracers' kernel arguments
 
@@ -273,7 +281,7 @@ NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERT
 # ---- single constants --------------------------------------------------------------------
 
 BVH_STACK_SIZE = 64                         # entries of a traversal stack (cl/bvh.h); deeper BVHs are refused
-BVH_WIDTH = 4                               # children of a wide-BVH node, triangles of a TriGroup (float4 lanes)
+BVH_WIDTH = 4                               # triangles of a TriGroup (float4 lanes)
 BVH_KINDS = ("binary", "wide")              # --bvh: the traversal compiled in (BVH_WIDE for "wide")
 LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)   # Rec. 709 luminance of linear RGB
 # A ray leaving a surface starts the scene's epsilon plus this many float32 ulps of its largest

@@ -12,7 +12,8 @@ from toolkit.core.c_formula import HELPER   # how every generated helper is decl
 # A float3 takes the room of a float4 in OpenCL C (size and alignment 16): numpy sees 4 floats.
 _C_TYPES = {"float": ("float32", 1, 4), "int": ("int32", 1, 4), "uint": ("uint32", 1, 4),
             "float3": ("float32", 4, 16),
-            "float4": ("float32", 4, 16), "int4": ("int32", 4, 16), "uint4": ("uint32", 4, 16)}
+            "float4": ("float32", 4, 16), "int4": ("int32", 4, 16), "uint4": ("uint32", 4, 16),
+            "float8": ("float32", 8, 32), "int8": ("int32", 8, 32)}
 
 
 def _align(offset, alignment):

@@ -8,7 +8,8 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.core.bvh import build_bvh, collapse_wide
-from toolkit.core.layout import BVH_KINDS, BVH_STACK_SIZE, CAMERA, LIGHT, LUMINANCE_WEIGHTS, MATERIAL, MATERIAL_TYPES, SCENE_ARGS, TRIANGLE
+from toolkit.core.layout import BVH_KINDS, BVH_STACK_SIZE, CAMERA, LIGHT, LUMINANCE_WEIGHTS, MATERIAL, MATERIAL_TYPES, SCENE_ARGS, TRIANGLE, WIDE_NODES
+from toolkit.opencl import lanes
 
 _bvh_cache = {}
 
@@ -20,16 +21,30 @@ def _bvh_for(scene, tri_vertices):
     return _bvh_cache[key]
 
 
+def node_width(context):
+    """Children per wide-BVH node for kernels built in `context`: 8 where each work-item is a
+    thread of its own, 4 where work-items run as SIMD lanes (a GPU, Intel's runtime with lanes on).
+    A thread tests a node's boxes with vector operations, and eight float32s fill one AVX
+    register, so an 8-wide node costs about what a 4-wide one does and the tree is shallower
+    (surface rays on cornell_spheres: 9.5 inner nodes per ray instead of 14.3, 0.85x Embree's
+    rays/s to 1.0x). Where work-items are lanes, each float8 operation is eight operations
+    across the lanes: there 8 children made pt_naive a quarter slower (cornell_spheres 64x64)."""
+    return 4 if lanes.of_context(context) in ("on", lanes.HARDWARE) else 8
+
+
 class DeviceScene:
     # Relative size of the ray offset: far above float32 rounding (~1e-7) of a hit point,
     # far below any gap between surfaces in the scenes (the Cornell light hangs 0.3% below the ceiling).
     EPSILON_RELATIVE = 1e-5
 
-    def __init__(self, queue, scene, bvh="wide"):
-        """`bvh`: "wide" (4 children per node, tested together with float4 operations) or
-        "binary" (two per node); the kernels are built for it (features())."""
+    def __init__(self, queue, scene, bvh="wide", wide_width=None):
+        """`bvh`: "wide" (4 or 8 children per node, tested together with vector operations;
+        `wide_width`, by default node_width(queue.context)) or "binary" (two per node); the
+        kernels are built for it (features())."""
         if bvh not in BVH_KINDS:
             raise ValueError(f"bvh must be one of {', '.join(BVH_KINDS)}, got {bvh!r}")
+        if wide_width not in (None, *WIDE_NODES):
+            raise ValueError(f"wide_width must be one of {', '.join(map(str, WIDE_NODES))}, got {wide_width!r}")
         self.bvh_kind = bvh
         self.scene = scene
         self.queue = queue
@@ -54,7 +69,10 @@ class DeviceScene:
         nodes = self.bvh.nodes
         self.wide = None
         if bvh == "wide":
-            self.wide = collapse_wide(self.bvh, tv)
+            self.wide = collapse_wide(self.bvh, tv, wide_width or node_width(queue.context))
+            if self.wide.stack_needed > BVH_STACK_SIZE and wide_width is None and self.wide.node_width == 8:
+                # Eight children a level fill the stack faster: a tree too deep for it gets four.
+                self.wide = collapse_wide(self.bvh, tv, 4)
             if self.wide.stack_needed > BVH_STACK_SIZE:
                 raise ValueError(f"{scene.name}: the wide BVH needs {self.wide.stack_needed} stack entries, "
                                  f"more than the device stack ({BVH_STACK_SIZE})")
@@ -96,14 +114,15 @@ class DeviceScene:
     def features(self, general=False):
         """The scene's compile-time defines (Scene.features; `general`: every code path) and the
         BVH traversal to build (the one this scene was uploaded for: a layout, not a feature)."""
-        return dict(self.scene.features(general), BVH_WIDE=self.bvh_kind == "wide")
+        return dict(self.scene.features(general), BVH_WIDE=self.bvh_kind == "wide",
+                    NODE_WIDTH=self.wide.node_width if self.wide is not None else None)
 
     def bvh_stats(self):
         """Sizes of the BVH the kernels traverse (for render stats and compare)."""
         stats = {"kind": self.bvh_kind, "binary_nodes": self.bvh.node_count, "leaves": self.bvh.leaf_nodes,
                  "binary_depth": self.bvh.max_depth, "build_seconds": self.bvh.build_seconds}
         if self.wide is not None:
-            stats.update(wide_nodes=self.wide.inner_nodes, wide_depth=self.wide.max_depth,
+            stats.update(wide_width=self.wide.node_width, wide_nodes=self.wide.inner_nodes, wide_depth=self.wide.max_depth,
                          wide_stack=self.wide.stack_needed)
         return stats
 
