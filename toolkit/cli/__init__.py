@@ -3,19 +3,20 @@ import argparse
 import sys
 import warnings
 
-from toolkit.cli import bench, compare, crosscheck, devices, gpucheck, grade, render, study
+from toolkit.cli import bench, compare, course, crosscheck, devices, gpucheck, grade, render, study
 from toolkit.cli.devices import devices_report
 from toolkit.cli.options import DEVICE_HELP
 from toolkit.core.scene import SceneError
 from toolkit.opencl import program
 from toolkit.opencl.device import NoOpenCLError
 from toolkit.opencl.program import KernelBuildError
+from toolkit.opencl.stubs import AssignmentNotWritten
 
 __all__ = ["build_parser", "main", "devices_report"]
 
 # The registry: each module adds its command's subparser and sets `run`, the function that runs
 # it (toolkit/cli/render.py is the pattern to copy). `--help` lists the commands in this order.
-COMMANDS = (render, devices, crosscheck, compare, bench, gpucheck, study, grade)
+COMMANDS = (render, devices, crosscheck, compare, bench, gpucheck, study, grade, course)
 
 
 def build_parser():
@@ -47,7 +48,7 @@ def main(argv=None):
         # A compiler log and the list of devices with their fixes keep their lines.
         print(f"error: {error}", file=sys.stderr)
         return 2
-    except (SceneError, ValueError, OSError) as error:
+    except (SceneError, ValueError, OSError, AssignmentNotWritten) as error:
         print("error: " + " ".join(str(error).split()), file=sys.stderr)   # bad input: one line
         return 2
     finally:

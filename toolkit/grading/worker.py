@@ -15,7 +15,12 @@ from toolkit.grading.assignment import SKIPPED, CheckFailed, CheckSkipped
 from toolkit.grading.channel import report_line
 from toolkit.grading.checks import ASSIGNMENTS
 from toolkit.grading.context import Context
+from toolkit.opencl import stubs
 from toolkit.opencl.program import KernelBuildError
+
+
+NEEDS_REFERENCE = ("it compares with the reference solution, which this edition of the course does not hold: "
+                   "your instructor grades it")
 
 
 class Reports:
@@ -37,6 +42,8 @@ def run_worker(args, reports):
     """Run the checks `args` names (see the module docstring), "build" among them."""
     name, folder, shown, device, *names = args
     a = ASSIGNMENTS[name]
+    # The other assignments' stubs build as they are; only this one's reference is refused (stubs.py)
+    stubs.refused = {a.replaces}
     c = Context(folder, a, device or None, shown, [n for n in names if n != "build"])   # fails (no device): the grader reports it as a crash
     for check_name in names:
         reports.say(start=check_name)
@@ -51,6 +58,10 @@ def run_worker(args, reports):
             reason = str(failed)
         except CheckSkipped as skipped:
             reason = SKIPPED + str(skipped)
+        except stubs.AssignmentNotWritten:
+            # The student edition holds the stub in place of the reference solution: a check that
+            # compares with it is the instructor's; the build step's other programs build in their checks.
+            reason = None if check_name == "build" else SKIPPED + NEEDS_REFERENCE
         except KernelBuildError as error:
             reason = _build_reason(str(error), a.replaces, shown)
         except Exception as error:   # a broken kernel can make the host code fail anywhere

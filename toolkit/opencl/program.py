@@ -19,7 +19,7 @@ import pyopencl as cl
 
 from toolkit.core.layout import c_header
 from toolkit.core.package_data import data_dir
-from toolkit.opencl import kernel_times, lanes
+from toolkit.opencl import kernel_times, lanes, stubs
 from toolkit.opencl.kernel_cache import build_with_cache
 
 # The default work-group size. A program is built for one local size (the LOCAL_SIZE define: the
@@ -42,6 +42,11 @@ def inlined_include(line):
 def cl_dir():
     """The folder that holds our OpenCL sources (installed package or source checkout)."""
     return data_dir("toolkit.cl", "cl", "common.h")
+
+
+def toolkit_source(name):
+    """The text of cl/<name>, the toolkit's own file (AssignmentNotWritten if it is still a stub)."""
+    return Sources().read(cl_dir() / name)
 
 
 def _pyopencl_include_dir():
@@ -91,7 +96,10 @@ class Sources:
         raise KernelBuildError(f"OpenCL source not found: {bases[0] / name}")
 
     def read(self, path):
-        return path.read_text()
+        text = path.read_text()
+        if path.parent == cl_dir():   # the toolkit's own file: still an assignment's stub? (stubs.py)
+            stubs.check_written(path.name, text)
+        return text
 
 
 def expand_includes(name, directory=None):

@@ -14,7 +14,6 @@ from toolkit.grading import instrument
 from toolkit.grading.assignment import Assignment, CheckFailed, CheckSkipped, same_image
 from toolkit.opencl import program
 from toolkit.opencl.device import list_devices
-from toolkit.opencl.program import cl_dir
 from toolkit.techniques import PtCompactRegen
 
 # The checks of one piece (Oclgrind's, then immediate_compact_slot on the toolkit's scan) run
@@ -73,7 +72,7 @@ _SCAN_DEFINITION = re.compile(r"\bcompact_group_scan(\s*\([^()]*\)\s*\{)")
 def _with_reference_scan(student):
     """The student's compact.h with their compact_group_scan renamed (kept, unused) and the
     toolkit's defined first, under its name. The student's lines keep their numbers (#line)."""
-    toolkit = (cl_dir() / "compact.h").read_text()
+    toolkit = program.toolkit_source("compact.h")
     start = toolkit.rindex("\n", 0, toolkit.index(" int compact_group_scan(")) + 1   # its line: static inline ...
     end = toolkit.index("\n}\n", start) + 3
     renamed, found = _SCAN_DEFINITION.subn(r"student_compact_group_scan\1", student, count=1)

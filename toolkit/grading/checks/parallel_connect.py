@@ -11,7 +11,6 @@ from toolkit.core.layout import BDPT_SLOT
 from toolkit.grading import instrument
 from toolkit.grading.assignment import Assignment, CheckFailed, same_image
 from toolkit.opencl import program
-from toolkit.opencl.program import cl_dir
 from toolkit.techniques import BdptNaiveConnect, BdptParallelConnect
 
 ASSIGNMENT = Assignment("parallel_connect", "Parallel connect indexing: scan and binary search",
@@ -64,7 +63,7 @@ def _with_reference_parts(student):
     toolkit's defined first, under their names: the `image` check then grades the rest of their
     file (the local index and the connection kernel), not again the bugs that `count` and
     `search` report. The student's lines keep their numbers (#line)."""
-    toolkit = (cl_dir() / _STUDENT).read_text()
+    toolkit = program.toolkit_source(_STUDENT)
     parts = []
     for name, start in _PARTS.items():
         student, found = re.subn(rf"\b{name}(\s*\([^()]*\)\s*\{{)", rf"student_{name}\1", student, count=1)

@@ -1,0 +1,173 @@
+"""`python -m toolkit course export` (toolkit/grading/export.py): the student edition holds no
+solution, anywhere (its toolkit copy, docs and notebooks included); the instructor edition holds
+them all; the student edition's stubs build, and whatever needs an unwritten one says so."""
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from toolkit.cli import main
+from toolkit.grading.checks import ASSIGNMENTS
+from toolkit.grading.export import export
+
+ROOT = Path(__file__).resolve().parent.parent
+_DEFINITION = re.compile(r"\b(\w+)\s*\([^;{}()]*\)\s*\{")   # parameters hold no parentheses
+_COMMENT = re.compile(r"/\*.*?\*/|//[^\n]*", re.S)
+
+
+def _functions(text):
+    """{name: body} of every C function defined in `text` (the body between its braces, without
+    comments: the search below compares text without comments too)."""
+    # a comment that says TODO leaves the word in the body (the stub's mark of what is to write)
+    text = _COMMENT.sub(lambda m: " TODO " if "TODO" in m.group(0) else " ", text)
+    text = re.sub(r"^\s*#.*$", "", text, flags=re.M)   # nor preprocessor lines
+    out = {}
+    for match in _DEFINITION.finditer(text):
+        if match.group(1) in ("if", "for", "while", "switch"):
+            continue
+        depth, i = 1, match.end()
+        while depth:
+            depth += {"{": 1, "}": -1}.get(text[i], 0)
+            i += 1
+        out.setdefault(match.group(1), text[match.end():i - 1])
+    return out
+
+
+def _squeezed(text):
+    """`text` without C comments, preprocessor lines and whitespace, as _functions gives a body: a
+    body is found however it is laid out or commented."""
+    return re.sub(r"\s+", "", re.sub(r"^\s*#.*$", "", _COMMENT.sub(" ", text), flags=re.M))
+
+
+def solution_bodies():
+    """{(assignment, function): the solution's body} of every function whose stub body says TODO."""
+    bodies = {}
+    for a in ASSIGNMENTS.values():
+        stub = _functions((ROOT / "tutorials/assignments" / a.name / a.stub).read_text())
+        solution = _functions((ROOT / "cl" / a.replaces).read_text())
+        for name, body in stub.items():
+            if "TODO" in body:
+                assert name in solution, f"{a.name}: the stub's {name} is not in cl/{a.replaces}"
+                bodies[(a.name, name)] = solution[name]
+    return bodies
+
+
+def _texts(folder):
+    """(relative path, text) of every text file under `folder`; a notebook's cells and outputs as text."""
+    for path in sorted(p for p in folder.rglob("*") if p.is_file()):
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            continue   # images, EXR, meshes in binary
+        if path.suffix == ".ipynb":
+            cells = json.loads(text)["cells"]
+            text = "\n".join(["".join(c["source"]) for c in cells] + [json.dumps(c.get("outputs", []))
+                                                                      for c in cells]
+                             + ["".join(o.get("text", "")) for c in cells for o in c.get("outputs", [])])
+        yield str(path.relative_to(folder)), text
+
+
+def found_bodies(folder):
+    """{(assignment, function): [files holding its solution body]} in `folder`."""
+    bodies = solution_bodies()
+    found = {}
+    for name, text in _texts(folder):
+        squeezed = _squeezed(text)
+        for key, body in bodies.items():
+            if _squeezed(body) in squeezed:
+                found.setdefault(key, []).append(name)
+    return found
+
+
+@pytest.fixture(scope="module")
+def editions(tmp_path_factory):
+    root = tmp_path_factory.mktemp("course")
+    export(root / "student")
+    export(root / "instructor", instructor=True)
+    return root / "student", root / "instructor"
+
+
+def test_the_student_edition_holds_no_solution_body(editions):
+    student, _ = editions
+    bodies = solution_bodies()
+    # every stub leaves something to write: compaction 2, parallel_connect 3, mis 1, inplace_regen 1 (today)
+    assert {a for a, _ in bodies} == set(ASSIGNMENTS)
+    assert found_bodies(student) == {}
+    assert not (student / "tests/fixtures").exists() and not (student / "docs/instructor_guide.md").exists()
+    quick_start = lambda readme: readme.split("## Quick start")[1].split("```")[1]   # the two commands
+    assert quick_start((student / "README.md").read_text()) == quick_start((ROOT / "README.md").read_text())
+    assert "STUDENT = True" in (student / "toolkit/core/edition.py").read_text()
+
+
+def test_the_search_finds_them_where_they_are(editions, tmp_path):
+    """The test above can fail: the same search finds every body in the instructor edition and in the
+    checkout, and one planted in a notebook's output, reformatted."""
+    _, instructor = editions
+    bodies = solution_bodies()
+    assert set(found_bodies(instructor)) == set(bodies)
+    in_checkout = found_bodies(ROOT)
+    assert set(in_checkout) == set(bodies) and all(f"cl/{ASSIGNMENTS[a].replaces}" in in_checkout[a, function]
+                                                   for a, function in bodies)
+    # the wrong-kernel fixtures are the solutions with one bug each: most hold a solution's body
+    assert any(f.startswith("tests/fixtures/assignments/") for files in in_checkout.values() for f in files)
+    (assignment, function), body = next(iter(bodies.items()))
+    planted = {"cells": [{"cell_type": "code", "source": "print(x)", "metadata": {},
+                          "outputs": [{"output_type": "stream", "name": "stdout",
+                                       "text": " \n   ".join(body.split())}]}]}
+    (tmp_path / "n.ipynb").write_text(json.dumps(planted))
+    assert found_bodies(tmp_path) == {(assignment, function): ["n.ipynb"]}
+
+
+def test_the_student_edition_has_each_stub_in_its_solutions_place(editions):
+    student, instructor = editions
+    for a in ASSIGNMENTS.values():
+        stub = (ROOT / "tutorials/assignments" / a.name / a.stub).read_text()
+        assert (student / "cl" / a.replaces).read_text() == stub
+        assert (instructor / "cl" / a.replaces).read_text() == (ROOT / "cl" / a.replaces).read_text()
+    assert (instructor / "tests/fixtures/assignments").is_dir()
+    assert sorted(p.name for p in (student / "tests").iterdir()) == ["test_my_assignments.py"]
+
+
+def _in(folder, code, timeout=300):
+    """Run Python `code` in `folder` (its toolkit and cl/, not this checkout's)."""
+    env = dict(os.environ, PYTHONPATH=str(folder))
+    return subprocess.run([sys.executable, "-c", code], cwd=folder, env=env, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def test_the_student_editions_stubs_build_and_a_technique_says_what_it_needs(editions):
+    student, _ = editions
+    built = _in(student, """
+from toolkit.core.scene import bundled_scene_dir, load_scene
+from toolkit.opencl import program, stubs
+from toolkit.opencl.device import get_queue
+from toolkit.opencl.device_scene import DeviceScene
+from toolkit.techniques import BdptParallelConnect, PtCompactRegen, PtInplaceRegen
+assert str(program.cl_dir()).startswith(%r)
+queue = get_queue()
+scene = DeviceScene(queue, load_scene(bundled_scene_dir("cornell_box")))
+try:
+    PtCompactRegen(queue, scene)
+    raise SystemExit("built from an untouched stub without a word")
+except stubs.AssignmentNotWritten as error:
+    print(error)
+stubs.refused = set()   # build them all as they are: every stub must compile
+for cls in (PtCompactRegen, PtInplaceRegen, BdptParallelConnect):
+    cls(queue, scene)
+print("built")
+""" % str(student))
+    assert built.returncode == 0, built.stderr[-3000:]
+    assert "cl/compact.h is still the stub of assignment `compaction`" in built.stdout
+    assert built.stdout.strip().endswith("built")
+
+
+def test_export_into_a_folder_that_is_not_empty_is_refused(tmp_path, capsys):
+    (tmp_path / "x").write_text("mine")
+    assert main(["course", "export", str(tmp_path)]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("error: ") and "not an empty folder" in err and "Traceback" not in err
+    assert (tmp_path / "x").read_text() == "mine" and len(list(tmp_path.iterdir())) == 1

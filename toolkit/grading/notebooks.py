@@ -1,0 +1,103 @@
+"""The notebooks of the course's student edition (export.py), and how they go on past a cell that
+needs an assignment the student has not written.
+
+A cell whose metadata has `"tags": [..., "solution", ...]` shows an assignment's solution: the
+student edition has a markdown cell in its place, with the text of the cell's `"exercise"`
+metadata (or a line saying what was removed). No saved output is kept: an output can show a
+solution as well as a cell can.
+
+The first cell of a student notebook is a hidden setup cell that calls install(). IPython's
+custom exception handlers do not help here: the cell still ends in an error, which stops
+nbclient and `Run all`. So install() adds an AST transformer that wraps every later cell in
+`try: ... except AssignmentNotWritten`, at the top level (the cell's variables stay global, its
+last expression is still shown): the message is printed, the cell ends without error and the
+notebook goes on. A later cell that then needs a variable the stopped cell did not set fails with
+a NameError; once an assignment is missing, that too is one printed line instead of an error."""
+import ast
+
+from toolkit.opencl.stubs import AssignmentNotWritten
+
+SOLUTION_TAG = "solution"
+REMOVED = ("**Exercise.** The cell that was here shows the solution of an assignment: write it yourself "
+           "(tutorials/assignments/).")
+SETUP_SOURCE = ("# Student edition: a cell that needs an assignment you have not written says so, and the "
+                "notebook goes on.\nfrom toolkit.grading.notebooks import install\ninstall()")
+
+
+def student_notebook(nb):
+    """The student edition of notebook `nb` (nbformat 4, as a dict): solution cells replaced by
+    exercises, outputs removed, the setup cell first."""
+    cells = []
+    for cell in nb["cells"]:
+        meta = cell.get("metadata", {})
+        if SOLUTION_TAG in meta.get("tags", []):
+            cells.append({"cell_type": "markdown", "metadata": {"tags": ["exercise"]},
+                          "source": meta.get("exercise") or REMOVED})
+            continue
+        cell = dict(cell)
+        if cell["cell_type"] == "code":
+            cell["outputs"], cell["execution_count"] = [], None
+        cells.append(cell)
+    setup = {"cell_type": "code", "execution_count": None, "outputs": [], "source": SETUP_SOURCE,
+             "metadata": {"tags": ["remove-cell", "student-setup"], "jupyter": {"source_hidden": True}}}
+    return dict(nb, cells=[setup] + cells)
+
+
+_missing = []   # the messages of the assignments found missing in this kernel session
+
+
+def report_missing(error):
+    """Print what a cell needs (an AssignmentNotWritten), in place of its traceback."""
+    _missing.append(str(error))
+    print(f"not run: {error}")
+
+
+def report_name(error):
+    """A NameError after an assignment was found missing: the variable a stopped cell did not set.
+    Before that, it is a bug of the cell, and is raised."""
+    if not _missing:
+        raise error
+    print(f"not run: this cell needs {error.name if hasattr(error, 'name') else error}, which a cell above "
+          f"could not compute ({_missing[-1]})")
+
+
+_LAST = "_toolkit_last_value_"
+
+
+class _GoOn(ast.NodeTransformer):
+    """Wrap a cell's statements in try/except (see the module docstring), its last expression kept."""
+
+    def visit_Module(self, node):
+        body = list(node.body)
+        if not body:
+            return node
+        shown = isinstance(body[-1], ast.Expr)
+        if shown:
+            body[-1] = ast.Assign(targets=[ast.Name(_LAST, ast.Store())], value=body[-1].value)
+        handlers = [_handler("AssignmentNotWritten", "report_missing"), _handler("NameError", "report_name")]
+        wrapped = [ast.Assign(targets=[ast.Name(_LAST, ast.Store())], value=ast.Constant(None)),
+                   ast.Try(body=body, handlers=handlers, orelse=[], finalbody=[])]
+        if shown:
+            wrapped.append(ast.Expr(ast.Name(_LAST, ast.Load())))
+        node.body = wrapped
+        return ast.fix_missing_locations(node)
+
+
+def _handler(exception, function):
+    """except <exception> as _toolkit_error_: toolkit.grading.notebooks.<function>(_toolkit_error_)"""
+    call = ast.parse(f"__import__('toolkit.grading.notebooks', fromlist=['x']).{function}(_toolkit_error_)").body[0]
+    kind = ast.parse(f"__import__('toolkit.opencl.stubs', fromlist=['x']).AssignmentNotWritten"
+                     if exception == "AssignmentNotWritten" else exception, mode="eval").body
+    return ast.ExceptHandler(type=kind, name="_toolkit_error_", body=[call])
+
+
+def install(shell=None):
+    """Make IPython (the running kernel's, or `shell`) go on past a cell that needs an unwritten assignment."""
+    if shell is None:
+        from IPython import get_ipython
+        shell = get_ipython()
+    if shell is not None and not any(isinstance(t, _GoOn) for t in shell.ast_transformers):
+        shell.ast_transformers.append(_GoOn())
+
+
+__all__ = ["AssignmentNotWritten", "install", "student_notebook"]
