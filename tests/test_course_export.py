@@ -4,6 +4,7 @@ them all; the student edition's stubs build, and whatever needs an unwritten one
 import json
 import os
 import re
+import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -171,3 +172,17 @@ def test_export_into_a_folder_that_is_not_empty_is_refused(tmp_path, capsys):
     err = capsys.readouterr().err
     assert err.startswith("error: ") and "not an empty folder" in err and "Traceback" not in err
     assert (tmp_path / "x").read_text() == "mine" and len(list(tmp_path.iterdir())) == 1
+
+
+def test_the_student_editions_public_checks_give_a_right_solution_every_point_they_grade(editions, tmp_path):
+    """A student who writes each file right loses no point in their copy: the public checks that run
+    there use nothing the student edition lacks (another assignment's file is a stub there)."""
+    student, _ = editions
+    mine = tmp_path / "mine"
+    shutil.copytree(student, mine)
+    for a in ASSIGNMENTS.values():
+        shutil.copyfile(ROOT / "cl" / a.replaces, mine / "cl" / a.replaces)
+    tests = _in(mine, "import sys, pytest; sys.exit(pytest.main(['-q', '-n', '0', '-p', 'no:cacheprovider', "
+                      "'tests/test_my_assignments.py']))", timeout=600)
+    assert tests.returncode == 0, tests.stdout[-3000:] + tests.stderr[-2000:]
+    assert f"{len(ASSIGNMENTS)} passed" in tests.stdout

@@ -9,7 +9,7 @@ from toolkit.core.layout import BDPT_VERTEX
 from toolkit.grading.assignment import Assignment, CheckFailed
 from toolkit.measure.reference import reference_at, relative_mean_error, z_test
 from toolkit.opencl import program
-from toolkit.techniques import BdptParallelConnect
+from toolkit.techniques import BdptNaiveConnect, BdptParallelConnect
 
 # The points: weights that sum to one but are not the heuristic asked for (uniform ones, say)
 # pass balance_sum and image, and earn at most a third (30).
@@ -193,12 +193,14 @@ def _check_power(c):
             raise CheckFailed(problem)
 
 
-@ASSIGNMENT.check("image", 20, "bdpt_parallel_connect with your weights matches the reference within statistical "
+@ASSIGNMENT.check("image", 20, "bdpt_naive_connect with your weights matches the reference within statistical "
                                "error", "any weights that sum to one over the strategies that can make each path "
                   "keep the image unbiased; a bias means a strategy counted twice or left out")
 def _check_mis_image(c):
     scene, _ = c.scene("cornell_box")
-    tech = c.technique(BdptParallelConnect, target_batch=1 << 10)   # 16 passes: the error from passes
+    # The naive connect: it uses no other assignment's file (bdpt_parallel_connect.cl is
+    # parallel_connect's, a stub in the course's student edition). 16 passes: the error from passes.
+    tech = c.technique(BdptNaiveConnect, target_batch=1 << 10)
     film = tech.render(8, 8, 256, seed=5)
     image, stderr = film.image(), film.stderr()
     ref, ref_err = reference_at(scene, 8, 8)
