@@ -1,12 +1,20 @@
-"""`python -m toolkit course export DIR [--instructor]`: the course's student edition (stubs, not
-solutions) or instructor edition, written from this checkout (toolkit/grading/export.py says
-what each holds)."""
-from toolkit.cli.options import DEVICE
+"""`python -m toolkit course`: the course's two editions, and grading a class.
+
+    python -m toolkit course export DIR [--instructor]   # toolkit/grading/export.py says what each holds
+    python -m toolkit course grade SUBMISSIONS --out DIR # toolkit/grading/batch.py: grades.csv, reports/
+"""
+import sys
+
+from toolkit.cli.grade import check_names
+from toolkit.cli.options import DEVICE, number
+from toolkit.grading.batch import grade_class
 from toolkit.grading.export import export
+from toolkit.grading.limits import MAX_TIME_LIMIT, check_time_limit
+from toolkit.grading.runner import TIME_LIMIT
 
 
 def add_command(sub):
-    p = sub.add_parser("course", help="the course: export its student or instructor edition",
+    p = sub.add_parser("course", help="the course: export its student or instructor edition, grade a class",
                        parents=[DEVICE])
     actions = p.add_subparsers(dest="action", required=True)
     e = actions.add_parser("export", help="write the student edition (or --instructor's) into a new folder",
@@ -16,10 +24,26 @@ def add_command(sub):
                                        "edition adds the solutions, the fixtures and the instructor guide.")
     e.add_argument("dir", metavar="DIR", help="a folder that does not exist or is empty")
     e.add_argument("--instructor", action="store_true", help="the instructor edition")
+    g = actions.add_parser("grade", help="grade a folder of submissions (one folder per student) with every check",
+                           description="Each student's folder holds their files by the names of the toolkit files "
+                                       "they replace, in cl/ (as in the student edition) or at its top. Writes "
+                                       "DIR/grades.csv (a row per student) and DIR/reports/<student>.txt.")
+    g.add_argument("submissions", metavar="SUBMISSIONS", help="a folder with one folder per student")
+    g.add_argument("--out", required=True, metavar="DIR", help="where grades.csv and reports/ are written")
+    g.add_argument("--assignments", type=check_names, metavar="NAME,...", help="only these (default: all)")
+    g.add_argument("--time-limit", type=number, default=TIME_LIMIT, metavar="SECONDS",
+                   help=f"per check (default {TIME_LIMIT}, at most {MAX_TIME_LIMIT})")
     p.set_defaults(run=cmd_course)
 
 
 def cmd_course(args):
+    if args.action == "grade":
+        check_time_limit(args.time_limit)
+        grades = grade_class(args.submissions, args.out, args.assignments, args.time_limit, args.device,
+                             progress=lambda line: print(line, file=sys.stderr, flush=True))
+        failed = any("error" in r for results in grades.values() for r in results.values())
+        print(f"graded {len(grades)} students: {args.out}/grades.csv, reports in {args.out}/reports/")
+        return 1 if failed else 0
     files = export(args.dir, instructor=args.instructor)
     print(f"wrote the {'instructor' if args.instructor else 'student'} edition to {args.dir} ({len(files)} files)")
     return 0
