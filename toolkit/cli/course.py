@@ -33,16 +33,20 @@ def add_command(sub):
     g.add_argument("--assignments", type=check_names, metavar="NAME,...", help="only these (default: all)")
     g.add_argument("--time-limit", type=number, default=TIME_LIMIT, metavar="SECONDS",
                    help=f"per check (default {TIME_LIMIT}, at most {MAX_TIME_LIMIT})")
+    g.add_argument("--inputs", type=int, metavar="N", help="the hidden inputs' number (default: a new one; "
+                   "the one grades.csv gives grades again on the same inputs)")
     p.set_defaults(run=cmd_course)
 
 
 def cmd_course(args):
     if args.action == "grade":
         check_time_limit(args.time_limit)
-        grades = grade_class(args.submissions, args.out, args.assignments, args.time_limit, args.device,
-                             progress=lambda line: print(line, file=sys.stderr, flush=True))
+        grades, inputs = grade_class(args.submissions, args.out, args.assignments, args.time_limit, args.device,
+                                     progress=lambda line: print(line, file=sys.stderr, flush=True),
+                                     inputs=args.inputs)
         failed = any("error" in r for results in grades.values() for r in results.values())
-        print(f"graded {len(grades)} students: {args.out}/grades.csv, reports in {args.out}/reports/")
+        print(f"graded {len(grades)} students on hidden inputs {inputs}: {args.out}/grades.csv, reports in "
+              f"{args.out}/reports/")
         return 1 if failed else 0
     files = export(args.dir, instructor=args.instructor)
     print(f"wrote the {'instructor' if args.instructor else 'student'} edition to {args.dir} ({len(files)} files)")

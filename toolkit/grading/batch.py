@@ -6,6 +6,12 @@ edition keeps it (`<student>/cl/compact.h`) or at the top (`<student>/compact.h`
 assignment found is graded with every check (grade.py), the ones the student edition skips
 included; one that is missing, or still the untouched stub, scores 0 without being built.
 
+The checks run on hidden inputs: every random mask, size, density and seed that a check draws
+comes from the public one and `inputs` together (Context.rng), a number drawn anew for each class
+unless given (`--inputs N` grades again on the same ones); the reports and grades.csv say which.
+A submission fitted to the inputs of the student's copy then fails where it does not generalise.
+(The image z-tests keep their fixed, checked seeds: see checks/mis.py.)
+
 Written into DIR, each file whole or not at all (write_atomically):
   grades.csv           a row per student: each assignment's score, then the total
   reports/<student>.txt  the report of each assignment: every lost point with its reason and hint
@@ -15,6 +21,7 @@ characters outside [A-Za-z0-9._-] are replaced; two names that then clash are re
 import csv
 import io
 import re
+import secrets
 from pathlib import Path
 
 from toolkit.core import edition
@@ -51,7 +58,7 @@ def submitted_file(folder, assignment):
     return None
 
 
-def grade_student(folder, names, time_limit=TIME_LIMIT, device=None):
+def grade_student(folder, names, time_limit=TIME_LIMIT, device=None, inputs=0):
     """{assignment: result} for one student (see grade.grade); a result without checks for an
     assignment not submitted or still the stub."""
     results = {}
@@ -63,7 +70,7 @@ def grade_student(folder, names, time_limit=TIME_LIMIT, device=None):
         elif path.read_bytes() == (a.folder / a.stub).read_bytes():
             results[name] = _ungraded(a, f"{a.replaces} is still the untouched stub")
         else:
-            results[name] = grade(name, path, time_limit=time_limit, device=device)
+            results[name] = grade(name, path, time_limit=time_limit, device=device, inputs=inputs)
     return results
 
 
@@ -72,9 +79,15 @@ def _ungraded(a, why):
             "checks": [], "missing": why}
 
 
-def grade_class(submissions, out, names=None, time_limit=TIME_LIMIT, device=None, progress=print):
+def hidden_inputs():
+    """A fresh number for the hidden inputs, never 0 (0 is the public inputs)."""
+    return 1 + secrets.randbelow(2**31 - 1)
+
+
+def grade_class(submissions, out, names=None, time_limit=TIME_LIMIT, device=None, progress=print, inputs=None):
     """Grade every student of `submissions` for assignments `names` (all if None); write
-    grades.csv and reports/ into `out`. Returns {student: {assignment: result}}."""
+    grades.csv and reports/ into `out`, on hidden inputs `inputs` (drawn if None). Returns
+    ({student: {assignment: result}}, inputs)."""
     if edition.STUDENT:
         raise ValueError("this is the student edition: it lacks the reference solutions that the hidden checks "
                          "compare with; grade the class from the instructor edition")
@@ -84,19 +97,22 @@ def grade_class(submissions, out, names=None, time_limit=TIME_LIMIT, device=None
         raise ValueError(f"no assignment {', '.join(unknown) or '(none given)'}: the assignments are "
                          f"{', '.join(ASSIGNMENTS)}")
     found = students(submissions)
+    inputs = hidden_inputs() if inputs is None else inputs
+    if not 0 < inputs < 2**31:
+        raise ValueError(f"--inputs must be a number from 1 to {2**31 - 1} (0 would be the public inputs)")
     out = Path(out)
     grades = {}
     for i, (student, folder) in enumerate(found.items(), start=1):
         progress(f"[{i}/{len(found)}] {student}")
-        grades[student] = grade_student(folder, names, time_limit, device)
+        grades[student] = grade_student(folder, names, time_limit, device, inputs)
         write_atomically(out / "reports" / f"{student}.txt",
-                         lambda tmp, r=grades[student]: Path(tmp).write_text(student_report(student, r)))
-    write_atomically(out / "grades.csv", lambda tmp: Path(tmp).write_text(grades_csv(grades, names)))
-    return grades
+                         lambda tmp, r=grades[student]: Path(tmp).write_text(student_report(student, r, inputs)))
+    write_atomically(out / "grades.csv", lambda tmp: Path(tmp).write_text(grades_csv(grades, names, inputs)))
+    return grades, inputs
 
 
-def student_report(student, results):
-    parts = [f"# {student}", ""]
+def student_report(student, results, inputs):
+    parts = [f"# {student}", f"graded on hidden inputs {inputs}", ""]
     for result in results.values():
         if "missing" in result:
             parts.append(f"{result['assignment']}: 0/{result['max']}: {result['missing']}")
@@ -106,13 +122,13 @@ def student_report(student, results):
     return "\n".join(parts)
 
 
-def grades_csv(grades, names):
+def grades_csv(grades, names, inputs):
     """One row per student: each assignment's score (of 100), the total, and whether the grader
     itself failed on some file (those files' reports say which)."""
     text = io.StringIO()
     writer = csv.writer(text, lineterminator="\n")
-    writer.writerow(["student"] + names + ["total", "grader_error"])
+    writer.writerow(["student"] + names + ["total", "grader_error", "inputs"])
     for student, results in grades.items():
         scores = [results[n]["score"] for n in names]
-        writer.writerow([student] + scores + [sum(scores), int(any("error" in r for r in results.values()))])
+        writer.writerow([student] + scores + [sum(scores), int(any("error" in r for r in results.values())), inputs])
     return text.getvalue()

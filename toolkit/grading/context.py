@@ -14,13 +14,24 @@ from toolkit.opencl.device_scene import DeviceScene
 class Context:
     """What a check works with: the device queue and the folder holding the submission."""
 
-    def __init__(self, folder, assignment, device=None, shown="compact.h", checks=None):
+    def __init__(self, folder, assignment, device=None, shown="compact.h", checks=None, inputs=0):
         self.folder = folder
         self.assignment = assignment
         self.shown = shown   # the name of the student's file, for messages
         self.checks = None if checks is None else set(checks)   # what this worker runs (None: all)
+        self.inputs = inputs   # 0: the public inputs, the ones a student sees; else hidden ones (rng, seed)
         self.queue = get_queue(device)
         self._scenes = {}
+
+    def rng(self, public):
+        """The random generator of a check's inputs: seeded with `public`, as the student's copy
+        runs it, or, for the instructor's hidden inputs, with `public` and this run's `inputs`
+        together, so that each check still draws inputs of its own."""
+        return np.random.default_rng(public if self.inputs == 0 else [public, self.inputs])
+
+    def seed(self, public):
+        """A render's seed: `public`, or one drawn from it and the hidden `inputs` (see rng)."""
+        return public if self.inputs == 0 else int(self.rng(public).integers(1, 2**31))
 
     def runs(self, *names):
         """Whether any of the checks `names` runs here: the build step builds only what they need."""

@@ -46,12 +46,14 @@ from toolkit.opencl.program import MAX_SOURCE_SIZE, cl_dir
 __all__ = ["ASSIGNMENTS", "TIME_LIMIT", "Limits", "assignments_dir", "grade"]
 
 
-def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None, limits=Limits(), only=None):
+def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None, limits=Limits(), only=None,
+          inputs=0):
     """Grade one file (`kernel`) or the toolkit's own (`solution`) for assignment `name`. Returns
     {"assignment", "file", "score", "max", "seconds", "checks": [{name, points, earned, reason}]},
     and "error" when the grader failed on it (the checks it did not grade earn 0). `only`: the
     names of the checks to run (None: all); the others are left out of the result and the score is
-    rescaled from the points of those run, with a note."""
+    rescaled from the points of those run, with a note. `inputs`: 0, the checks' public inputs (the
+    ones in the student's copy); another number, hidden ones drawn from it (Context.rng)."""
     a = ASSIGNMENTS[name]
     check_time_limit(time_limit)
     only = selected_checks(a, only)
@@ -72,7 +74,7 @@ def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None,
         for helper in a.helpers:
             shutil.copyfile(a.folder / helper, folder / helper)
         try:
-            reasons, times = run_checks(name, order, folder, time_limit, device, source.name, limits, workdir)
+            reasons, times = run_checks(name, order, folder, time_limit, device, source.name, limits, workdir, inputs)
         except GraderError as failed:
             reasons, times, error = failed.reasons, failed.times, str(failed)
     return _result(a, shown, reasons, times, error, time.perf_counter() - start, only)

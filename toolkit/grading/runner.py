@@ -36,7 +36,7 @@ class GraderError(Exception):
         self.reasons, self.times = dict(reasons or {}), dict(times or {})
 
 
-def run_checks(name, pending, folder, time_limit, device, shown, limits=Limits(), workdir=None):
+def run_checks(name, pending, folder, time_limit, device, shown, limits=Limits(), workdir=None, inputs=0):
     """Run the checks `pending` (the first is "build") in one worker subprocess, which reports
     each check's start and end. A check that runs past `time_limit` or crashes the worker gets its
     reason, the worker is killed, and a fresh one goes on with the remaining checks. A failed build
@@ -46,7 +46,7 @@ def run_checks(name, pending, folder, time_limit, device, shown, limits=Limits()
     grader fails."""
     if workdir is None:
         with tempfile.TemporaryDirectory(prefix="grade-worker-") as workdir:
-            return run_checks(name, pending, folder, time_limit, device, shown, limits, workdir)
+            return run_checks(name, pending, folder, time_limit, device, shown, limits, workdir, inputs)
     reasons, times, runs = {}, {}, Counter()
     pending = list(pending)
     while pending:
@@ -54,7 +54,7 @@ def run_checks(name, pending, folder, time_limit, device, shown, limits=Limits()
         session = list(pending) if pending[0] == "build" else ["build"] + pending
         try:
             for check_name, reason, seconds in _worker_session(name, session, folder, time_limit, device, shown,
-                                                               limits, workdir, runs):
+                                                               limits, workdir, runs, inputs):
                 if check_name == "build" and "build" in reasons:
                     if reason:   # it built before: the rebuild was stopped or crashed; the next check pays
                         reasons[pending[0]], times[pending[0]] = reason, seconds
@@ -70,7 +70,7 @@ def run_checks(name, pending, folder, time_limit, device, shown, limits=Limits()
     return reasons, times
 
 
-def _worker_session(name, checks, folder, time_limit, device, shown, limits, workdir, runs):
+def _worker_session(name, checks, folder, time_limit, device, shown, limits, workdir, runs, inputs=0):
     """One worker process: yields (check, reason, seconds) as the checks end; the last one it
     yields is the check it was stopped or crashed in (if any), and then it is gone. Start-up has
     limits.startup seconds, the build limits.build; each check's time limit starts at its start.
@@ -78,7 +78,7 @@ def _worker_session(name, checks, folder, time_limit, device, shown, limits, wor
     suspect: one of them may have corrupted its memory) ends the session, to run again in a fresh
     worker, at most MAX_RUNS times in all. `runs` counts the runs of each check."""
     nonce, expected = secrets.token_hex(16), Expected(checks)
-    command = [sys.executable, *WORKER, name, str(folder), shown, device or ""]
+    command = [sys.executable, *WORKER, name, str(folder), shown, device or "", str(int(inputs))]
     with _Worker(command, checks, nonce, limits, time_limit, workdir) as worker:
         started = time.monotonic()
         deadline = started + limits.startup

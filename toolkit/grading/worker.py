@@ -1,10 +1,11 @@
 """The worker subprocess that runs the checks of one submission (runner.py starts it):
 
-    python -m toolkit.grading.worker NAME FOLDER SHOWN DEVICE REPORT_FD CHECK...
+    python -m toolkit.grading.worker NAME FOLDER SHOWN DEVICE INPUTS REPORT_FD CHECK...
 
 reads the run's nonce from stdin, then runs the checks in order, each announced ({"start": check})
 and reported ({"done": check, "reason": ...}) as a line of JSON on the pipe REPORT_FD (channel.py),
-so the grader can time each one and knows which one crashed. A student's kernel runs only here;
+so the grader can time each one and knows which one crashed. INPUTS: 0 for the checks' public
+inputs, another number for hidden ones (Context.rng). A student's kernel runs only here;
 its printf goes to stdout, which the grader discards."""
 import os
 import re
@@ -40,11 +41,11 @@ class Reports:
 
 def run_worker(args, reports):
     """Run the checks `args` names (see the module docstring), "build" among them."""
-    name, folder, shown, device, *names = args
+    name, folder, shown, device, inputs, *names = args
     a = ASSIGNMENTS[name]
     # The other assignments' stubs build as they are; only this one's reference is refused (stubs.py)
     stubs.refused = {a.replaces}
-    c = Context(folder, a, device or None, shown, [n for n in names if n != "build"])   # fails (no device): the grader reports it as a crash
+    c = Context(folder, a, device or None, shown, [n for n in names if n != "build"], int(inputs))   # fails (no device): the grader reports it as a crash
     for check_name in names:
         reports.say(start=check_name)
         suspect, start = False, time.perf_counter()
@@ -83,9 +84,9 @@ def _build_reason(log, replaces, shown):
 
 
 def main(argv):
-    *args, fd = argv[:5]
+    *args, fd = argv[:6]
     reports = Reports(int(fd), sys.stdin.readline().strip())
-    run_worker(args + argv[5:], reports)
+    run_worker(args + argv[6:], reports)
 
 
 if __name__ == "__main__":

@@ -116,8 +116,7 @@ def _compaction_problem(flags, out, count, what=""):
     return None
 
 
-def _random_masks(seed=1):
-    rng = np.random.default_rng(seed)
+def _random_masks(rng):
     return [(f"n = {n}, {p:.0%} alive: ", rng.random(n) < p) for n, p in ((1000, 0.5), (4099, 0.1), (192, 0.9))]
 
 
@@ -127,7 +126,7 @@ def _random_masks(seed=1):
 def _check_scan(c):
     built = _compaction_program(c)
     n, L = 1000, program.LOCAL_SIZE
-    values = np.random.default_rng(2).integers(0, 5, n).astype(np.int32)
+    values = c.rng(2).integers(0, 5, n).astype(np.int32)
     groups = -(-n // L)
     dst, sums = c.buffer(np.full(n, -1, np.int32)), c.buffer(np.full(groups, -1, np.int32))
     program.launch(c.queue, program.kernel(built, "scan_blocks"), n, c.buffer(values), np.int32(n), np.int32(0),
@@ -176,7 +175,7 @@ def _check_parallel_scan(c):
     built = _build_in(c, _variant(c, "counted_scan", instrument.assemble(includes, code, defines, counted,
                                                                           _ROUNDS_KERNEL)))
     # flags, as compaction scans them: values above 1 are what `scan` grades, not this check
-    values = (np.random.default_rng(8).random(groups * L) < 0.5).astype(np.int32)
+    values = (c.rng(8).random(groups * L) < 0.5).astype(np.int32)
     rounds, totals = c.buffer(np.zeros(groups * L, np.int32)), c.buffer(np.zeros(groups, np.int32))
     program.launch(c.queue, program.kernel(built, "grade_scan_rounds"), groups * L, c.buffer(values), rounds, totals)
     expected = values.reshape(groups, L).sum(1)
@@ -196,7 +195,7 @@ def _check_parallel_scan(c):
                   "multiple of the group", "a survivor's slot is the group's base (from the one atomic) plus its "
                   "rank among the group's survivors; a dead item gets -1")
 def _check_compact(c):
-    for what, mask in _random_masks():
+    for what, mask in _random_masks(c.rng(1)):
         problem = _compaction_problem(mask, *_compact(c, mask), what)
         if problem:
             raise CheckFailed(problem)
@@ -206,7 +205,7 @@ def _check_compact(c):
                   "a partial last group", "a group with no survivor, a full group and the padding work-items "
                   "of the last group (alive = false) must all work")
 def _check_edges(c):
-    rng = np.random.default_rng(3)
+    rng = c.rng(3)
     cases = [("all 1000 dead: ", np.zeros(1000, bool)), ("all 1000 alive: ", np.ones(1000, bool)),
              ("n = 1: ", np.ones(1, bool)), ("n = 63: ", rng.random(63) < 0.5), ("all 64 alive: ", np.ones(64, bool))]
     for what, mask in cases:
@@ -220,7 +219,7 @@ def _check_edges(c):
                   "counter, and shares the base through local memory; every other form of atomic counts too")
 def _check_group_order(c):
     L = program.LOCAL_SIZE
-    mask = np.random.default_rng(4).random(4099) < 0.5
+    mask = c.rng(4).random(4099) < 0.5
     out, count, atomics = _compact(c, mask, atomics=True)
     problem = _compaction_problem(mask, out, count)
     if problem:
@@ -244,7 +243,7 @@ def _check_group_order(c):
                   "what it needs from it (a barrier at the end of each function)")
 def _check_twice(c):
     built = _compaction_program(c)
-    rng = np.random.default_rng(5)
+    rng = c.rng(5)
     n = 4099
     a, b = rng.random(n) < 0.5, rng.random(n) < 0.3
     counters = c.buffer(np.zeros(4, np.int32))   # [0] and [2], each with its atomics count beside it
@@ -278,7 +277,7 @@ def _check_races(c):
     queue = cl.CommandQueue(context)
     built = program.build(context, "compaction_checks.cl", {"LOCAL_SIZE": program.LOCAL_SIZE}, directory=c.sources())
     n = program.LOCAL_SIZE + 5   # a full group and a partial one
-    rng = np.random.default_rng(9)
+    rng = c.rng(9)
     masks = [(rng.random(n) < p).astype(np.int32) for p in (0.5, 0.3)]
     flags = [cl.Buffer(context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=m) for m in masks]
     size = 4 * (n + program.LOCAL_SIZE)
@@ -339,7 +338,7 @@ def _check_compaction_render(c):
     images, efficiency = [], None
     for student in (True, False):
         tech = c.technique(PtCompactRegen, student)
-        images.append(tech.render(32, 32, 32, seed=1).image())
+        images.append(tech.render(32, 32, 32, seed=c.seed(1)).image())
         efficiency = efficiency or tech.simd_efficiency()
     same_image(images[0], images[1], "pt_compact_regen with the toolkit's compact.h")
     low = {phase: round(e, 3) for phase, e in efficiency.items() if e < 0.97}

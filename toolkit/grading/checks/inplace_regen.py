@@ -33,7 +33,7 @@ def _regenerate(c, alive, next_sample, budget):
     flags, counter = c.buffer(np.r_[alive, np.zeros(capacity - n)].astype(np.int32)), c.buffer(np.int32([next_sample]))
     any_alive, regenerated = c.buffer(np.zeros(1, np.int32)), c.buffer(np.full(capacity, -1, np.int32))
     camera = tech.scene.camera(16, 16)
-    pass_args = PT_PASS.record(seed=1, sample_base=0, budget=budget, capacity=capacity)
+    pass_args = PT_PASS.record(seed=c.seed(1), sample_base=0, budget=budget, capacity=capacity)
     program.launch(c.queue, tech.kernel("pt_inplace_regen_regenerate"), n, camera, pass_args, np.int32(n),
                    counter, paths, flags, any_alive, regenerated)
     ids = c.read(paths, np.int32, n, PATH_STATE.soa_offset("slot", capacity))
@@ -41,8 +41,8 @@ def _regenerate(c, alive, next_sample, budget):
             c.read(regenerated, np.int32, n))
 
 
-def _pools():
-    rng = np.random.default_rng(8)
+def _pools(c):
+    rng = c.rng(8)
     alive = (rng.random(1000) < 0.5).astype(np.int32)
     free = int((alive == 0).sum())
     return [("1000 slots, every free slot gets a sample: ", alive, 100, 100000),
@@ -52,7 +52,7 @@ def _pools():
 @ASSIGNMENT.check("ids", 30, "free slots start the next samples of the budget, once each; live slots are left alone",
                   "a shared atomic counter hands out sample ids, one per free slot; an id at or past the budget starts nothing")
 def _check_ids(c):
-    for what, alive, first, budget in _pools():
+    for what, alive, first, budget in _pools(c):
         ids, flags, _, _ = _regenerate(c, alive, first, budget)
         free = np.flatnonzero(alive == 0)
         started = free[ids[free] != _UNTOUCHED]
@@ -92,7 +92,7 @@ def _check_any_alive(c):
 @ASSIGNMENT.check("regenerated", 10, "regenerated[] marks the lanes that started a sample (SIMD counters)",
                   "the SIMD counters need to know which lanes did the work of starting a sample in this step, and only those")
 def _check_regenerated(c):
-    for what, alive, first, budget in _pools():
+    for what, alive, first, budget in _pools(c):
         free = np.flatnonzero(alive == 0)
         expected = np.zeros(len(alive), np.int32)
         expected[free[:max(0, min(len(free), budget - first))]] = 1   # how many; which ones may vary
@@ -106,7 +106,7 @@ def _check_regenerated(c):
                   "each sample id must be started exactly once, with the pass's seed and sample base, so that the image is "
                   "the toolkit's sample for sample")
 def _check_regen_image(c):
-    films = [c.technique(PtInplaceRegen, student, stream_size=256).render(15, 9, 8, seed=2)   # 1080 samples,
+    films = [c.technique(PtInplaceRegen, student, stream_size=256).render(15, 9, 8, seed=c.seed(2))   # 1080 samples,
              for student in (True, False)]                                                  # 256 slots
     same_image(films[0].image(), films[1].image(), "the toolkit's pt_inplace_regen", rtol=0, atol=0)
     if not np.array_equal(films[0].count, films[1].count):

@@ -109,11 +109,10 @@ def _check_balance_sum(c):
             raise CheckFailed(problem)
 
 
-def _known_cases(seed=11, n=64):
+def _known_cases(rng, n=64):
     """Cases of known densities (log-uniform over two decades, no delta vertex): strategy (s, t),
     the subpaths' pdf_fwd and pdf_rev, the four recomputed densities, and each case's balance
     and power weights computed here from the formula of the handout."""
-    rng = np.random.default_rng(seed)
     st = np.stack([rng.integers(0, 5, n), rng.integers(1, 6, n)], axis=1).astype(np.int32)
     density = lambda *shape: np.exp(rng.uniform(np.log(0.1), np.log(10.0), shape)).astype(np.float32)
     eye_fwd, eye_rev, light_fwd, light_rev, pdfs = (density(n, _STRIDE), density(n, _STRIDE), density(n, _STRIDE),
@@ -154,7 +153,7 @@ def _known_weights(c, st, densities, pdfs, power):
                                    "power heuristic, not another rule", "MIS weights a strategy by how likely it is "
                   "to make the path: w_s = p_s^b / sum_i p_i^b from the density ratios, not by counting strategies")
 def _check_heuristic(c):
-    st, densities, pdfs, expected = _known_cases()
+    st, densities, pdfs, expected = _known_cases(c.rng(11))
     for power, name in ((0, "balance"), (1, "power")):
         got = _known_weights(c, st, densities, pdfs, power)
         wrong = np.flatnonzero(~(np.abs(got - expected[power]) <= 1e-4 + 1e-3 * expected[power]))
@@ -201,6 +200,8 @@ def _check_mis_image(c):
     # The naive connect: it uses no other assignment's file (bdpt_parallel_connect.cl is
     # parallel_connect's, a stub in the course's student edition). 16 passes: the error from passes.
     tech = c.technique(BdptNaiveConnect, target_batch=1 << 10)
+    # A fixed seed even for hidden inputs: a z-test at alpha 0.01 fails one right solution in a
+    # hundred on seeds nobody has checked; this one was.
     film = tech.render(8, 8, 256, seed=5)
     image, stderr = film.image(), film.stderr()
     ref, ref_err = reference_at(scene, 8, 8)

@@ -102,7 +102,7 @@ def _search_problem(c, counts, what=""):
                   "which is not every pair of vertex counts")
 def _check_count(c):
     tech, _ = _parallel_connect(c)
-    rng = np.random.default_rng(6)
+    rng = c.rng(6)
     n = 500
     slots = BDPT_SLOT.zeros(n)
     slots["live"] = rng.integers(-1, 3, n)
@@ -123,7 +123,7 @@ def _check_count(c):
                   "keep an invariant (firsts[lo] <= g, the answer in [lo, hi)) and shrink the range until one slot "
                   "is left; samples with no connection share their first index with the next one")
 def _check_search(c):
-    rng = np.random.default_rng(7)
+    rng = c.rng(7)
     for n in (300, 1000):
         counts = np.where(rng.random(n) < 0.3, 0, rng.integers(1, 40, n))
         problem = _search_problem(c, counts, f"{n} samples: ")
@@ -172,7 +172,7 @@ def _check_logarithmic(c):
     folder = _variant(c, "counted_search", instrument.assemble(includes, code, defines, counted, _ROUNDS_KERNEL))
     built = program.build(c.queue.context, "parallel_connect_checks.cl", tech.defines, directory=c.sources(folder))
     n = 1024
-    counts = np.random.default_rng(10).integers(0, 8, n).astype(np.int32)
+    counts = c.rng(10).integers(0, 8, n).astype(np.int32)
     firsts = (np.cumsum(counts) - counts).astype(np.int32)
     total = int(counts.sum())
     found, rounds = c.buffer(np.full(total, -1, np.int32)), c.buffer(np.zeros(total, np.int32))
@@ -196,6 +196,6 @@ def _check_logarithmic(c):
                   "sample picks its strategy (s, t): every strategy of every sample, once")
 def _check_parallel_image(c):
     folder = _variant(c, "reference_parts", _with_reference_parts(_student(c)))
-    image = c.technique(BdptParallelConnect, folder=folder).render(16, 16, 4, seed=3).image()
-    expected = c.technique(BdptNaiveConnect, student=False).render(16, 16, 4, seed=3).image()
+    image = c.technique(BdptParallelConnect, folder=folder).render(16, 16, 4, seed=c.seed(3)).image()
+    expected = c.technique(BdptNaiveConnect, student=False).render(16, 16, 4, seed=c.seed(3)).image()
     same_image(image, expected, "bdpt_naive_connect's", rtol=1e-4, atol=1e-6)
