@@ -1,6 +1,6 @@
 /* What the connection code (bdpt.h) and the MIS weight (mis.h) read off a stored BDPT vertex
  * (BdptVertex and its VERTEX_* flags: toolkit/core/layout.py, in layout.h). Its own header so
- * that mis.h, the file course assignment 3 replaces, compiles without bdpt.h. */
+ * that mis.h, the file course assignment 4 replaces, compiles without bdpt.h. */
 #ifndef BDPT_VERTEX_H
 #define BDPT_VERTEX_H
 

@@ -1,7 +1,7 @@
 /* MIS weight of one BDPT strategy (s, t) among all the strategies that could have made the
  * same path (Veach's thesis sec. 10.3.4, pbrt-v3 sec. 16.3.4 "Multiple importance sampling").
  * Included by bdpt.h; compiles on its own (BdptVertex and VERTEX_DELTA come with layout.h,
- * remap0() with bdpt_vertex.h). It is the file that course assignment 3
+ * remap0() with bdpt_vertex.h). It is the file that course assignment 4
  * (tutorials/assignments/mis/) replaces with a student's own.
  *
  * With p_i the area density of the path under strategy i (i = s light vertices) and p_s that

@@ -1,6 +1,6 @@
 """Headers of cl/ that a kernel (or a student's replacement) includes by themselves compile alone.
 
-cl/mis.h is the file course assignment 3 replaces (toolkit/grading/grade.py builds a student's
+cl/mis.h is the file course assignment 4 replaces (toolkit/grading/grade.py builds a student's
 mis.h in its place), so it must not depend on what bdpt.h happens to define before including it."""
 import numpy as np
 import pyopencl as cl

@@ -4,6 +4,7 @@ files in that folder: there they would be importable only from an installed copy
 package toolkit.assignments), and students would find the grader among their handouts."""
 from toolkit.grading.checks import compaction, inplace_regen, mis, parallel_connect
 
-# In the order of the course (tutorials/assignments/README.md).
-ASSIGNMENTS = {a.name: a for a in (compaction.ASSIGNMENT, parallel_connect.ASSIGNMENT, mis.ASSIGNMENT,
-                                   inplace_regen.ASSIGNMENT)}
+# In the order of the course, which is the talk's (tutorials/assignments/README.md): path tracing's
+# in-place regeneration and compaction, then BDPT's parallel connect and MIS.
+ASSIGNMENTS = {a.name: a for a in (inplace_regen.ASSIGNMENT, compaction.ASSIGNMENT, parallel_connect.ASSIGNMENT,
+                                   mis.ASSIGNMENT)}

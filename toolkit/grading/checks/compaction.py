@@ -1,4 +1,4 @@
-"""Assignment 1, immediate stream compaction (tutorials/assignments/compaction/): the checks of a
+"""Assignment 2, immediate stream compaction (tutorials/assignments/compaction/): the checks of a
 student's cl/compact.h. The grader's kernels are compaction_checks.cl beside the stub."""
 import os
 import re

@@ -1,4 +1,4 @@
-"""Assignment 4, in-place sample regeneration (tutorials/assignments/inplace_regen/): the checks of a
+"""Assignment 1, in-place sample regeneration (tutorials/assignments/inplace_regen/): the checks of a
 student's cl/pt_inplace_regen.cl."""
 import numpy as np
 import pyopencl as cl

@@ -1,4 +1,4 @@
-"""Assignment 3, MIS weights for BDPT (tutorials/assignments/mis/): the checks of a student's
+"""Assignment 4, MIS weights for BDPT (tutorials/assignments/mis/): the checks of a student's
 cl/mis.h, on real paths of the toolkit's BDPT (cl/bdpt_test.cl computes every split's weight)."""
 from pathlib import Path
 

@@ -1,4 +1,4 @@
-"""Assignment 2, parallel connect indexing (tutorials/assignments/parallel_connect/): the checks of
+"""Assignment 3, parallel connect indexing (tutorials/assignments/parallel_connect/): the checks of
 a student's cl/bdpt_parallel_connect.cl. The grader's kernel is parallel_connect_checks.cl beside
 the stub."""
 import re

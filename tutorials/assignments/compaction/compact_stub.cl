@@ -1,4 +1,4 @@
-/* Assignment 1: immediate stream compaction (van Antwerpen, HPG 2011, slide "Immediate Stream
+/* Assignment 2: immediate stream compaction (van Antwerpen, HPG 2011, slide "Immediate Stream
  * Compaction"). Your file replaces the toolkit's cl/compact.h: grade it with
  *     python -m toolkit grade compaction --kernel THIS_FILE
  * The toolkit's kernels (cl/compact.cl, cl/pt_compact_regen.cl) call the two functions below;

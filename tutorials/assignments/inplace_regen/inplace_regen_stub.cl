@@ -1,4 +1,4 @@
-/* Assignment 4: in-place sample regeneration (Novak et al. 2010; van Antwerpen, HPG 2011, slide
+/* Assignment 1: in-place sample regeneration (Novak et al. 2010; van Antwerpen, HPG 2011, slide
  * "In-Place Sample Regeneration"). Your file replaces the toolkit's cl/pt_inplace_regen.cl:
  *     python -m toolkit grade inplace_regen --kernel THIS_FILE
  * Each work-item owns one slot of the path stream. After every extension step

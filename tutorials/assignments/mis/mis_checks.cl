@@ -1,4 +1,4 @@
-/* Grader kernel of assignment 3 (toolkit/grading/checks/mis.py): the student's mis_weight() on
+/* Grader kernel of assignment 4 (toolkit/grading/checks/mis.py): the student's mis_weight() on
  * known densities. Case k has its eye and light subpaths at eye + k * stride, light + k * stride,
  * its strategy (s, t) in st[k] and the four recomputed densities in pdfs[k]. */
 #include "common.h"

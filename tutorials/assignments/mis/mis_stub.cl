@@ -1,4 +1,4 @@
-/* Assignment 3: MIS weights for BDPT (van Antwerpen, HPG 2011, slide "Bidirectional Path
+/* Assignment 4: MIS weights for BDPT (van Antwerpen, HPG 2011, slide "Bidirectional Path
  * Tracing": all (s, t) strategies of a sample, combined by multiple importance sampling).
  * Your file replaces the toolkit's cl/mis.h (included by cl/bdpt.h):
  *     python -m toolkit grade mis --kernel THIS_FILE

@@ -1,4 +1,4 @@
-/* Grader kernel of assignment 2 (toolkit/grading/checks/parallel_connect.py): the student's find_sample() for every
+/* Grader kernel of assignment 3 (toolkit/grading/checks/parallel_connect.py): the student's find_sample() for every
  * connection g of a given exclusive scan `firsts` of n connection counts. */
 #include "bdpt_parallel_connect.cl"
 

@@ -1,4 +1,4 @@
-/* Assignment 2: parallel connect indexing (van Antwerpen, HPG 2011, slide "Parallel
+/* Assignment 3: parallel connect indexing (van Antwerpen, HPG 2011, slide "Parallel
  * Bidirectional Connect"). Your file replaces the toolkit's cl/bdpt_parallel_connect.cl:
  *     python -m toolkit grade parallel_connect --kernel THIS_FILE
  * One work-item per connection, so every lane of a warp evaluates one connection:
