@@ -93,15 +93,24 @@ def editions(tmp_path_factory):
 
 
 def test_the_student_edition_holds_no_solution_body(editions):
-    student, _ = editions
+    student, instructor = editions
     bodies = solution_bodies()
     # every stub leaves something to write: compaction 2, parallel_connect 3, mis 1, inplace_regen 1 (today)
     assert {a for a, _ in bodies} == set(ASSIGNMENTS)
     assert found_bodies(student) == {}
     assert not (student / "tests/fixtures").exists() and not (student / "docs/instructor_guide.md").exists()
+    assert not [name for name, text in _texts(student / "docs") if "instructor_guide" in text]   # nor a link to it
+    assert "instructor_guide" in (instructor / "docs/course.md").read_text()
     quick_start = lambda readme: readme.split("## Quick start")[1].split("```")[1]   # the two commands
     assert quick_start((student / "README.md").read_text()) == quick_start((ROOT / "README.md").read_text())
     assert "STUDENT = True" in (student / "toolkit/core/edition.py").read_text()
+    # the docs' pages include these parts of the README: the student's README has them too
+    from toolkit.grading.export import README_MARKS
+    for mark in README_MARKS:
+        assert mark in (ROOT / "README.md").read_text() and mark in (student / "README.md").read_text(), mark
+    for name in ("docs/index.md", "docs/getting_started.md"):
+        includes = re.findall(r':(?:start-after|end-before): "([^"]+)"', (student / name).read_text())
+        assert includes and set(includes) <= set(README_MARKS), (name, includes)
 
 
 def test_the_search_finds_them_where_they_are(editions, tmp_path):

@@ -3,7 +3,7 @@
 The student edition is a whole working tree, as a course hands out a project skeleton:
   - setup.cfg, pyproject.toml, toolkit/, scenes/, docs/, results/: as they are, so that it installs
     and runs with the toolkit's two commands (README quick start); docs/ without the instructor's
-    pages (INSTRUCTOR_ONLY);
+    pages (INSTRUCTOR_ONLY) and the links to them (INSTRUCTOR_REGION);
   - cl/: each assignment's solution file (Assignment.replaces) replaced by its stub, whole (every
     stub is a whole file that builds in the solution's place), so that the techniques which use
     it run on the student's code; a build that reads an untouched stub says which assignment it
@@ -21,6 +21,7 @@ cells), plus INSTRUCTOR.md: how to export the student edition and grade a class.
 """
 import json
 import os
+import re
 import shutil
 import subprocess
 from pathlib import Path
@@ -32,8 +33,10 @@ from toolkit.grading.checks import ASSIGNMENTS
 
 # Top-level entries of the checkout that the student edition holds (tests/ and README.md are its own).
 STUDENT_TOP = ("setup.cfg", "pyproject.toml", ".gitignore", "toolkit", "cl", "scenes", "docs", "results", "tutorials")
-# Files of the checkout that only the instructor gets (the guide may not exist yet: excluded by name).
+# Files of the checkout that only the instructor gets; and, in the docs' pages, the regions between
+# these marks (the links to them), which the student edition leaves out.
 INSTRUCTOR_ONLY = ("docs/instructor_guide.md",)
+INSTRUCTOR_REGION = re.compile(r"<!-- instructor-only -->.*?<!-- /instructor-only -->\n?", re.S)
 
 
 def export(target, instructor=False, root=CHECKOUT):
@@ -65,9 +68,18 @@ def export(target, instructor=False, root=CHECKOUT):
             path = target / name
             path.write_text(json.dumps(notebooks.student_notebook(json.loads(path.read_text())), indent=1,
                                        ensure_ascii=False) + "\n")
+    for name in files:
+        if name.startswith("docs/") and name.endswith(".md"):
+            path = target / name
+            path.write_text(INSTRUCTOR_REGION.sub("", path.read_text()))
     _write(target / "README.md", student_readme())
     _write(target / "tests/test_my_assignments.py", STUDENT_TESTS)
     return written + ["README.md", "tests/test_my_assignments.py"]
+
+
+# The README's parts that the docs' pages include (docs/index.md, docs/getting_started.md): the
+# student README has them too, so that the student edition's docs build (tests/test_course_export.py).
+README_MARKS = ("PyOpenCL teaching toolkit", "![SIMD efficiency", "## Quick start", "## Documentation")
 
 
 def source_files(root):
@@ -98,7 +110,7 @@ def student_readme():
     rows = "\n".join(f"| {i} | `{a.name}` | {a.title} | `cl/{a.replaces}` | "
                      f"[handout](tutorials/assignments/{a.name}/README.md) |"
                      for i, a in enumerate(ASSIGNMENTS.values(), start=1))
-    return f"""# SIMD-efficient Monte Carlo light transport: the course
+    return f"""# SIMD-efficient Monte Carlo light transport: the course's PyOpenCL teaching toolkit
 
 This is your copy of the course's toolkit: Python host code and OpenCL kernels that turn
 Dietger van Antwerpen's HPG 2011 talk *"Improving SIMD Efficiency for Parallel Monte Carlo
@@ -106,6 +118,8 @@ Light Transport on the GPU"* into techniques you can run, measure and extend. So
 kernels are yours to write: in `cl/`, each assignment's file is a stub that builds but does
 nothing yet. Until you write it, whatever uses it (a technique, a notebook cell) stops with a
 message that names the assignment.
+
+![SIMD efficiency per iteration of the three path tracers on the Cornell box](docs/_static/simd_efficiency.png)
 
 ## Quick start
 
@@ -140,6 +154,8 @@ with other inputs than the ones you see. `python -m toolkit grade NAME --stub` p
 `tutorials/` holds the notebooks that measure each technique (`pip install ".[test]"` installs
 Jupyter's kernel; open them with Jupyter or VS Code). Cells that showed a solution are exercises
 here; a cell that needs an assignment you have not written says so, and the notebook goes on.
+## Documentation
+
 The documentation is built from `docs/`: `pip install ".[docs]"`, then
 `python -m sphinx -b html docs docs/_build/html`.
 """

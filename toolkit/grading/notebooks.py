@@ -31,8 +31,11 @@ def student_notebook(nb):
     for cell in nb["cells"]:
         meta = cell.get("metadata", {})
         if SOLUTION_TAG in meta.get("tags", []):
-            cells.append({"cell_type": "markdown", "metadata": {"tags": ["exercise"]},
-                          "source": meta.get("exercise") or REMOVED})
+            exercise = {"cell_type": "markdown", "metadata": {"tags": ["exercise"]},
+                        "source": meta.get("exercise") or REMOVED}
+            if "id" in cell:   # nbformat 4.5: every cell has an id (the removed cell's is free)
+                exercise["id"] = cell["id"]
+            cells.append(exercise)
             continue
         cell = dict(cell)
         if cell["cell_type"] == "code":
@@ -40,6 +43,8 @@ def student_notebook(nb):
         cells.append(cell)
     setup = {"cell_type": "code", "execution_count": None, "outputs": [], "source": SETUP_SOURCE,
              "metadata": {"tags": ["remove-cell", "student-setup"], "jupyter": {"source_hidden": True}}}
+    if any("id" in cell for cell in nb["cells"]):
+        setup["id"] = "student-setup"
     return dict(nb, cells=[setup] + cells)
 
 
