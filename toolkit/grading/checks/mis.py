@@ -19,10 +19,10 @@ ASSIGNMENT = Assignment("mis", "MIS weights for BDPT: balance and power heuristi
 
 @ASSIGNMENT.builds
 def build(c):
-    """Everything the checks that run build: the image renders with the student's BDPT (on the
+    """Everything the checks that run build: the image renders with the student's naive-connect BDPT (on the
     Cornell box); the weights of real paths come from bdpt_test.cl, on paths of the toolkit's BDPT."""
     if c.runs("image"):
-        c.technique(BdptParallelConnect, scene="cornell_box")
+        c.technique(BdptNaiveConnect, scene="cornell_box")
     for scene_name in ("cornell_box", "cornell_spheres"):
         _, ds = c.scene(scene_name)
         tech = c.technique(BdptParallelConnect, student=False, scene=scene_name)
