@@ -89,3 +89,12 @@ def test_reading_order_names_files_that_exist():
     assert len(paths) > 15
     missing = [p for p in paths if not (ROOT / p).exists()]
     assert not missing, f"the reading order names files that do not exist: {missing}"
+
+
+def test_reading_order_links_every_tutorial_in_order():
+    """Each notebook in tutorials/ has its step in the reading order, in its number's order, so a
+    new tutorial (05 once was left out) cannot go missing from it."""
+    part = (ROOT / "docs" / "reading_order.md").read_text(encoding="utf-8")
+    notebooks = sorted(p.name for p in (ROOT / "tutorials").glob("*.ipynb"))
+    linked = re.findall(r"\]\(tutorials/([\w.]+\.ipynb)\)", part)
+    assert linked == notebooks, f"the reading order links {linked}; tutorials/ holds {notebooks}"
