@@ -109,20 +109,27 @@ def _check_symmetric(c):
                   "primary sample space is a torus: a step past 1 comes back at 0 and one below 0 at 1, so the "
                   "step's density stays the same at the edges; 1.0 itself is not in [0, 1)")
 def _check_wrap(c):
+    # Your own step, not Kelemen's (that is `perturb`'s): the step of r from u near an edge must be
+    # the step of the same r from the middle (u = 1/2), modulo 1, and land in [0, 1).
     rng = c.rng(63)
     n = 2048
     low, high = rng.uniform(0, S2, n), rng.uniform(1 - S2, 1, n)
     u = np.concatenate([low, high, [0.0, 0.0, 1 - 2 ** -24]])
     r = np.concatenate([0.5 + 0.5 * rng.random(n), 0.5 * rng.random(n), [0.75, 0.999999, 0.0]])  # down, up
-    got = _perturb(c, u, r)
+    got, middle = _perturb(c, u, r), _perturb(c, np.full(len(u), 0.5), r)
+    step = middle.astype(np.float64) - 0.5
+    if np.all(step == 0):
+        raise CheckFailed("mlt_perturb does not move u (from u = 0.5), so nothing wraps")
     outside = np.flatnonzero(~((got >= 0) & (got < 1)))
     if len(outside):
         k = outside[0]
         raise CheckFailed(f"mlt_perturb(u={u[k]:.6f}, r={r[k]:.6f}) = {got[k]:.6f}, outside [0, 1) "
                           f"({len(outside)} of {len(u)} steps near the edges)")
-    problem = _first_wrong(c, u, r, got)
-    if problem:
-        raise CheckFailed("near an edge: " + problem)
+    wrong = np.flatnonzero(~(_circular(got, u + step) <= _TOLERANCE))
+    if len(wrong):
+        k = wrong[0]
+        raise CheckFailed(f"mlt_perturb(u={u[k]:.6f}, r={r[k]:.6f}) = {got[k]:.6f}: the same r moves u = 0.5 by "
+                          f"{step[k]:+.6f}, which wraps to {(u[k] + step[k]) % 1.0:.6f} ({len(wrong)} of {len(u)} wrong)")
 
 
 def _buffers(c, chains, current, dims):
@@ -174,13 +181,13 @@ def _check_large_step(c):
         used = np.where(expected_large != 0, 0, dims)
         fresh_expected = np.arange(max_dims)[:, None] >= used[None, :]
         fresh = got == _FRESH
-        stored = (got >= 0) & (got < 1)
+        stored = np.isfinite(got) & (got != _FRESH)   # its value is `perturb`'s and `wrap`'s business
         bad = np.flatnonzero(~np.all(np.where(fresh_expected, fresh, stored), axis=0))
         if len(bad):
             k = bad[0]
             kind = "large" if expected_large[k] else f"small (the current state used {dims[k]} dimensions)"
             raise CheckFailed(f"{where}: chain {k}, a {kind} step, proposes {np.round(got[:, k], 4).tolist()}; "
-                              f"expected MLT_FRESH (-1) in the dimensions from {used[k]} on and values in [0, 1) "
+                              f"expected MLT_FRESH (-1) in the dimensions from {used[k]} on and perturbed values "
                               f"below ({len(bad)} of {chains} chains)")
 
 
