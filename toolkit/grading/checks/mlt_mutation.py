@@ -186,7 +186,7 @@ def _check_large_step(c):
         if len(bad):
             k = bad[0]
             kind = "large" if expected_large[k] else f"small (the current state used {dims[k]} dimensions)"
-            raise CheckFailed(f"{where}: chain {k}, a {kind} step, proposes {np.round(got[:, k], 4).tolist()}; "
+            raise CheckFailed(f"{where}: chain {k}, a {kind} step, proposes {[round(float(x), 4) for x in got[:, k]]}; "
                               f"expected MLT_FRESH (-1) in the dimensions from {used[k]} on and perturbed values "
                               f"below ({len(bad)} of {chains} chains)")
 
