@@ -6,6 +6,7 @@ with a chi-square test; tutorials/04_metropolis.ipynb plots it.
 import numpy as np
 import pyopencl as cl
 
+from toolkit.measure.stats import chi2_sf, pearson
 from toolkit.opencl import program
 from toolkit.core.layout import MLT_CHAIN, MLT_ITERATION, MltMode
 from toolkit.techniques.mlt import SMALL_STEP, step_defines
@@ -32,6 +33,15 @@ def bin_probabilities(bins):
     return p / TARGET_INTEGRAL
 
 
+def chi2_p(states, bins=8):
+    """The p-value of Pearson's chi-square test of chain states (chains, 2) against f / (9/8) on
+    bins x bins cells (cells below 5 expected pooled): tutorial 04's test, and the grader's
+    (toolkit/grading/checks/mlt_mutation.py)."""
+    observed, _, _ = np.histogram2d(states[:, 0], states[:, 1], bins=bins, range=[[0, 1], [0, 1]])
+    statistic, dof, *_ = pearson(observed, bin_probabilities(bins) * len(states))
+    return chi2_sf(statistic, dof)
+
+
 def sample_target(n, seed=0):
     """n exact samples of f / (9/8), by rejection on the host (f <= 6)."""
     rng = np.random.default_rng(seed)
@@ -43,12 +53,14 @@ def sample_target(n, seed=0):
     return out[:n]
 
 
-def run_chains(queue, chains, iterations, seed=0, large_step=0.3, history=False, initial=None):
+def run_chains(queue, chains, iterations, seed=0, large_step=0.3, history=False, initial=None, directory=None):
     """Run `chains` independent chains for `iterations` Metropolis steps after a naive start
     (one large step), or from the states `initial` (chains, 2). Returns the final (u0, u1) of
     every chain, shape (chains, 2), and with `history` also the states of chain 0 at every
-    iteration (iterations + 1, 2) and its acceptance rate."""
-    built = program.build(queue.context, "mlt_test.cl", {"MLT_MAX_DIMS": MAX_DIMS, **step_defines(SMALL_STEP)})
+    iteration (iterations + 1, 2) and its acceptance rate. `directory`: where the build finds
+    cl/mlt.h (the grader passes a submission's: toolkit/grading/checks/mlt_mutation.py)."""
+    built = program.build(queue.context, "mlt_test.cl", {"MLT_MAX_DIMS": MAX_DIMS, **step_defines(SMALL_STEP)},
+                          directory=directory)
     ctx, n = queue.context, program.padded(chains)
     current = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n * MAX_DIMS)
     proposal = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n * MAX_DIMS)
