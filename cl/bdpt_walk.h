@@ -198,7 +198,7 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
  * launch restarts them all at once. Lane `lane` of that launch takes the lane-th listed slot: the
  * sample it starts there, r->first_id + lane while the budget lasts (the first r->fresh lanes;
  * consecutive ids, so consecutive pixels), or -1 when the budget is spent and the slot goes idle. */
-int bdpt_regeneration_sample(const BdptRegeneration* r, int lane)
+HELPER int bdpt_regeneration_sample(const BdptRegeneration* r, int lane)
 {
     return lane < r->fresh ? r->first_id + lane : -1;
 }

@@ -204,7 +204,7 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
  * launch restarts them all at once. Lane `lane` of that launch takes the lane-th listed slot: the
  * sample it starts there, r->first_id + lane while the budget lasts (the first r->fresh lanes;
  * consecutive ids, so consecutive pixels), or -1 when the budget is spent and the slot goes idle. */
-int bdpt_regeneration_sample(const BdptRegeneration* r, int lane)
+HELPER int bdpt_regeneration_sample(const BdptRegeneration* r, int lane)
 {
     /* TODO: lane `lane` owns the lane-th terminated slot of the list. While the pass has samples
      * left (the first r->fresh lanes), return the id it starts: the ids follow r->first_id one by
