@@ -8,6 +8,7 @@
 
 #include "bdpt.h"
 #include "compact.h"
+#include "bdpt_regeneration.h"
 
 /* Store one vertex per work-item at memory[index] (index < 0: nothing to store).
  * Direct: each work-item writes its own vertex (96 bytes), far from its neighbours' (uncoalesced).
@@ -193,16 +194,6 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
  * samples r.first_id, r.first_id + 1, ... (consecutive pixels); the rest go idle (budget spent).
  * Writes z_0 (camera) and y_0 (point on a light) and appends both subpaths to their streams
  * at r.eye_base + i and r.light_base + i. */
-/* Postponed regeneration (the talk's BDPT slides): the host waits until a share of the pool
- * (regenerate_fraction, 0.6) has terminated, compacts their slots into a list, and then one
- * launch restarts them all at once. Lane `lane` of that launch takes the lane-th listed slot: the
- * sample it starts there, r->first_id + lane while the budget lasts (the first r->fresh lanes;
- * consecutive ids, so consecutive pixels), or -1 when the budget is spent and the slot goes idle. */
-HELPER int bdpt_regeneration_sample(const BdptRegeneration* r, int lane)
-{
-    return lane < r->fresh ? r->first_id + lane : -1;
-}
-
 __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const BdptRegeneration r,
                               __global const int* slot_list, __global void* eye_stream, __global void* light_stream,
                               __global BdptVertex* eye_vertices, __global BdptVertex* light_vertices,

@@ -1,5 +1,5 @@
 """Assignment 5, postponed regeneration (tutorials/assignments/postponed_regen/): the checks of a
-student's cl/bdpt_walk.h, whose bdpt_regeneration_sample says which sample each lane of BDPT's
+student's cl/bdpt_regeneration.h, whose bdpt_regeneration_sample (called by cl/bdpt_walk.h's bdpt_regenerate) says which sample each lane of BDPT's
 regeneration launch starts in its terminated slot, or that the slot goes idle (budget spent)."""
 import numpy as np
 import pyopencl as cl
@@ -8,9 +8,9 @@ from toolkit.core.layout import BDPT_SLOT, SlotState
 from toolkit.grading.assignment import Assignment, CheckFailed, same_image
 from toolkit.techniques import BdptParallelConnect
 
-ASSIGNMENT = Assignment("postponed_regen", "Postponed regeneration: BDPT's sample pool", "bdpt_walk.h",
+ASSIGNMENT = Assignment("postponed_regen", "Postponed regeneration: BDPT's sample pool", "bdpt_regeneration.h",
                         "postponed_regen_stub.cl",
-                        headers=("bdpt.h", "compact.h"))
+                        headers=("common.h",))
 
 
 @ASSIGNMENT.builds
