@@ -1,7 +1,7 @@
 """The Metropolis kernels of cl/mlt.h (mutate, accept) on a known two-dimensional target
 (cl/mlt_test.cl) instead of light paths: many independent chains, whose states after enough
 iterations must be distributed like the target, f normalized. tests/test_mlt.py checks this
-with a chi-square test; tutorials/04_metropolis.ipynb plots it.
+with a chi-square test; tutorials/05_metropolis.ipynb plots it.
 """
 import numpy as np
 import pyopencl as cl
@@ -35,7 +35,7 @@ def bin_probabilities(bins):
 
 def chi2_p(states, bins=8):
     """The p-value of Pearson's chi-square test of chain states (chains, 2) against f / (9/8) on
-    bins x bins cells (cells below 5 expected pooled): tutorial 04's test, and the grader's
+    bins x bins cells (cells below 5 expected pooled): tutorial 05's test, and the grader's
     (toolkit/grading/checks/mlt_mutation.py)."""
     observed, _, _ = np.histogram2d(states[:, 0], states[:, 1], bins=bins, range=[[0, 1], [0, 1]])
     statistic, dof, *_ = pearson(observed, bin_probabilities(bins) * len(states))

@@ -1,6 +1,6 @@
 """Assignment 6, Kelemen's mutation for primary-sample-space MLT (tutorials/assignments/mlt_mutation/):
 the checks of a student's cl/mlt.h (mlt_perturb and mlt_mutate; mlt_accept is the toolkit's).
-Exact checks of the small step on known inputs; tutorial 04's chi-square tests of the chains on
+Exact checks of the small step on known inputs; tutorial 05's chi-square tests of the chains on
 its known target (cl/mlt_test.cl, toolkit/verify/mlt_toy.py); the on-the-fly normalisation b,
 the mean f of the large steps, on that target; an MLT image against the reference."""
 import numpy as np
@@ -191,7 +191,7 @@ def _check_large_step(c):
                               f"below ({len(bad)} of {chains} chains)")
 
 
-@ASSIGNMENT.check("stationary", 15, "tutorial 04's chi-square test: 16,384 chains, 150 iterations (large_step 0.3) "
+@ASSIGNMENT.check("stationary", 15, "tutorial 05's chi-square test: 16,384 chains, 150 iterations (large_step 0.3) "
                                     "on its known target, final states distributed like f (p >= 0.001)",
                   "the chains sample f only if the proposal is symmetric and reaches everywhere: small steps "
                   "around the circle, large steps uniform")
@@ -204,7 +204,7 @@ def _check_stationary(c):
                           f"(< {ALPHA})")
 
 
-@ASSIGNMENT.check("small_steps", 10, "tutorial 04's invariance test: chains started in the target stay in it "
+@ASSIGNMENT.check("small_steps", 10, "tutorial 05's invariance test: chains started in the target stay in it "
                                      "after 200 small steps (large_step 0, chi-square p >= 0.001)",
                   "a small step alone must keep f invariant: symmetric, wrapped at 0 and 1, and perturbing "
                   "only the dimensions the current state used (the others fresh)")
