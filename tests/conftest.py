@@ -1,3 +1,4 @@
+import json
 import os
 import sys
 from pathlib import Path
@@ -70,3 +71,18 @@ def cornell_box():
 def cornell_spheres():
     from toolkit import load_scene
     return load_scene(SCENES / "cornell_spheres")
+
+
+@pytest.fixture
+def python3_kernel(tmp_path, monkeypatch):
+    """A 'python3' kernelspec that runs this interpreter, so the notebook sees the same
+    environment (toolkit, pyopencl, ...) as the tests, whatever kernelspecs the user has."""
+    spec = tmp_path / "jupyter" / "kernels" / "python3"
+    spec.mkdir(parents=True)
+    (spec / "kernel.json").write_text(json.dumps({
+        "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
+        "display_name": "Python 3 (tests)", "language": "python"}))
+    # JUPYTER_PATH comes before the user's and the environment's kernel folders.
+    monkeypatch.setenv("JUPYTER_PATH", os.pathsep.join(
+        [str(tmp_path / "jupyter")] + [p for p in [os.environ.get("JUPYTER_PATH")] if p]))
+    return "python3"

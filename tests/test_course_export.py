@@ -195,3 +195,34 @@ def test_the_student_editions_public_checks_give_a_right_solution_every_point_th
                       "'tests/test_my_assignments.py']))", timeout=600)
     assert tests.returncode == 0, tests.stdout[-3000:] + tests.stderr[-2000:]
     assert f"{len(ASSIGNMENTS)} passed" in tests.stdout
+
+
+def test_the_student_editions_notebooks_run_and_say_what_they_need(editions, python3_kernel, monkeypatch):
+    """Each notebook of the student edition runs from top to bottom on the student's toolkit (its
+    stubs in cl/, its exercises not written): a cell that needs an unwritten assignment or exercise
+    prints `not run: ...` and the notebook goes on (toolkit/grading/notebooks.py). A cell that
+    fails for another reason before that fails the test."""
+    nbformat = pytest.importorskip("nbformat")
+    nbclient = pytest.importorskip("nbclient")
+    student, _ = editions
+    monkeypatch.setenv("TOOLKIT_FAST_NOTEBOOKS", "1")
+    monkeypatch.setenv("MPLBACKEND", "Agg")
+    monkeypatch.setenv("PYTHONPATH", str(student))   # the student's toolkit, not this checkout's
+    paths = sorted((student / "tutorials").glob("*.ipynb"))
+    assert [p.name for p in paths] == [p.name for p in sorted((ROOT / "tutorials").glob("*.ipynb"))]
+    for path in paths:
+        nb = nbformat.read(path, as_version=4)
+        # a last cell that says whose cl/ the notebook built from
+        nb.cells.append(nbformat.v4.new_code_cell("from toolkit.opencl.program import cl_dir\nprint('cl:', cl_dir())"))
+        client = nbclient.NotebookClient(nb, timeout=300, kernel_name=python3_kernel,
+                                         resources={"metadata": {"path": str(path.parent)}})
+        try:
+            client.execute()
+        except nbclient.exceptions.CellExecutionError as error:
+            traceback = re.sub(r"\x1b\[[0-9;]*m", "", str(error))   # the kernel's traceback is coloured
+            pytest.fail(f"student edition's {path.name}: a cell failed\n{traceback}", pytrace=False)
+        printed = "".join(out.get("text", "") for cell in nb.cells if cell.cell_type == "code"
+                          for out in cell.get("outputs", []) if out.get("output_type") == "stream")
+        assert f"cl: {student / 'cl'}" in printed, (path.name, printed[-500:])
+        # every notebook uses an assignment or holds an exercise: the mechanism ran, no solution did
+        assert "not run: " in printed, path.name

@@ -10,7 +10,6 @@ import importlib.util
 import json
 import os
 import re
-import sys
 from pathlib import Path
 
 import pytest
@@ -46,21 +45,6 @@ def test_notebook_cells_hold_no_control_characters(path):
         source = "".join(cell["source"]) if isinstance(cell["source"], list) else cell["source"]
         found += [(i, repr(ch)) for ch in sorted(set(source)) if ord(ch) < 32 and ch != "\n"]
     assert not found, f"{path.name}: (cell, control character) {found}; write the backslash twice"
-
-
-@pytest.fixture
-def python3_kernel(tmp_path, monkeypatch):
-    """A 'python3' kernelspec that runs this interpreter, so the notebook sees the same
-    environment (toolkit, pyopencl, ...) as the tests, whatever kernelspecs the user has."""
-    spec = tmp_path / "jupyter" / "kernels" / "python3"
-    spec.mkdir(parents=True)
-    (spec / "kernel.json").write_text(json.dumps({
-        "argv": [sys.executable, "-m", "ipykernel_launcher", "-f", "{connection_file}"],
-        "display_name": "Python 3 (tests)", "language": "python"}))
-    # JUPYTER_PATH comes before the user's and the environment's kernel folders.
-    monkeypatch.setenv("JUPYTER_PATH", os.pathsep.join(
-        [str(tmp_path / "jupyter")] + [p for p in [os.environ.get("JUPYTER_PATH")] if p]))
-    return "python3"
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
