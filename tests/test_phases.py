@@ -114,3 +114,18 @@ def test_compare_json_and_text_carry_the_phase_rows(run):
     text = format_table({"bdpt_naive_connect": table["bdpt_naive_connect"]})   # the fixture's rows are separate compares
     assert "The talk's model" in text and all(r["kernel"] in text for r in table["bdpt_naive_connect"]["phases"])
     assert build_parser().parse_args(["compare", "--plot", "x.png"]).plot == "x.png"
+
+
+def test_a_long_variant_name_keeps_the_tables_columns_apart(run):
+    """A variant's name ("bdpt_parallel_connect/direct_scatter", 36 characters) is longer than the
+    usual name column: the name is still followed by spaces, and each table's rows line up."""
+    from toolkit.measure.compare import format_table
+    table, _ = run
+    long_name = "bdpt_naive_connect/" + "x" * 30
+    text = format_table({long_name: table["bdpt_naive_connect"]})
+    rows = [line for line in text.splitlines() if line.startswith(long_name)]
+    assert len(rows) >= 3 and all(line[len(long_name):].startswith("  ") for line in rows)
+    kernels = [r["kernel"] for r in table["bdpt_naive_connect"]["phases"]]
+    starts = {len(line) - len(line[len(long_name):].lstrip()) for line in rows
+              if any(line[len(long_name):].lstrip().startswith(k) for k in kernels)}
+    assert len(starts) == 1   # the kernel column starts in one place on every row of the phase table

@@ -11,7 +11,7 @@ from toolkit.api import as_scene, render
 from toolkit.core.images import to_srgb8, write_image
 from toolkit.core.validate import writable_folder
 from toolkit.measure.phase_plot import save_phase_plot
-from toolkit.measure.phases import format_phases, phase_rows
+from toolkit.measure.phases import format_phases, name_width, phase_rows
 from toolkit.techniques import get_technique
 from toolkit.measure.reference import reference_at, rmse
 
@@ -75,7 +75,8 @@ def format_table(table, warp_width=None):
     if warp_width is None:
         warp_width, why = first.get("warp_width", 32), first.get("warp_width_source")
     phases = [p for p in PHASES if any(p in row["simd_efficiency"] for row in table.values())]
-    head = f"{'technique':<28}{'seconds':>9}{'samples/s':>12}" + "".join(f"{p:>10}" for p in phases) + \
+    w = name_width(table, 28)
+    head = f"{'technique':<{w}}{'seconds':>9}{'samples/s':>12}" + "".join(f"{p:>10}" for p in phases) + \
         f"{'overall':>10}{'BVH trav':>10}{'steps':>8}{'RMSE ref':>11}"
     lines = [f"SIMD efficiency = active lanes / lanes issued, warps of {warp_width} (an upper bound, as in the talk);",
              "BVH trav = traversal steps per lane / the warp's longest traversal (divergence inside intersection);",
@@ -89,7 +90,7 @@ def format_table(table, warp_width=None):
         cells = "".join(f"{eff[p]:>10.1%}" if p in eff else f"{'-':>10}" for p in phases)
         r = f"{row['rmse']:>11.5f}" if row["rmse"] is not None else f"{'-':>11}"
         trav = row["traversal_efficiency"].get("closest", float("nan"))
-        lines.append(f"{name:<28}{row['seconds']:>9.2f}{row['samples_per_second']:>12,.0f}{cells}"
+        lines.append(f"{name:<{w}}{row['seconds']:>9.2f}{row['samples_per_second']:>12,.0f}{cells}"
                      f"{eff.get('overall', float('nan')):>10.1%}{trav:>10.1%}{row['traversal_steps']:>8.1f}{r}")
     names = list(table)
     if all("phases" in row for row in table.values()):   # rows read back from an older JSON have none

@@ -97,22 +97,29 @@ def _percent(x):
     return f"{x:>8.1%}" if x is not None else f"{'-':>8}"
 
 
+def name_width(table, least):
+    """The width of a column of technique names: the longest name and two spaces, at least `least`
+    (a variant's name, "bdpt_parallel_connect/direct_scatter", is longer than the usual column)."""
+    return max([least] + [len(name) + 2 for name in table])
+
+
 def format_phases(table):
     """The per-phase tables and the model's ratios, as text."""
+    w = name_width(table, 24)
     lines = ["Time per phase (device time of each kernel, OpenCL profiling events) and its lane efficiency, "
              "one run;", f"{HOST}: the wall time no kernel accounts for (SIMD counter reads, Python, copies);",
              "lanes: the path-level counters the kernel runs; BVH trav: its closest-hit and shadow rays' traversal.",
-             f"{'technique':<24}{'phase (kernel)':<30}{'stage':<27}{'launches':>9}{'ms':>10}{'share':>8}"
+             f"{'technique':<{w}}{'phase (kernel)':<30}{'stage':<27}{'launches':>9}{'ms':>10}{'share':>8}"
              f"{'lanes':>8}{'BVH trav':>9}"]
     lines.append("-" * len(lines[-1]))
     for name, row in table.items():
         for r in row["phases"]:
-            lines.append(f"{name:<24}{r['kernel']:<30}{r['stage']:<27}{r['launches']:>9}{r['ms']:>10.1f}"
+            lines.append(f"{name:<{w}}{r['kernel']:<30}{r['stage']:<27}{r['launches']:>9}{r['ms']:>10.1f}"
                          f"{r['share']:>8.1%}{_percent(r['simd_efficiency'])}{_percent(r['traversal_efficiency'])}")
     lines += ["", "The talk's model: time ~ work / (W x efficiency) = issued lane-steps / W, as a ratio to the "
               "family's first technique (time, lower is faster):",
-              f"{'technique':<24}{'reference':<22}{'model':>8}{'model+BVH':>11}{'kernels':>9}{'wall':>8}"]
+              f"{'technique':<{w}}{'reference':<{w}}{'model':>8}{'model+BVH':>11}{'kernels':>9}{'wall':>8}"]
     for name, m in model_rows(table).items():
-        lines.append(f"{name:<24}{m['reference']:<22}{m['predicted']:>8.2f}{m['predicted_traversal']:>11.2f}"
+        lines.append(f"{name:<{w}}{m['reference']:<{w}}{m['predicted']:>8.2f}{m['predicted_traversal']:>11.2f}"
                      f"{m['measured_kernels']:>9.2f}{m['measured_wall']:>8.2f}")
     return "\n".join(lines)
