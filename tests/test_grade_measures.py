@@ -6,7 +6,7 @@ import shutil
 import pytest
 
 from toolkit.grading import instrument
-from toolkit.grading.assignment import SKIPPED
+from toolkit.grading.assignment import NEEDS_REFERENCE, SKIPPED
 from toolkit.grading.checks import ASSIGNMENTS
 from toolkit.grading.grade import _result, selected_checks
 
@@ -63,6 +63,21 @@ def test_a_skipped_check_is_left_out_and_the_score_rescaled():
     rows = {r["name"]: r for r in result["checks"]}
     assert rows["races"]["skipped"] and rows["races"]["hint"] is None and rows["twice"]["hint"]
     assert result["score"] == round(80 * 100 / 90) and "rescaled to 89 of 100" in result["note"]
+    assert "races skipped (this check needs Oclgrind)" in result["note"]
+
+
+def test_the_note_says_why_each_check_was_skipped():
+    """The student edition skips a check that compares with the reference solution, which it does
+    not hold: the note says so (not "this machine cannot run it"), apart from a missing tool."""
+    a = ASSIGNMENTS["compaction"]
+    reasons = {c.name: None for c in a.checks}
+    reasons["races"] = SKIPPED + "this check needs Oclgrind (an OpenCL simulator), which is not installed here: pip ..."
+    for name in ("render", "twice"):
+        reasons[name] = SKIPPED + NEEDS_REFERENCE
+    note = _result(a, "mine.cl", dict(reasons, build=None), {}, None, 1.0)["note"]
+    assert "races skipped (this check needs Oclgrind (an OpenCL simulator), which is not installed here)" in note
+    assert "twice, render skipped (it compares with the reference solution: your instructor grades it)" in note
+    assert "this machine" not in note and "pip" not in note
 
 
 @needs_cpp

@@ -21,6 +21,10 @@ class CheckFailed(Exception):
 # A skipped check's reason starts with this (the worker writes it; only the grader's code raises
 # CheckSkipped): it is left out of the score, which is rescaled to the points graded (grade.py).
 SKIPPED = "skipped: "
+# Why a check of the student edition is skipped when it compares with the reference solution
+# (the stub is in its place there: worker.py)
+NEEDS_REFERENCE = ("it compares with the reference solution, which this edition of the course does not hold: "
+                   "your instructor grades it")
 
 
 class CheckSkipped(Exception):

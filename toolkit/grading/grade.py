@@ -37,7 +37,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from toolkit.grading.assignment import SKIPPED, assignments_dir
+from toolkit.grading.assignment import NEEDS_REFERENCE, SKIPPED, assignments_dir
 from toolkit.grading.checks import ASSIGNMENTS
 from toolkit.grading.limits import check_time_limit, stop_on_signals
 from toolkit.grading.runner import TIME_LIMIT, GraderError, Limits, run_checks
@@ -136,13 +136,22 @@ def _result(a, shown, reasons, times, error, seconds, only=None):
         why = []
         if len(rows) < len(a.checks):
             why.append(f"only {', '.join(r['name'] for r in rows)} graded (--only)")
-        if any(r["skipped"] for r in rows):
-            why.append(f"{', '.join(r['name'] for r in rows if r['skipped'])} could not run on this machine (skipped)")
+        for reason in dict.fromkeys(r["reason"] for r in rows if r["skipped"]):   # grouped by why, in order
+            names = ", ".join(r["name"] for r in rows if r["skipped"] and r["reason"] == reason)
+            why.append(f"{names} skipped ({_why_skipped(reason)})")
         result["note"] = (f"{'; '.join(why)}: the score is {earned} of the {graded} points graded, rescaled to "
                           f"{result['score']} of {whole}")
     if error:
         result["error"] = error
     return result
+
+
+def _why_skipped(reason):
+    """A skipped check's reason, short, for the note: what was missing, not how to install it."""
+    text = reason[len(SKIPPED):]
+    if text == NEEDS_REFERENCE:
+        return "it compares with the reference solution: your instructor grades it"
+    return text.split(":")[0]   # "this check needs Oclgrind (an OpenCL simulator), which is not installed here"
 
 
 def _hint(check, reason):
