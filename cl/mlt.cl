@@ -3,7 +3,7 @@
  * with -DMLT=1, the BDPT kernels read their uniforms from the proposals (cl/bdpt_sampler.h): the walk
  * and connect code is the same code as bdpt_parallel_connect's, not a copy.
  * Kernels of one iteration, in order (toolkit/techniques/mlt.py):
- *   mlt_mutate                   cl/mlt.h                    every chain writes its proposal
+ *   mlt_mutate                   cl/mlt_mutation.h           every chain writes its proposal
  *   bdpt_regenerate, bdpt_extend, bdpt_mark_terminated, the compaction,
  *   bdpt_parallel_connect_count, the scan, bdpt_parallel_connect
  *                                cl/bdpt_parallel_connect.cl  evaluate the proposals (one BDPT sample each)

@@ -48,12 +48,19 @@ WRONG = {
     ("parallel_connect", "count_off_by_one"): {"count"},
     # A right search that walks the samples one by one (`logarithmic` counts its rounds).
     ("parallel_connect", "linear_search"): {"logarithmic"},
-    # power = balance: the known densities show it too (`heuristic`).
-    ("mis", "power_not_squared"): {"power", "heuristic"},
-    # Uniform weights sum to one (balance_sum) but are no heuristic; they also bias the image: a
+    # Another rule than the heuristic asked for, in one build (power_not_squared: the power build
+    # computes the balance heuristic; power_cubed: beta = 3; maximum_heuristic; power_for_balance:
+    # the balance build computes the power heuristic): the weights sum to one and the image is
+    # unbiased, but `heuristic` names the rule and no weight on real paths is right. 30 points.
+    ("mis", "power_not_squared"): {"heuristic", "weights"},
+    ("mis", "power_cubed"): {"heuristic", "weights"},
+    ("mis", "maximum_heuristic"): {"heuristic", "weights"},
+    ("mis", "power_for_balance"): {"heuristic", "weights"},
+    # Uniform weights sum to one (sum_to_one) but are no heuristic; they also bias the image: a
     # strategy that has density 0 for a path (not a delta vertex) still takes its share. 10 points.
-    ("mis", "uniform_weights"): {"heuristic", "balance", "power", "image"},
-    ("mis", "no_delta_skip"): {"balance_sum", "balance", "power"},
+    ("mis", "uniform_weights"): {"heuristic", "weights", "image"},
+    # Strategies at delta vertices are counted: sums and weights are wrong on cornell_spheres only.
+    ("mis", "no_delta_skip"): {"sum_to_one", "weights"},
     ("inplace_regen", "budget_off_by_one"): {"ids", "any_alive", "regenerated"},
     ("inplace_regen", "any_alive_only_started"): {"any_alive", "image"},
     # Lanes past the samples left start samples too. The image keeps its points: the host never
@@ -87,7 +94,10 @@ KEEP = {
     ("parallel_connect", "wrong_base"): {"image"},  # image on the toolkit's find_sample
     ("parallel_connect", "count_off_by_one"): {"image", "search"},   # image on the toolkit's count
     ("parallel_connect", "linear_search"): {"search", "search_edges"},
-    ("mis", "power_not_squared"): {"balance"},
+    ("mis", "power_not_squared"): None,             # the other heuristics are graded whole, for
+    ("mis", "power_cubed"): None,                   # the test of a third of the points below
+    ("mis", "maximum_heuristic"): None,
+    ("mis", "power_for_balance"): None,
     ("mis", "uniform_weights"): None,
     ("mis", "no_delta_skip"): {"heuristic"},        # known densities have no delta vertex
     ("inplace_regen", "budget_off_by_one"): None,
@@ -184,6 +194,34 @@ def test_a_crashing_check_costs_its_points_and_a_fresh_worker_grades_the_rest():
     reasons = {c["name"]: c["reason"] for c in result["checks"]}
     assert reasons["scan"].startswith("the check crashed (SIGSEGV"), reasons["scan"]
     assert result["score"] == 85
+
+
+# The mis fixtures whose weights follow another rule than the heuristic asked for, and the words by
+# which the `heuristic` check names that rule.
+OTHER_HEURISTIC = {
+    "power_not_squared": "the balance heuristic (beta = 1)",
+    "power_cubed": "the power heuristic with beta = 3",
+    "maximum_heuristic": "the maximum heuristic",
+    "power_for_balance": "the power heuristic with beta = 2",
+    "uniform_weights": "uniform weights",
+}
+
+
+@pytest.mark.parametrize("fixture", sorted(OTHER_HEURISTIC))
+def test_a_mis_heuristic_not_the_one_asked_for_earns_at_most_a_third(fixture):
+    """Issue 25: a heuristic that is not the one asked for earns no more than a third of the points,
+    and the check that catches it says which rule the weights follow instead."""
+    result = graded("mis", fixture)                 # every check: KEEP is None for these
+    reasons = {c["name"]: c["reason"] for c in result["checks"]}
+    assert result["score"] <= 100 / 3, reasons
+    assert f"your weights follow another rule: {OTHER_HEURISTIC[fixture]}" in reasons["heuristic"], reasons
+    assert_points_add_up(result)
+
+
+def test_every_other_mis_heuristic_fixture_is_held_to_a_third():
+    # a new mis fixture that loses `heuristic` is another rule, and must be in OTHER_HEURISTIC
+    assert {f for (a, f), broken in WRONG.items() if a == "mis" and "heuristic" in broken} == set(OTHER_HEURISTIC)
+    assert all(KEEP[("mis", f)] is None for f in OTHER_HEURISTIC)
 
 
 def test_every_fixture_is_graded_by_a_test():

@@ -11,8 +11,10 @@ from toolkit.measure.reference import reference_at, relative_mean_error, z_test
 from toolkit.opencl import program
 from toolkit.techniques import BdptNaiveConnect, BdptParallelConnect
 
-# The points: weights that sum to one but are not the heuristic asked for (uniform ones, say)
-# pass balance_sum and image, and earn at most a third (30).
+# The points. The assignment asks for two heuristics, the balance one (MIS_POWER 0) and the power
+# one (MIS_POWER 1, beta = 2); a file that computes another rule in either build (uniform weights,
+# the balance heuristic in the power build, another exponent, the maximum heuristic) loses
+# `heuristic` and `weights` (70) and keeps at most `sum_to_one` and `image` (30): at most a third.
 ASSIGNMENT = Assignment("mis", "MIS weights for BDPT: balance and power heuristics", "mis.h", "mis_stub.cl",
                         ("mis_checks.cl",), headers=("common.h", "bdpt_vertex.h"))
 
@@ -80,7 +82,10 @@ def _mis_cases(c):
         yield scene_name, tech, paths
 
 
-def _sum_problem(scene_name, weights, what="balance"):
+_HEURISTICS = ((False, "balance"), (True, "power"))   # (MIS_POWER, the heuristic that build asks for)
+
+
+def _sum_problem(scene_name, weights, what):
     for w in weights:
         total = float(np.sum(w))
         if not np.all(np.isfinite(w)) or np.any(w < 0) or np.any(w > 1 + 1e-5) or abs(total - 1) > 1e-4:
@@ -99,20 +104,21 @@ def _match_problem(scene_name, weights, expected, what):
     return None
 
 
-@ASSIGNMENT.check("balance_sum", 10, "balance heuristic: the weights of every split of real paths sum to one",
+@ASSIGNMENT.check("sum_to_one", 10, "on real paths, the weights of every split sum to one, with both heuristics",
                   "the strategies that can make a path share it: their weights sum to one, and a strategy that "
                   "cannot (a connection at a delta vertex) is left out of every sum")
-def _check_balance_sum(c):
+def _check_sum_to_one(c):
     for scene_name, tech, paths in _mis_cases(c):
-        problem = _sum_problem(scene_name, _split_weights(c, tech, scene_name, paths))
-        if problem:
-            raise CheckFailed(problem)
+        for power, name in _HEURISTICS:
+            problem = _sum_problem(scene_name, _split_weights(c, tech, scene_name, paths, power=power), name)
+            if problem:
+                raise CheckFailed(problem)
 
 
 def _known_cases(rng, n=64):
     """Cases of known densities (log-uniform over two decades, no delta vertex): strategy (s, t),
-    the subpaths' pdf_fwd and pdf_rev, the four recomputed densities, and each case's balance
-    and power weights computed here from the formula of the handout."""
+    the subpaths' pdf_fwd and pdf_rev, the four recomputed densities, and each case's ratios
+    r_i = p_i / p_s of the other strategies, computed here from the recurrence of the handout."""
     st = np.stack([rng.integers(0, 5, n), rng.integers(1, 6, n)], axis=1).astype(np.int32)
     density = lambda *shape: np.exp(rng.uniform(np.log(0.1), np.log(10.0), shape)).astype(np.float32)
     eye_fwd, eye_rev, light_fwd, light_rev, pdfs = (density(n, _STRIDE), density(n, _STRIDE), density(n, _STRIDE),
@@ -128,11 +134,31 @@ def _known_cases(rng, n=64):
             r *= (pdfs[k, 2] if i == s - 1 else pdfs[k, 3] if i == s - 2 else light_rev[k, i + 1]) / light_fwd[k, i]
             terms.append(r)
         ratios.append(np.array(terms, np.float64))
-    expected = {power: np.array([1 / (1 + np.sum(r ** (2 if power else 1))) for r in ratios]) for power in (0, 1)}
-    return st, (eye_fwd, eye_rev, light_fwd, light_rev), pdfs, expected
+    return st, (eye_fwd, eye_rev, light_fwd, light_rev), pdfs, ratios
 
 
 _STRIDE = 8   # vertices per subpath in the known cases
+
+
+def _power_rule(ratios, beta):
+    """w_s = p_s^beta / sum_i p_i^beta = 1 / (1 + sum r_i^beta): beta 1 is the balance heuristic,
+    2 the power heuristic asked for, 0 uniform weights (1 / the number of strategies)."""
+    return np.array([1 / (1 + np.sum(r ** beta)) for r in ratios])
+
+
+def _other_rules(ratios):
+    """The rules a file may compute instead of the heuristic asked for, by name: the power rule of other
+    exponents and its limit, the maximum heuristic (weight 1 for the likeliest strategy, 0 for the others)."""
+    named = {0: "uniform weights, 1 / (s + t)", 1: "the balance heuristic (beta = 1)"}
+    rules = {named.get(beta, f"the power heuristic with beta = {beta}"): _power_rule(ratios, beta)
+             for beta in (0, 0.5, 1, 2, 3, 4)}
+    rules["the maximum heuristic (1 for the likeliest strategy, 0 for the others)"] = np.array(
+        [1.0 if np.all(r <= 1) else 0.0 for r in ratios])
+    return rules
+
+
+def _close(got, expected):
+    return np.abs(got - expected) <= 1e-4 + 1e-3 * expected
 
 
 def _known_weights(c, st, densities, pdfs, power):
@@ -151,50 +177,46 @@ def _known_weights(c, st, densities, pdfs, power):
 
 @ASSIGNMENT.check("heuristic", 20, "on known densities, the weights are the balance heuristic and (MIS_POWER=1) the "
                                    "power heuristic, not another rule", "MIS weights a strategy by how likely it is "
-                  "to make the path: w_s = p_s^b / sum_i p_i^b from the density ratios, not by counting strategies")
+                  "to make the path: w_s = p_s^b / sum_i p_i^b from the density ratios, with b = 1 (balance) and "
+                  "b = 2 (power), not by counting strategies nor by keeping only the likeliest")
 def _check_heuristic(c):
-    st, densities, pdfs, expected = _known_cases(c.rng(11))
-    for power, name in ((0, "balance"), (1, "power")):
+    st, densities, pdfs, ratios = _known_cases(c.rng(11))
+    for (power, name), beta in zip(_HEURISTICS, (1, 2)):
         got = _known_weights(c, st, densities, pdfs, power)
-        wrong = np.flatnonzero(~(np.abs(got - expected[power]) <= 1e-4 + 1e-3 * expected[power]))
+        expected = _power_rule(ratios, beta)
+        wrong = np.flatnonzero(~_close(got, expected))
         if len(wrong):
             k = wrong[0]
             s, t = st[k]
-            uniform = np.allclose(got, 1.0 / (st[:, 0] + st[:, 1]), atol=1e-4)
-            raise CheckFailed(f"{name} heuristic, strategy (s, t) = ({s}, {t}) of known densities: weight "
-                              f"{got[k]:.5f}, the {name} heuristic gives {expected[power][k]:.5f} ({len(wrong)} of "
-                              f"{len(st)} cases wrong" + ("; your weights are uniform, 1 / (s + t)" if uniform else "")
-                              + ")")
+            rule = next((rule for rule, w in _other_rules(ratios).items() if np.all(_close(got, w))), None)
+            raise CheckFailed(f"{name} heuristic (MIS_POWER={int(power)}), strategy (s, t) = ({s}, {t}) of known "
+                              f"densities: weight {got[k]:.5f}, the {name} heuristic gives {expected[k]:.5f} "
+                              f"({len(wrong)} of {len(st)} cases wrong" +
+                              (f"; your weights follow another rule: {rule}" if rule else "") + ")")
 
 
-@ASSIGNMENT.check("balance", 20, "balance heuristic: each weight is p_s / sum_i p_i",
-                  "walk each subpath backwards from the connection, multiplying one density ratio per vertex; "
-                  "the last two vertices of each side use the recomputed densities")
-def _check_balance(c):
+@ASSIGNMENT.check("weights", 50, "on real paths, each weight is the balance heuristic's, p_s / sum_i p_i, and "
+                                 "(MIS_POWER=1) the power heuristic's, p_s^2 / sum_i p_i^2",
+                  "walk each subpath backwards from the connection, multiplying one density ratio per vertex (the "
+                  "last two of each side use the recomputed densities), leave the strategies at delta vertices out "
+                  "of the sum, and add each ratio as the heuristic asked for weighs it: r for balance, r^2 for power")
+def _check_weights(c):
     for scene_name, tech, paths in _mis_cases(c):
-        problem = _match_problem(scene_name, _split_weights(c, tech, scene_name, paths),
-                                 _split_weights(c, tech, scene_name, paths, student=False), "balance heuristic")
-        if problem:
-            raise CheckFailed(problem)
-
-
-@ASSIGNMENT.check("power", 30, "power heuristic (-DMIS_POWER=1): each weight is p_s^2 / sum_i p_i^2, sums to one",
-                  "the power heuristic squares each strategy's density ratio before it is summed, the evaluated "
-                  "strategy's own term (1) included")
-def _check_power(c):
-    for scene_name, tech, paths in _mis_cases(c):
-        weights = _split_weights(c, tech, scene_name, paths, power=True)
         balance = _split_weights(c, tech, scene_name, paths, student=False)
-        expected = [b * b / np.sum(b * b) for b in balance]
-        problem = _sum_problem(scene_name, weights, "power") or _match_problem(
-            scene_name, weights, expected, "power heuristic")
-        if problem:
-            raise CheckFailed(problem)
+        # The power weights from the toolkit's balance ones: p_i is proportional to w_i.
+        expected = {False: balance, True: [b * b / np.sum(b * b) for b in balance]}
+        for power, name in _HEURISTICS:
+            problem = _match_problem(f"{name} heuristic (MIS_POWER={int(power)}), {scene_name}",
+                                     _split_weights(c, tech, scene_name, paths, power=power), expected[power],
+                                     f"{name} heuristic")
+            if problem:
+                raise CheckFailed(problem)
 
 
 @ASSIGNMENT.check("image", 20, "bdpt_naive_connect with your weights matches the reference within statistical "
                                "error", "any weights that sum to one over the strategies that can make each path "
-                  "keep the image unbiased; a bias means a strategy counted twice or left out")
+                  "keep the image unbiased; a bias means a strategy counted twice or left out, or a share "
+                  "given to a strategy that cannot make the path (its density for it is 0)")
 def _check_mis_image(c):
     scene, _ = c.scene("cornell_box")
     # The naive connect: it uses no other assignment's file (bdpt_parallel_connect.cl is

@@ -1,5 +1,6 @@
 """Assignment 6, Kelemen's mutation for primary-sample-space MLT (tutorials/assignments/mlt_mutation/):
-the checks of a student's cl/mlt.h (mlt_perturb and mlt_mutate; mlt_accept is the toolkit's).
+the checks of a student's cl/mlt_mutation.h (mlt_perturb and mlt_mutate; cl/mlt.h, which includes it,
+keeps the toolkit's mlt_accept).
 Exact checks of the small step on known inputs; tutorial 05's chi-square tests of the chains on
 its known target (cl/mlt_test.cl, toolkit/verify/mlt_toy.py); the on-the-fly normalisation b,
 the mean f of the large steps, on that target; an MLT image against the reference."""
@@ -13,7 +14,7 @@ from toolkit.techniques import Mlt
 from toolkit.techniques.mlt import SMALL_STEP, step_defines
 from toolkit.verify import mlt_toy
 
-ASSIGNMENT = Assignment("mlt_mutation", "Kelemen's mutation for MLT: small and large steps", "mlt.h",
+ASSIGNMENT = Assignment("mlt_mutation", "Kelemen's mutation for MLT: small and large steps", "mlt_mutation.h",
                         "mlt_mutation_stub.cl", ("mlt_mutation_checks.cl",),
                         headers=("common.h", "philox.h", "mlt_proposals.h"))
 
