@@ -152,6 +152,34 @@ def test_final_drain_is_marked_from_the_step_after_the_last_sample_starts(cornel
     assert steps[-1]["active"] < steps[-1]["capacity"]
 
 
+def test_generate_step_per_iteration_adds_up_and_follows_the_path_length(cornell_box):
+    """The regeneration step, iteration by iteration (tutorial 2). In place: once the start's
+    waves have died out, a slot restarts once per path, so the share of lanes that regenerate in
+    a step is 1 / (mean extension steps per path), scattered over every warp; a warp of 32 almost
+    always holds one, so that share is also the step's efficiency (the talk's ~30%). 64x64 at
+    64 spp is 8 streams: steps 15 .. the drain are the steady state."""
+    W = 32
+    inplace, compact = (toolkit.render(cornell_box, technique=t, spp=64, seed=3, resolution=(64, 64), warp_width=W)
+                        for t in ("pt_inplace_regen", "pt_compact_regen"))
+    for result in (inplace, compact):
+        steps = [it for it in result.iterations if it["phase"] == "generate" and it["active"] > 0]
+        issued = sum(round(it["active"] / it["efficiency"]) for it in steps)
+        assert np.isclose(sum(it["active"] for it in steps) / issued, result.stats["simd_efficiency"]["generate"])
+        assert sum(it["active"] for it in steps) == 64 * 64 * 64   # every sample started once
+    budget = 64 * 64 * 64
+    p = budget / sum(it["active"] for it in inplace.iterations if it["phase"] == "extend")
+    steady = [it for it in inplace.iterations if it["phase"] == "generate" and it["iteration"] >= 15
+              and not it["draining"]]
+    assert len(steady) >= 5
+    # 0.03: the ended share of 32,768 slots has a binomial standard error of 0.0025, and what is
+    # left of the start's waves after step 15 is under 0.02 (seeds 3, 7, 8)
+    for it in steady:
+        assert abs(it["efficiency"] - p / (1 - (1 - p) ** W)) < 0.03, (it, p)
+    # The compacted stream regenerates side by side: only the last warp of a step can be partial.
+    for it in (it for it in compact.iterations if it["phase"] == "generate"):
+        assert it["efficiency"] == it["active"] / (-(-it["active"] // W) * W)
+
+
 def test_compare_json_and_bench_from_the_command_line(tmp_path):
     run = subprocess.run([sys.executable, "-m", "toolkit", "compare", "--json", "--no-progress", "--spp", "2",
                           "--resolution", "32x32", "--out", str(tmp_path)], capture_output=True, text=True, check=True)

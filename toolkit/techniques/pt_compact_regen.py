@@ -77,9 +77,9 @@ class PtCompactRegen(Technique):
             if count > 0:
                 self.launch(self.kernel("pt_compact_regen_generate"), count, cam=camera, pass_args=pass_args,
                             r=PT_REGENERATION.record(count=count, first_id=next_id, base=length), stream=b.stream)
-                self.count_generate(count)
                 length += count
                 next_id += count
+                self.count_generate(count, size, draining=next_id == budget)
             if length == 0:
                 break   # budget spent and the stream has drained
             # Extend every path by one vertex, then compact the survivors into next_stream.
@@ -126,10 +126,11 @@ class PtCompactRegen(Technique):
 
     # --- SIMD counting: one hook per stage, no-ops unless count_simd ----------------------
 
-    def count_generate(self, count):
-        """Regeneration fills `count` consecutive stream entries: every lane busy."""
+    def count_generate(self, count, size, draining):
+        """Regeneration fills `count` consecutive stream entries: every lane busy. Numbered as the
+        extension step that follows it; `draining`: it started the budget's last samples."""
         if self.count_simd:
-            self.simd.add_stream_step("generate", count)
+            self.simd.add_stream_step("generate", count, iteration=self.iterations, capacity=size, draining=draining)
 
     def count_extend_and_compact(self, lane_counts, length, size, draining):
         """The extension step over the `length` paths of the stream, and their compaction;

@@ -69,7 +69,7 @@ class PtInplaceRegen(Technique):
             self.launch(self.kernel("pt_inplace_regen_regenerate"), slots, cam=camera, pass_args=pass_args,
                         slots=np.int32(slots), next_sample=b.next_sample, paths=b.paths, alive=b.alive,
                         any_alive=b.any_alive, regenerated=b.regenerated)
-            self.count_regenerate(b.regenerated, slots)
+            self.count_regenerate(b.regenerated, slots, b.next_sample, budget)
             step += 1
             if step % reads_every == 0 and not self.read_ints(b.any_alive, 1)[0]:
                 break   # budget spent and every path has ended
@@ -80,9 +80,14 @@ class PtInplaceRegen(Technique):
             self.count_extend(b.lane_counts, slots, b.next_sample, budget)
         self.collect(film, b.radiance, budget)
 
-    def count_regenerate(self, regenerated, slots):
+    def count_regenerate(self, regenerated, slots, next_sample, budget):
+        """The regeneration step: its lanes are the slots that started a sample, scattered over
+        every warp. Numbered as the extension step that follows it (per iteration, for plots);
+        once the sample counter has passed the budget, it started the last samples or none."""
         if self.count_simd:
-            self.simd.add_stream_step("generate", self.read_ints(regenerated, slots) > 0)
+            draining = self.read_ints(next_sample, 1)[0] >= budget
+            self.simd.add_stream_step("generate", self.read_ints(regenerated, slots) > 0, iteration=self.iterations,
+                                      capacity=slots, draining=draining)
 
     def count_extend(self, lane_counts, slots, next_sample, budget):
         """The extension step; once the sample counter has passed the budget, nothing regenerates
