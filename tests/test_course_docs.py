@@ -67,6 +67,25 @@ def test_syllabus_names_every_notebook_and_assignment():
     assert firsts == sorted(firsts)
 
 
+
+def test_syllabus_counts_each_notebooks_words_and_cells_and_its_hours_follow_from_them():
+    """The hours table counts each notebook's prose (to the nearest hundred words) and its code
+    cells, and estimates its hours from them at the rates it gives (100 words a minute, 5 minutes
+    a code cell, rounded to the half hour): a notebook that grows must be counted again."""
+    import json
+    hours = section(read(DOCS / "syllabus.md"), "## Student hours")
+    for name in NOTEBOOKS:
+        row = re.search(r"^\| \[`" + re.escape(name) + r"`\][^|]*\| ([\d,]+) words[^,|]*, (\d+) code cells \| ([\d.]+) \|$",
+                        hours, re.M)
+        assert row, f"no hours row for {name}"
+        cells = json.loads((ROOT / "tutorials" / name).read_text())["cells"]
+        words = sum(len("".join(c["source"]).split()) for c in cells if c["cell_type"] == "markdown")
+        code = sum(c["cell_type"] == "code" for c in cells)
+        assert abs(int(row[1].replace(",", "")) - words) <= 50, (name, row[1], words)
+        assert int(row[2]) == code, (name, row[2], code)
+        minutes = words / 100 + 5 * code
+        assert float(row[3]) == round(minutes / 30) / 2, (name, row[3], minutes)
+
 def test_assignments_readme_lists_the_assignments_in_order():
     rows = re.findall(r"^\| (\d+) \| \[`(\w+)`\]\((\w+)/README\.md\)", read(HANDOUTS / "README.md"), re.M)
     assert [(int(n), a) for n, a, _ in rows] == list(enumerate(ASSIGNMENTS, start=1))
