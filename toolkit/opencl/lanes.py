@@ -9,10 +9,14 @@ reports comes from (vector_widths), never from a guess.
 How it is chosen. Intel's switch, the environment variable CL_CONFIG_USE_VECTORIZER, is read
 once, when the runtime loads: set later in the process it changes nothing (measured). Per
 build instead, the runtime's extension cl_intel_vec_len_hint takes a kernel attribute,
-intel_vec_len_hint(1), that keeps that kernel scalar; without it the compiler decides (it may
-still leave a kernel scalar). With lanes off the toolkit puts the attribute on every kernel of a
-build (source_prefix), so both settings work in one process, each in an OpenCL context of its
-own (toolkit.opencl.device.get_queue). If you set CL_CONFIG_USE_VECTORIZER=False or
+intel_vec_len_hint(1), that keeps that kernel scalar, or intel_vec_len_hint(W), that asks for W
+lanes. Without it the compiler decides, and its cost model may keep a kernel scalar: on a 2-core
+AVX2 EPYC it kept every tracing kernel scalar (57 gathers and 17 scatters in pt_naive_render,
+"was not vectorized"), where another machine's run had vectorized them, so "on" meant nothing
+there. So the toolkit puts the attribute on every kernel of a build (source_prefix): W = 1 with
+lanes off, W = the device's native float vector width with lanes on (8 with AVX2, 16 with
+AVX-512). The width reported is still the one in the log. Both settings work in one process,
+each in an OpenCL context of its own (toolkit.opencl.device.get_queue). If you set CL_CONFIG_USE_VECTORIZER=False or
 CL_CONFIG_CPU_VECTORIZER_MODE yourself, you fix the choice for the whole process, and asking for
 the other one is an error.
 
@@ -45,6 +49,11 @@ HARDWARE = "hardware"     # a GPU: its warps, not the toolkit's choice
 LANES_OFF_PREFIX = ("/* lanes off (toolkit/opencl/lanes.py): each work-item stays a thread of its own */\n"
                     "#define __kernel __kernel __attribute__((intel_vec_len_hint(1)))\n"
                     "#define kernel __kernel\n")
+
+# With lanes on: every kernel asks for `width` lanes, the device's native float vector width.
+LANES_ON_PREFIX = ("/* lanes on (toolkit/opencl/lanes.py): work-items as the {width} lanes of a vector register */\n"
+                   "#define __kernel __kernel __attribute__((intel_vec_len_hint({width})))\n"
+                   "#define kernel __kernel\n")
 
 _VECTORIZED = re.compile(r'Kernel "(\w+)" was (?:successfully vectorized \((\d+)\)|not vectorized)')
 
@@ -102,10 +111,17 @@ def setting_for(device, asked=None):
     return None
 
 
-def source_prefix(setting):
-    """What goes ahead of a program's source for this setting (see LANES_OFF_PREFIX); nothing
-    where the user's environment fixes the vectorizer (the attribute would conflict with it)."""
-    return LANES_OFF_PREFIX if setting == "off" and not fixed_by_environment()[0] else ""
+def source_prefix(setting, width=None):
+    """What goes ahead of a program's source for this setting (LANES_OFF_PREFIX, or LANES_ON_PREFIX
+    for `width` lanes: the device's native float vector width); nothing where the user's
+    environment fixes the vectorizer (the attribute would conflict with it)."""
+    if fixed_by_environment()[0]:
+        return ""
+    if setting == "off":
+        return LANES_OFF_PREFIX
+    if setting == "on" and width and width > 1:
+        return LANES_ON_PREFIX.format(width=width)
+    return ""
 
 
 # The setting of each context that get_queue made (kept for the process, like the contexts):

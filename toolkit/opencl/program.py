@@ -182,7 +182,8 @@ def build(context, name, defines=None, directory=None, arg_info=False):
     defines = dict(defines or {})
     defines.setdefault("LOCAL_SIZE", LOCAL_SIZE)
     setting = lanes.of_context(context)
-    source = lanes.source_prefix(setting) + expand_includes(name, directory)
+    source = lanes.source_prefix(setting, context.devices[0].native_vector_width_float) + \
+        expand_includes(name, directory)
     options = define_options(defines)
     if arg_info:
         options.append("-cl-kernel-arg-info")
