@@ -244,13 +244,20 @@ def macro_bomb(tmp_path):
 
 
 def test_a_macro_bomb_is_stopped_by_the_memory_limit_as_a_compiler_crash(tmp_path):
-    """Before: a few hundred bytes would reach ~10 GB within the 180 s build limit."""
+    """Before: a few hundred bytes would reach ~10 GB within the 180 s build limit. At the limit
+    an allocation fails, and the compiler dies of it in one of two ways: it says so and aborts
+    (bad_alloc, "Allocation failed": the reason then says out of memory; PoCL's, and Intel's in
+    4 of 4 runs at this limit here), or it uses the memory it did not get and segfaults without a
+    word (Intel's, once in a whole-suite run at this limit, and at a 4 GiB limit after 13 s). The
+    grader cannot tell the second from any other compiler crash; either way the build is stopped,
+    every check loses its points for it, and the grading ends with a result, not an error."""
     memory = 3 * 2**28 + 16 * 2**20 * (os.cpu_count() or 1)   # a worker needs ~0.4 GB (+ thread stacks)
     result = grade(NAME, macro_bomb(tmp_path), limits=Limits(memory=memory))
     reason = result["checks"][0]["reason"]
     assert "error" not in result and result["score"] == 0, result
-    assert reason.startswith("the kernel does not build: the compiler crashed while building your kernel"), reason
-    assert "out of memory: the worker may use" in reason, reason
+    assert {c["reason"] for c in result["checks"]} == {reason}, result
+    assert reason.startswith("the kernel does not build: the compiler crashed while building your kernel ("), reason
+    assert "out of memory: the worker may use" in reason or "(SIGSEGV; " in reason, reason
 
 
 def test_a_build_that_runs_out_of_time_is_a_build_time_out(fake_worker, tmp_path):

@@ -196,7 +196,11 @@ def test_storage_layout_and_connect_schedule_do_not_change_the_image(queue, corn
         images.append(tech.render(8, 8, 16, seed=3).image())
     assert images[0].sum() > 0
     assert np.array_equal(images[0], images[1])
-    assert np.allclose(images[0], images[2], rtol=1e-12, atol=0)
+    # Host-order rounding is ~1e-16 relative (measured with lanes on and off, PoCL and Intel:
+    # at most 4.6e-16 over 2 scenes x 2 seeds x 5 schedules); a record computed differently on
+    # the device would differ by float32 rounding, ~1e-7, and an accept decision that flips, more.
+    worst = float(np.max(np.abs(images[2] - images[0]) / np.maximum(np.abs(images[0]), 1e-300)))
+    assert np.allclose(images[0], images[2], rtol=1e-12, atol=0), f"schedules differ by {worst:.2g} relative"
 
 
 # -- chain counts at the extremes --------------------------------------------------------------------
