@@ -159,21 +159,22 @@ def test_unbiased_techniques_converge_as_one_over_sqrt_samples(slope_studies):
         assert -0.65 <= fit["slope"] <= -0.35, f"{name}: RMSE ~ N^{fit['slope']:.3f} +- {fit['se']:.3f}"
 
 
-def test_the_time_slope_is_the_fit_of_the_studys_own_timed_points(slope_studies):
-    """The slope against time that the study reports is the weighted fit (fit_slope) of its own
-    points, each timed by its fastest repetition. Whether that slope is -1/2 is a benchmark, not a
-    test: it holds only where a render's time is proportional to its samples, and a fixed cost per
-    render (launches, buffers) steepens it at small budgets, by as much as the machine and the
-    runtime make it. Measured on Intel's runtime with lanes on: pt_inplace_regen's RMSE ~ t^-0.73
-    where it is N^-0.52 against the samples, which a bound on the difference (this test, once)
-    failed. The estimator's own rate, N^-1/2, is tested above against the samples."""
+def test_the_error_falls_as_the_render_time_grows(slope_studies):
+    """Against time, each point is timed by its fastest repetition, and the fitted RMSE falls as
+    the render time grows. Whether
+    that slope is -1/2 is a benchmark, not a test: it holds only where a render's time is
+    proportional to its samples, and a fixed cost per render (launches, buffers) steepens it at
+    small budgets (Intel's runtime with lanes on: pt_inplace_regen's RMSE ~ t^-0.73 where it is
+    N^-0.52). The estimator's own rate, N^-1/2, is tested above against the samples."""
     for name in UNBIASED:
         run = slope_studies[name]
         by_samples = fit_slope(against_samples(run["points"]))
         print(f"{name}: RMSE ~ t^{run['slope']['slope']:.3f} +- {run['slope']['se']:.3f}, "
               f"N^{by_samples['slope']:.3f} +- {by_samples['se']:.3f}")
-        assert run["slope"] == fit_slope(run["points"]), name
         assert all(0 < p["time"] <= p["time_median"] for p in run["points"]), name
+        # 16x the samples from the first budget to the last: RMSE falls 4x, so unless the time
+        # fell as the samples grew, the fit against time is negative (loose on purpose: timings)
+        assert run["slope"]["slope"] < 0, (name, run["slope"])
 
 
 def test_unbiased_techniques_have_no_bias_within_noise(slope_studies):

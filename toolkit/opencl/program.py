@@ -181,15 +181,14 @@ def build(context, name, defines=None, directory=None, arg_info=False):
     vector_widths(program) says what the compiler did with it."""
     defines = dict(defines or {})
     defines.setdefault("LOCAL_SIZE", LOCAL_SIZE)
+    device = context.devices[0]
     setting = lanes.of_context(context)
-    source = lanes.source_prefix(setting, context.devices[0].native_vector_width_float) + \
-        expand_includes(name, directory)
+    source = lanes.source_prefix(setting, device.native_vector_width_float) + expand_includes(name, directory)
     options = define_options(defines)
     if arg_info:
         options.append("-cl-kernel-arg-info")
     if os.environ.get("TOOLKIT_WERROR") == "1":
         options.append("-Werror")  # the test suite: any compiler warning fails the build
-    device = context.devices[0]
     if "Intel" in device.platform.name:
         # Intel's vectorizer setting (toolkit/opencl/runtimes.py) changes the code built from the same
         # options: name it in them, so that pyopencl's binary cache keeps the two apart.
