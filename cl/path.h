@@ -122,28 +122,35 @@ HELPER bool path_continue(const SceneView* s, PathState* p, Sampler* rng, const 
     return !is_black(p->throughput.xyz);
 }
 
-/* Extend the path by one vertex: intersect, add emission, prepare a next-event shadow ray
- * (shadow->slot >= 0 if there is one), sample the BSDF, roulette.
- * Returns false when the path has terminated. */
-HELPER bool path_extend_deferred(const SceneView* s, PathState* p, uint seed, LaneCounters* count,
-                                 ShadowRay* shadow) {
-    shadow->slot = -1;
+/* The closest hit of the path's next ray (a miss where the path may take no more segments). */
+HELPER HitRecord path_trace(const SceneView* s, const PathState* p, LaneCounters* count) {
+    HitRecord miss = {INFINITY, -1};
 #if USE_MAX_DEPTH
-    /* Only reached with max_depth 0 (longer limits end the path below): not even the camera
-     * segment, so the image is black in every technique (FORMAT.md). */
-    if (p->bounce >= MAX_DEPTH) return false;
+    /* Only reached with max_depth 0 (longer limits end the path in path_shade_deferred): not even
+     * the camera segment, so the image is black in every technique (FORMAT.md). */
+    if (p->bounce >= MAX_DEPTH) return miss;
 #endif
+    Hit h = trace_closest(s, p->origin.xyz, p->dir.xyz, 0.0f, INFINITY, &count->traversal_steps);
+    if (h.tri < 0) return miss;
+    HitRecord hit = {h.t, h.tri};
+    return hit;
+}
+
+/* Shade the vertex that the path's ray found (`hit`, from path_trace): add emission, prepare a
+ * next-event shadow ray (shadow->slot >= 0 if there is one), sample the BSDF, roulette.
+ * Returns false when the path has terminated. */
+HELPER bool path_shade_deferred(const SceneView* s, PathState* p, HitRecord hit, uint seed, ShadowRay* shadow) {
+    shadow->slot = -1;
+    if (hit.tri < 0) return false;                   /* left the scene: no environment light */
     Sampler rng = sampler_init(seed, (uint)p->pixel, (uint)p->sample);
     float3 o = p->origin.xyz, d = p->dir.xyz;
-    Hit h = trace_closest(s, o, d, 0.0f, INFINITY, &count->traversal_steps);
-    if (h.tri < 0) return false;                     /* left the scene: no environment light */
 
-    Triangle tri = s->tris[h.tri];
+    Triangle tri = s->tris[hit.tri];
     float3 ng = triangle_normal(&tri);
-    float3 x = o + h.t * d;
+    float3 x = o + hit.t * d;
     float3 wo = -d;
     int segments = p->bounce + 1;                    /* path segments so far, camera one included */
-    path_add_emission(s, p, &tri, ng, wo, h.t);
+    path_add_emission(s, p, &tri, ng, wo, hit.t);
 #if USE_MAX_DEPTH
     if (segments >= MAX_DEPTH) return false;
 #endif
@@ -160,6 +167,13 @@ HELPER bool path_extend_deferred(const SceneView* s, PathState* p, uint seed, La
 #endif
     if (nee_allowed) path_prepare_shadow_ray(s, p, &rng, &m, x, ng, ts, tt, n, wo_local, shadow);
     return path_continue(s, p, &rng, &m, x, ng, ts, tt, n, wo_local);
+}
+
+/* Extend the path by one vertex: trace, then shade (the shadow ray only prepared).
+ * Returns false when the path has terminated. */
+HELPER bool path_extend_deferred(const SceneView* s, PathState* p, uint seed, LaneCounters* count,
+                                 ShadowRay* shadow) {
+    return path_shade_deferred(s, p, path_trace(s, p, count), seed, shadow);
 }
 
 /* Whether a shadow ray reaches its light. */

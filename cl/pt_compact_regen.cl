@@ -1,16 +1,23 @@
 /* Path tracing on a compacted sample stream with regeneration at the end of the stream
  * (the talk's "Stream Compaction + Regeneration"):
- *   extend  - every path in the stream takes one step (all lanes busy);
+ *   extend  - every path in the stream takes one step (all lanes busy), in two kernels (a
+ *             wavefront path tracer: Laine, Karras and Aila 2013, "Megakernels considered
+ *             harmful"): trace finds each ray's closest hit and writes a small hit record, then
+ *             shade reads it (emission, next-event estimation, BSDF sampling, roulette). So
+ *             the BVH loop, where lanes wait for each other, runs in a short kernel of its own,
+ *             and shading in one that never traverses;
  *   compact - paths that ended leave the stream, the survivors are packed at its start;
- *   shadow  - the next-event shadow rays that extend prepared were queued, packed, the same
+ *   shadow  - the next-event shadow rays that shade prepared were queued, packed, the same
  *             way; one kernel traces them all (a lane that has no shadow ray never waits);
  *   regenerate - new samples fill the end of the stream, so it keeps its size; they are
  *             consecutive pixels, side by side, so their primary rays are coherent.
- * Compaction is "immediate" (single pass, fused into extend: cl/compact.h) or multi-pass
- * (extend writes alive flags, toolkit/opencl/compaction.py scans, pt_compact_regen_gather moves).
+ * Compaction is "immediate" (single pass, fused into shade: cl/compact.h) or multi-pass
+ * (extend_in_place traces and shades in one kernel and writes alive flags,
+ * toolkit/opencl/compaction.py scans, pt_compact_regen_gather moves).
  * Kernels this technique launches (toolkit/techniques/pt_compact_regen.py):
  *   pt_compact_regen_generate    here
- *   pt_compact_regen_extend      here (immediate compaction)
+ *   pt_compact_regen_trace       here (immediate compaction)
+ *   pt_compact_regen_shade       here (immediate compaction: shade + compact)
  *   pt_compact_regen_shadow      here (immediate compaction)
  *   extend_in_place              cl/extend_in_place.h (multi-pass compaction; shared with pt_inplace_regen)
  *   the scan                     toolkit/opencl/compaction.py (multi-pass compaction)
@@ -21,18 +28,34 @@
 #include "compact.h"
 #include "extend_in_place.h"
 
-/* Extend + immediate compaction: survivors are written packed into `next_stream`, and
- * the shadow rays they prepared packed into the shadow queue; counters[STREAM_PATHS] and
- * counters[STREAM_SHADOW_RAYS] count them (StreamCounter, toolkit/core/layout.py). */
+/* Trace: the closest hit of each stream entry's ray, into the hit stream (HitRecord, layout.h). */
+__kernel void pt_compact_regen_trace(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
+                                     __global void* stream, __global void* hits, __global LaneCounts* lane_counts)
+{
+    int gid = get_global_id(0);
+    if (gid >= stream_length) return;
+    SceneView s = SCENE_INIT;
+    LaneCounters count = {0, 0, 0};
+    PathState p = path_state_load(path_state_soa(stream, pass_args.capacity), gid);
+    HitRecord hit = path_trace(&s, &p, &count);
+    hit_record_store(hit_record_soa(hits, pass_args.capacity), gid, &hit);
+#if COUNT_SIMD
+    lane_counts[gid] = lane_counts_of(1, &count);   /* its traversal steps; shade adds the rest */
+#endif
+}
+
+/* Shade the hits that trace found + immediate compaction: survivors are written packed into
+ * `next_stream`, and the shadow rays they prepared packed into the shadow queue;
+ * counters[STREAM_PATHS] and counters[STREAM_SHADOW_RAYS] count them (StreamCounter,
+ * toolkit/core/layout.py). */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
-void pt_compact_regen_extend(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
-                             __global void* stream, __global void* next_stream, __global void* shadow_rays,
-                             volatile __global int* counters, __global float4* radiance,
+void pt_compact_regen_shade(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
+                             __global void* stream, __global void* hits, __global void* next_stream,
+                             __global void* shadow_rays, volatile __global int* counters, __global float4* radiance,
                              __global LaneCounts* lane_counts)
 {
     int gid = get_global_id(0);
     __local int scratch[COMPACT_SCRATCH_INTS];
-    LaneCounters count = {0, 0, 0};
     PathState p;
     ShadowRay ray;
     ray.slot = -1;
@@ -41,7 +64,8 @@ void pt_compact_regen_extend(SCENE_PARAMS, const PtPass pass_args, const int str
     if (gid < stream_length) {
         SceneView s = SCENE_INIT;
         p = path_state_load(path_state_soa(stream, pass_args.capacity), gid);
-        alive = path_extend_deferred(&s, &p, pass_args.seed, &count, &ray);
+        HitRecord hit = hit_record_load(hit_record_soa(hits, pass_args.capacity), gid);
+        alive = path_shade_deferred(&s, &p, hit, pass_args.seed, &ray);
         if (!alive) path_finish(radiance, &p);
     }
     int slot = immediate_compact_slot(alive, scratch, &counters[STREAM_PATHS]);
@@ -49,8 +73,8 @@ void pt_compact_regen_extend(SCENE_PARAMS, const PtPass pass_args, const int str
     int queued = immediate_compact_slot(ray.slot >= 0, scratch, &counters[STREAM_SHADOW_RAYS]);
     if (queued >= 0) shadow_ray_store(shadow_ray_soa(shadow_rays, pass_args.capacity), queued, &ray);
 #if COUNT_SIMD
-    count.shadow_rays = ray.slot >= 0;   /* queued, traced by pt_compact_regen_shadow */
-    if (gid < stream_length) lane_counts[gid] = lane_counts_of(1, &count);
+    /* trace wrote this lane's record; the shadow ray was queued, traced by pt_compact_regen_shadow */
+    if (gid < stream_length) lane_counts[gid].shadow_rays = ray.slot >= 0;
 #endif
 }
 

@@ -96,3 +96,27 @@ def test_a_record_is_made_with_every_field_named():
         layout.PT_PASS.record(seed=3, sample_base=8, budget=100)
     with pytest.raises(TypeError, match="unknown fields \\['spp'\\]"):
         layout.PT_PASS.record(seed=3, sample_base=8, budget=100, capacity=64, spp=2)
+
+
+def test_a_hit_record_survives_its_stream_on_the_device(queue, tmp_path):
+    """HitRecord (trace -> shade in pt_compact_regen): two arrays, t then tri, where soa_offset says."""
+    hit = layout.HIT_RECORD
+    assert [a for a, _, _ in hit.soa_arrays] == ["t", "tri"] and hit.dtype.itemsize == 8
+    (tmp_path / "hit.cl").write_text("""#include "common.h"
+__kernel void hit_roundtrip(__global void* stream, const int capacity, __global float* out) {
+    HitRecord h = {.t = 2.5f, .tri = 9};
+    HitRecordSoA s = hit_record_soa(stream, capacity);
+    hit_record_store(s, 3, &h);
+    HitRecord back = hit_record_load(s, 3);
+    out[0] = back.t; out[1] = (float)back.tri;
+}
+""")
+    built = program.build(queue.context, "hit.cl", directory=tmp_path)
+    capacity = 4
+    stream = hit.soa_buffer(queue.context, capacity)
+    out = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, 2 * 4)
+    program.launch(queue, program.kernel(built, "hit_roundtrip"), 1, stream, np.int32(capacity), out)
+    back, tri = np.empty(2, np.float32), np.empty(1, np.int32)
+    cl.enqueue_copy(queue, back, out)
+    cl.enqueue_copy(queue, tri, stream, src_offset=hit.soa_offset("tri", capacity) + 3 * 4)
+    assert back.tolist() == [2.5, 9.0] and tri.tolist() == [9]

@@ -113,6 +113,11 @@ SHADOW_RAY = Record("ShadowRay", [
     ("slot", "int"),             # the sample's slot in the pass's output
 ], "A next-event-estimation shadow ray waiting to be traced, 52 bytes in its stream.")
 
+HIT_RECORD = Record("HitRecord", [
+    ("t", "float"),              # distance along the ray's unit direction
+    ("tri", "int"),              # the triangle hit (index into tris), -1: the ray left the scene
+], "The closest hit of a stream entry's ray, from the trace kernel to the shade kernel, 8 bytes in its stream.")
+
 # The scalar arguments of the path tracers' kernels (cl/pt_*.cl), grouped as BDPT's are.
 PT_PASS = Record("PtPass", [
     ("seed", "uint"),           # keys every random number, with the sample's pixel and number
@@ -214,11 +219,12 @@ MLT_ITERATION = Record("MltIteration", [
     ("pad1", "int"),
 ], "What the mutate and accept kernels of one Metropolis iteration share.")
 
-RECORDS = [BVH_NODE, *WIDE_NODES.values(), TRI_GROUP, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY, BDPT_VERTEX,
-           SUBPATH, LANE_COUNTS, BDPT_SLOT, BDPT_PASS, BDPT_STEP, BDPT_REGENERATION, MLT_CHAIN, MLT_ITERATION]
+RECORDS = [BVH_NODE, *WIDE_NODES.values(), TRI_GROUP, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY,
+           HIT_RECORD, BDPT_VERTEX, SUBPATH, LANE_COUNTS, BDPT_SLOT, BDPT_PASS, BDPT_STEP, BDPT_REGENERATION,
+           MLT_CHAIN, MLT_ITERATION]
 RECORDS += [PT_PASS, PT_REGENERATION]   # the path tracers' kernel arguments
 
-SOA_RECORDS = [PATH_STATE, SHADOW_RAY, SUBPATH]
+SOA_RECORDS = [PATH_STATE, SHADOW_RAY, HIT_RECORD, SUBPATH]
 
 
 # ---- named values, each group emitted as PREFIX_NAME defines --------------------------------

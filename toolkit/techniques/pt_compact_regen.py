@@ -2,11 +2,14 @@
 "Stream Compaction + Regeneration", with single-pass "immediate" compaction).
 
 Kernel: cl/pt_compact_regen.cl. The stream has a fixed size; one iteration:
-    extend      - all paths in the stream trace one vertex (every lane busy);
+    extend      - all paths in the stream take one vertex (every lane busy): trace finds each
+                  ray's closest hit, shade adds emission, prepares the shadow ray, samples the
+                  BSDF (two kernels: a wavefront path tracer, Laine et al. 2013);
     compact     - ended paths leave, survivors are packed at the start of the stream;
     regenerate  - new samples fill the end of the stream: consecutive pixels, side by side.
-With compaction="immediate" the compaction is fused into the extend kernel (one scan per
-work-group in local memory, one atomic per group); "multipass" labels, scans and gathers.
+With compaction="immediate" the compaction is fused into the shade kernel (one scan per
+work-group in local memory, one atomic per group); "multipass" extends in one kernel
+(extend_in_place, shared with pt_inplace_regen), then labels, scans and gathers.
 Option `stream_size`: the paths in the stream (default: the device's, toolkit/opencl/work_sizes.py:
 32,768 on a CPU).
 """
@@ -16,7 +19,7 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.opencl.compaction import Compactor
-from toolkit.core.layout import PATH_STATE, PT_PASS, PT_REGENERATION, SHADOW_RAY, StreamCounter
+from toolkit.core.layout import HIT_RECORD, PATH_STATE, PT_PASS, PT_REGENERATION, SHADOW_RAY, StreamCounter
 from toolkit.opencl.work_sizes import checked_size
 from toolkit.techniques.base import Technique, pixel_count
 
@@ -26,6 +29,7 @@ class StreamBuffers:
     """pt_compact_regen's device memory: made once per stream size, reused by every pass."""
     stream: cl.Buffer        # PathState x capacity, a structure of arrays: the paths in flight, packed at its start
     next_stream: cl.Buffer   # the same: each step writes its survivors here, packed; then the two swap
+    hits: cl.Buffer          # HitRecord x capacity: each path's closest hit, from trace to shade (immediate)
     shadow_rays: cl.Buffer   # ShadowRay x capacity: the shadow rays a step queued, packed (immediate compaction)
     lane_counts: cl.Buffer   # LaneCounts per path: what it did in an extension step (COUNT_SIMD)
     alive: cl.Buffer         # int per path: 1 where it survived the step (multi-pass compaction's flags)
@@ -59,6 +63,7 @@ class PtCompactRegen(Technique):
         """The device memory of a stream of `size` paths (run_pass makes it once per stream size)."""
         return StreamBuffers(
             stream=self.soa_buffer(PATH_STATE, size), next_stream=self.soa_buffer(PATH_STATE, size),
+            hits=self.soa_buffer(HIT_RECORD, size),
             shadow_rays=self.soa_buffer(SHADOW_RAY, size), lane_counts=self.lane_counts_buffer(size),
             alive=self.int_buffer(size), shadow_steps=self.int_buffer(size),
             counters=self.int_buffer(len(StreamCounter)), indices=self.compacted_indices(size))
@@ -82,7 +87,7 @@ class PtCompactRegen(Technique):
                 self.count_generate(count, size, draining=next_id == budget)
             if length == 0:
                 break   # budget spent and the stream has drained
-            # Extend every path by one vertex, then compact the survivors into next_stream.
+            # Extend every path by one vertex (trace, then shade), then compact the survivors into next_stream.
             survivors, queued = self.extend_and_compact(pass_args, length, b)
             self.count_extend_and_compact(b.lane_counts, length, size, draining=next_id == budget)
             # Trace the queued shadow rays: a packed stream of its own.
@@ -107,9 +112,11 @@ class PtCompactRegen(Technique):
         """Extend the `length` paths of b.stream; returns (the survivors, now packed at the start
         of b.next_stream; the queued shadow rays)."""
         if self.compaction == "immediate":
+            self.launch(self.kernel("pt_compact_regen_trace"), length, **self.scene_args(), pass_args=pass_args,
+                        stream_length=np.int32(length), stream=b.stream, hits=b.hits, lane_counts=b.lane_counts)
             cl.enqueue_fill_buffer(self.queue, b.counters, np.int32(0), 0, 4 * len(StreamCounter))
-            self.launch(self.kernel("pt_compact_regen_extend"), length, **self.scene_args(), pass_args=pass_args,
-                        stream_length=np.int32(length), stream=b.stream, next_stream=b.next_stream,
+            self.launch(self.kernel("pt_compact_regen_shade"), length, **self.scene_args(), pass_args=pass_args,
+                        stream_length=np.int32(length), stream=b.stream, hits=b.hits, next_stream=b.next_stream,
                         shadow_rays=b.shadow_rays, counters=b.counters, radiance=b.radiance,
                         lane_counts=b.lane_counts)
             lengths = self.read_ints(b.counters, len(StreamCounter))

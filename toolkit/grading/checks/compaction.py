@@ -238,7 +238,7 @@ def _check_group_order(c):
                               "range with one atomic_add, then add each item's rank)")
 
 
-@ASSIGNMENT.check("twice", 10, "barriers: two compactions in a row in one kernel (as pt_compact_regen_extend "
+@ASSIGNMENT.check("twice", 10, "barriers: two compactions in a row in one kernel (as pt_compact_regen_shade "
                   "does)", "the scratch is shared: before it is written again, every work-item must have read "
                   "what it needs from it (a barrier at the end of each function)")
 def _check_twice(c):

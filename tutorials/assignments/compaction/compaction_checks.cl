@@ -1,6 +1,6 @@
 /* Grader kernels of assignment 2 (toolkit/grading/checks/compaction.py): the toolkit's compaction kernels
  * (cl/compact.cl: scan_blocks, compact_immediate) built with the student's compact.h, and one
- * kernel that compacts twice in a row, as pt_compact_regen_extend does (paths, then shadow rays).
+ * kernel that compacts twice in a row, as pt_compact_regen_shade does (paths, then shadow rays).
  * The atomics are counted in an instrumented build of the student's file (toolkit/grading/
  * instrument.py): every atomic on a counter also counts itself in the int after the counter. */
 #include "compact.cl"
