@@ -33,6 +33,7 @@ class Technique:
     # Where `source` and its includes are looked up before cl/ (program.build's `directory`):
     # the autograder (toolkit/grading/grade.py) points it at a folder holding a student's file.
     source_dir = None
+    _collecting = None   # (film, host array, read event) of the pass collect queued last
 
     def __init__(self, queue, device_scene, warp_width=None, count_simd=True, extra_defines=None,
                  local_size=program.LOCAL_SIZE, general=False, pass_spp=None):
@@ -115,6 +116,7 @@ class Technique:
             start += count
             if progress is not None:
                 progress.update(count)
+        self.finish_collect()
         self.queue.finish()
         return film
 
@@ -138,12 +140,29 @@ class Technique:
         return buf
 
     def collect(self, film, buffer, n):
-        """Read the pass's samples back into the film; every sample must have been written once."""
+        """Read the pass's samples back into the film; every sample must have been written once.
+        The read is queued behind the pass's kernels, and the samples reach the film at the next
+        collect (after the next pass's kernels are queued) or at finish_collect: so the host adds
+        one pass to the film while the device runs the next, instead of the device waiting
+        (pt_naive at 256x256: 4-16% of a render's time went to these gaps). The queue is in
+        order, so the next pass's refill of `buffer` waits for this read."""
         result = np.empty((n, 4), np.float32)
-        cl.enqueue_copy(self.queue, result, buffer)
+        done = cl.enqueue_copy(self.queue, result, buffer, is_blocking=False)
+        self.queue.flush()    # start the queued work now, not at the next wait
+        self.finish_collect()
+        self._collecting = (film, result, done)
+
+    def finish_collect(self):
+        """Add the samples of the pass whose read collect queued (if any) to its film."""
+        pending, self._collecting = self._collecting, None
+        if pending is None:
+            return
+        film, result, done = pending
+        done.wait()
         missing = int(np.count_nonzero(result[:, 3] < 0))
         if missing:
-            raise RuntimeError(f"{self.name}: {missing} of {n} samples were never written (sample accounting bug)")
+            raise RuntimeError(f"{self.name}: {missing} of {len(result)} samples were never written "
+                               "(sample accounting bug)")
         film.add_pixel_major(clamp_radiance(result, self.clamp))
 
     def reused(self, key, make):
