@@ -107,6 +107,7 @@ class Technique:
     def render(self, width, height, spp, seed=0, progress=None):
         """Render `spp` samples per pixel; returns the film (see toolkit.api.render)."""
         film = Film(width, height)
+        self._collecting = None   # a render stopped by an error leaves no pass for this one
         camera = self.scene.camera(width, height)
         per_pass = self.passes(pixel_count(camera), spp)
         start = 0
@@ -133,7 +134,7 @@ class Technique:
 
     def output_buffer(self, n):
         """One float4 per sample of the pass, pre-filled with .w = -1 ("not written yet"); made
-        once per pass size and refilled by every pass (collect reads it before the next starts)."""
+        once per pass size and refilled by every pass (the in-order queue runs collect's read of it first)."""
         buf = self.reused(("output", n), lambda: cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
                                                             16 * self.padded(n)))
         cl.enqueue_fill_buffer(self.queue, buf, np.array([0, 0, 0, -1], np.float32), 0, 16 * self.padded(n))
