@@ -4,14 +4,16 @@
  * Every helper in cl/ is declared HELPER (below), that is `static inline __attribute__((always_inline))`: static
  * semantics on GPU compilers, always_inline because PoCL 3.0 left even one-line helpers as
  * calls (inlining them made pt_naive 19-35% faster on the CPU; tests/test_portability.py holds
- * the rule). OpenCL's own built-ins are calls on PoCL too, so the hottest ones are written out
- * here and in bvh.h (unit_circle for sin and cos, min4/max4 for fmin and fmax). */
+ * the rule). OpenCL's own built-ins are calls on PoCL too: the simple ones are written out in
+ * inline_builtins.h, sin and cos here (unit_circle), the vector fmin and fmax in bvh.h (minN, maxN). */
 #ifndef COMMON_H
 #define COMMON_H
 
 /* Every helper function: see above. Written once here; layout.h (generated) uses it too. */
 #define HELPER static inline __attribute__((always_inline))
 
+/* Before layout.h, whose records have fields named like built-ins (inline_builtins.h says why). */
+#include "inline_builtins.h"
 #include "layout.h"
 
 #define PI 3.14159265358979f

@@ -165,6 +165,12 @@ def define_options(defines):
     return options
 
 
+def builtins_are_calls(device):
+    """Whether the device's compiler leaves OpenCL's built-in functions (dot, sqrt, ...) as calls:
+    PoCL links its built-in library after optimising the kernel (cl/inline_builtins.h)."""
+    return "Portable Computing Language" in device.platform.name
+
+
 _memo = {}
 build_log = []  # (name, seconds, cached_in_process) for reports and tests
 
@@ -182,6 +188,8 @@ def build(context, name, defines=None, directory=None, arg_info=False):
     defines = dict(defines or {})
     defines.setdefault("LOCAL_SIZE", LOCAL_SIZE)
     device = context.devices[0]
+    if builtins_are_calls(device):
+        defines.setdefault("BUILTINS_ARE_CALLS", True)   # cl/inline_builtins.h writes them out
     setting = lanes.of_context(context)
     source = lanes.source_prefix(setting, device.native_vector_width_float) + expand_includes(name, directory)
     options = define_options(defines)
