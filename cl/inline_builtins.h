@@ -53,33 +53,36 @@ HELPER OVERLOADED void inline_vstore8(int8 v, size_t offset, __private int* p) {
 /* The other argument types OpenCL allows for these names (float2/float4 vectors, and fmin/fmax of a
  * vector and a scalar): no kernel here uses them today, but a student's file may, and a name
  * mapped below with no overload for its types would not compile on PoCL alone. */
-#define ELEMENTWISE2(name, T, f) \
-    HELPER OVERLOADED T name(T a, T b) { T r; for (int i = 0; i < (int)(sizeof(T) / sizeof(float)); ++i) r[i] = f(a[i], b[i]); return r; } \
-    HELPER OVERLOADED T name(T a, float b) { return name(a, (T)(b)); }
-#define ELEMENTWISE1(name, T, f) \
-    HELPER OVERLOADED T name(T a) { T r; for (int i = 0; i < (int)(sizeof(T) / sizeof(float)); ++i) r[i] = f(a[i]); return r; }
-ELEMENTWISE2(inline_fmin, float2, __builtin_fminf)
-ELEMENTWISE2(inline_fmin, float4, __builtin_fminf)
-ELEMENTWISE2(inline_fmax, float2, __builtin_fmaxf)
-ELEMENTWISE2(inline_fmax, float4, __builtin_fmaxf)
+HELPER OVERLOADED float2 inline_fmin(float2 a, float2 b) { return (float2)(__builtin_fminf(a.x, b.x), __builtin_fminf(a.y, b.y)); }
+HELPER OVERLOADED float2 inline_fmax(float2 a, float2 b) { return (float2)(__builtin_fmaxf(a.x, b.x), __builtin_fmaxf(a.y, b.y)); }
+HELPER OVERLOADED float4 inline_fmin(float4 a, float4 b) { return (float4)(inline_fmin(a.xy, b.xy), inline_fmin(a.zw, b.zw)); }
+HELPER OVERLOADED float4 inline_fmax(float4 a, float4 b) { return (float4)(inline_fmax(a.xy, b.xy), inline_fmax(a.zw, b.zw)); }
+HELPER OVERLOADED float2 inline_fmin(float2 a, float b) { return inline_fmin(a, (float2)(b)); }
+HELPER OVERLOADED float2 inline_fmax(float2 a, float b) { return inline_fmax(a, (float2)(b)); }
 HELPER OVERLOADED float3 inline_fmin(float3 a, float b) { return inline_fmin(a, (float3)(b)); }
 HELPER OVERLOADED float3 inline_fmax(float3 a, float b) { return inline_fmax(a, (float3)(b)); }
-ELEMENTWISE1(inline_fabs, float2, __builtin_fabsf)
-ELEMENTWISE1(inline_fabs, float3, __builtin_fabsf)
-ELEMENTWISE1(inline_fabs, float4, __builtin_fabsf)
-ELEMENTWISE1(inline_sqrt, float2, __builtin_sqrtf)
-ELEMENTWISE1(inline_sqrt, float3, __builtin_sqrtf)
-ELEMENTWISE1(inline_sqrt, float4, __builtin_sqrtf)
+HELPER OVERLOADED float4 inline_fmin(float4 a, float b) { return inline_fmin(a, (float4)(b)); }
+HELPER OVERLOADED float4 inline_fmax(float4 a, float b) { return inline_fmax(a, (float4)(b)); }
+HELPER OVERLOADED float2 inline_fabs(float2 v) { return (float2)(__builtin_fabsf(v.x), __builtin_fabsf(v.y)); }
+HELPER OVERLOADED float3 inline_fabs(float3 v) { return (float3)(inline_fabs(v.xy), __builtin_fabsf(v.z)); }
+HELPER OVERLOADED float4 inline_fabs(float4 v) { return (float4)(inline_fabs(v.xy), inline_fabs(v.zw)); }
+HELPER OVERLOADED float2 inline_sqrt(float2 v) { return (float2)(__builtin_sqrtf(v.x), __builtin_sqrtf(v.y)); }
+HELPER OVERLOADED float3 inline_sqrt(float3 v) { return (float3)(inline_sqrt(v.xy), __builtin_sqrtf(v.z)); }
+HELPER OVERLOADED float4 inline_sqrt(float4 v) { return (float4)(inline_sqrt(v.xy), inline_sqrt(v.zw)); }
 HELPER OVERLOADED float inline_dot(float a, float b) { return a * b; }
 HELPER OVERLOADED float inline_dot(float4 a, float4 b) { return a.x * b.x + a.y * b.y + a.z * b.z + a.w * b.w; }
 HELPER OVERLOADED float4 inline_cross(float4 a, float4 b) { return (float4)(inline_cross(a.xyz, b.xyz), 0.0f); }
 HELPER OVERLOADED float inline_length(float v) { return __builtin_fabsf(v); }
 HELPER OVERLOADED float inline_length(float2 v) { return __builtin_sqrtf(inline_dot(v, v)); }
 HELPER OVERLOADED float inline_length(float4 v) { return __builtin_sqrtf(inline_dot(v, v)); }
-HELPER OVERLOADED float2 inline_normalize(float2 v) { float l2 = inline_dot(v, v); return l2 > 0.0f ? v * (1.0f / __builtin_sqrtf(l2)) : v; }
-HELPER OVERLOADED float4 inline_normalize(float4 v) { float l2 = inline_dot(v, v); return l2 > 0.0f ? v * (1.0f / __builtin_sqrtf(l2)) : v; }
-#undef ELEMENTWISE1
-#undef ELEMENTWISE2
+HELPER OVERLOADED float2 inline_normalize(float2 v) {
+    float l2 = inline_dot(v, v);
+    return l2 > 0.0f ? v * (1.0f / __builtin_sqrtf(l2)) : v;
+}
+HELPER OVERLOADED float4 inline_normalize(float4 v) {
+    float l2 = inline_dot(v, v);
+    return l2 > 0.0f ? v * (1.0f / __builtin_sqrtf(l2)) : v;
+}
 
 /* PoCL's header maps these names to its library by object-like macros; ours are function-like,
  * so a record field of the same name (ShadowRay.length) is left alone. */
