@@ -22,21 +22,16 @@ def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats
     named "technique [lanes on]" and has its ratio to the same technique with lanes off."""
     scene = as_scene(scene)
     rows = [(name, setting) for name in techniques for setting in lanes]
-    for name, setting in rows:   # warm-up: kernel builds and BVH outside the timings
-        render(scene, technique=name, spp=1, resolution=(16, 16), device=device, count_simd=False, bvh=bvh,
-               general=general, lanes=setting)
-    rates = {row: [] for row in rows}
-    device_name, widths = None, {}
-    for r in range(repeats):
-        for name, setting in rows:
-            # Bidirectional samples (and Metropolis mutations, each one) cost ~10x more: an eighth of
-            # the budget keeps the runs comparable in length.
-            n = max(1, spp // 8) if family(name) in ("bdpt", "mlt") else spp
-            result = render(scene, technique=name, spp=n, seed=seed + r, resolution=resolution,
-                            device=device, count_simd=False, bvh=bvh, general=general, lanes=setting)
-            rates[(name, setting)].append(result.stats["samples_per_second"])
-            device_name = result.stats["device"]
-            widths[(name, setting)] = {k: result.stats[k] for k in ("lanes", "vector_width", "vector_widths")}
+
+    def spp_of(name):
+        # Bidirectional samples (and Metropolis mutations, each one) cost ~10x more: an eighth of
+        # the budget keeps the runs comparable in length.
+        return max(1, spp // 8) if family(name) in ("bdpt", "mlt") else spp
+
+    rates, stats = interleaved_rates(scene, rows, spp_of, repeats, seed=seed, resolution=resolution, device=device,
+                                     bvh=bvh, general=general)
+    device_name = next(iter(stats.values()))["device"]
+    widths = {row: {k: st[k] for k in ("lanes", "vector_width", "vector_widths")} for row, st in stats.items()}
     median = {row: statistics.median(v) for row, v in rates.items()}
     base = techniques[0]
     report = {}
@@ -51,6 +46,27 @@ def bench(scene=None, techniques=DEFAULT, spp=16, resolution=(128, 128), repeats
     return {"scene": scene.name, "device": device_name, "gpu": is_gpu(get_queue(device).device), "spp": spp,
             "bvh": bvh, "general": general, "resolution": list(resolution), "repeats": repeats, "lanes": list(lanes),
             "techniques": report}
+
+
+def interleaved_rates(scene, rows, spp_of, repeats, seed=0, resolution=(128, 128), device=None, options=None,
+                      **render_args):
+    """Samples/s of each (technique, lanes setting) in `rows`, in interleaved runs (A, B, C, A, B,
+    C, ...), so a slow moment of the machine hits every row; a warm-up render of each row first,
+    so no kernel build or BVH is timed. `spp_of(technique)`: its samples per pixel; `options`:
+    {technique: its options}. Returns ({row: [samples/s per run]}, {row: its last render's stats})."""
+    options = options or {}
+    for name, setting in rows:
+        render(scene, technique=name, spp=1, resolution=(16, 16), device=device, count_simd=False, lanes=setting,
+               options=options.get(name, {}), **render_args)
+    rates, stats = {row: [] for row in rows}, {}
+    for r in range(repeats):
+        for name, setting in rows:
+            result = render(scene, technique=name, spp=spp_of(name), seed=seed + r, resolution=resolution,
+                            device=device, count_simd=False, lanes=setting, options=options.get(name, {}),
+                            **render_args)
+            rates[(name, setting)].append(result.stats["samples_per_second"])
+            stats[(name, setting)] = result.stats
+    return rates, stats
 
 
 def _row_name(name, setting, settings):

@@ -1,11 +1,12 @@
 """Timing techniques with SIMD lanes off and on, on Intel's CPU runtime, as tutorials 02 and 03
 do ("Lanes on a CPU"): where the runtime is, an interleaved timing of both settings, each
 technique's ratio to a baseline run by run, and the table the tutorials print.
-`python -m toolkit bench --device intel --lanes off,on` measures the same on the command line."""
+`python -m toolkit bench --device intel --lanes off,on` measures the same on the command line, with
+the same interleaved runs (toolkit/measure/bench.py)."""
 import platform
 import statistics
 
-from toolkit.api import render
+from toolkit.measure.bench import interleaved_rates
 from toolkit.opencl import lanes as cpu_lanes
 from toolkit.opencl.device import candidates
 
@@ -28,23 +29,15 @@ def intel_runtime():
 
 
 def time_lanes(runtime, scene, techniques, resolution, spp, repeats, options, seed=0):
-    """Samples/s of each technique with lanes off and on, on `runtime` (from intel_runtime),
-    interleaved (a slow moment of the machine hits every row), after a warm-up that builds every
-    kernel, so no build is timed. `options`: {technique: its options}. Returns
+    """Samples/s of each technique with lanes off and on, on `runtime` (from intel_runtime), in
+    bench's interleaved runs after its warm-up. `options`: {technique: its options}. Returns
     ({(technique, setting): [samples/s per repeat]}, {setting: the widest vector the compiler used})."""
     rows = [(name, setting) for setting in ("off", "on") for name in techniques]
+    rates, stats = interleaved_rates(scene, rows, lambda name: spp, repeats, seed=seed,
+                                     resolution=(resolution, resolution), device=runtime.selector, options=options)
     widths = {}
-    for name, setting in rows:
-        warm = render(scene, technique=name, spp=1, resolution=(16, 16), device=runtime.selector,
-                      lanes=setting, count_simd=False, options=options.get(name, {}))
-        widths[setting] = max(widths.get(setting, 1), warm.stats["vector_width"] or 1)
-    rates = {row: [] for row in rows}
-    for r in range(repeats):
-        for name, setting in rows:
-            result = render(scene, technique=name, spp=spp, seed=seed + r, resolution=(resolution, resolution),
-                            device=runtime.selector, lanes=setting, count_simd=False,
-                            options=options.get(name, {}))
-            rates[(name, setting)].append(result.stats["samples_per_second"])
+    for (_, setting), st in stats.items():
+        widths[setting] = max(widths.get(setting, 1), st["vector_width"] or 1)
     return rates, widths
 
 
