@@ -31,16 +31,10 @@ __kernel void builtins(__global const float4* as, __global const float4* bs, __g
 """
 
 
-@pytest.fixture(scope="module")
-def pocl_queue():
-    from toolkit.opencl.device import get_queue
-    queue = get_queue()
+def test_written_out_builtins_match_the_compilers_own(queue, tmp_path):
     if not program.builtins_are_calls(queue.device):
         pytest.skip("the default device inlines its own built-ins: inline_builtins.h is not used there")
-    return queue
-
-
-def test_written_out_builtins_match_the_compilers_own(pocl_queue, tmp_path):
+    pocl_queue = queue
     lines = "\n".join(f"    o[{k}] = {e};" for k, e in enumerate(EXPRESSIONS))
     (tmp_path / "builtins.cl").write_text(KERNEL % (len(EXPRESSIONS), lines))
     rng = np.random.default_rng(7)

@@ -23,7 +23,7 @@ import pytest
 from toolkit.cli import build_parser, main
 from toolkit.core.images import write_atomically
 from toolkit.measure.stats import bonferroni, normal_two_sided_p, student_t_two_sided_p
-from toolkit.measure.study import calibration, error_figures, fit_slope, study, time_to_target
+from toolkit.measure.study import against_samples, calibration, error_figures, fit_slope, study, time_to_target
 
 ALPHA = 0.01     # chance that a correct study fails a statistical test below (with Bonferroni)
 UNBIASED = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "bdpt_naive_connect", "bdpt_parallel_connect")
@@ -143,12 +143,6 @@ def slope_studies(scenes):
 @pytest.fixture(scope="module")
 def scenes():
     return Path(__file__).resolve().parent.parent / "scenes"
-
-
-def against_samples(points):
-    """The same points with samples per pixel as the x axis: the renders use fixed seeds, so
-    this slope depends on the estimator alone, not on how busy the machine was."""
-    return [{**p, "time": float(p["spp"]), "time_se": 0.0} for p in points]
 
 
 def test_unbiased_techniques_converge_as_one_over_sqrt_samples(slope_studies):

@@ -62,8 +62,8 @@ budget). `toolkit.study` is study(); import the rest from here
 """
 from toolkit.measure.study.calibration import CALIBRATION_SECONDS, calibrate, fit_cost, plan
 from toolkit.measure.study.at_equal_time import equal_time, format_equal_time
-from toolkit.measure.study.figures import (MIN_PIXEL_TEST_SAMPLES, error_figures, fit_slope, pixel_test,
-                                           point_figures, time_to_target)
+from toolkit.measure.study.figures import (MIN_PIXEL_TEST_SAMPLES, against_samples, error_figures, fit_slope,
+                                           pixel_test, point_figures, time_to_target)
 from toolkit.measure.study.knobs import DEFAULT_RESOLUTION, INTEGRATOR_KNOBS, Repetition, Run, make_runs, \
     parse_knob, parse_value
 from toolkit.measure.study.report import format_study, write_report
@@ -71,7 +71,7 @@ from toolkit.measure.study.runs import DEFAULT_BUDGETS, DEFAULT_REPEATS, DEFAULT
 from toolkit.measure.study.workers import run_repetition
 
 __all__ = ["study", "format_study", "equal_time", "format_equal_time", "write_report", "error_figures",
-           "pixel_test", "point_figures", "fit_slope", "time_to_target", "calibrate", "fit_cost", "plan",
+           "pixel_test", "point_figures", "fit_slope", "against_samples", "time_to_target", "calibrate", "fit_cost", "plan",
            "run_repetition", "Run", "Repetition", "make_runs", "parse_knob", "parse_value",
            "DEFAULT_TECHNIQUES", "DEFAULT_BUDGETS", "DEFAULT_REPEATS", "DEFAULT_RESOLUTION", "DEFAULT_TARGET",
            "INTEGRATOR_KNOBS", "CALIBRATION_SECONDS", "MIN_PIXEL_TEST_SAMPLES"]

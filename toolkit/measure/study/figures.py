@@ -137,6 +137,12 @@ def fit_slope(points, nominal=-0.5):
             "log_rmse_mean": float(ym), "chi2": chi2, "dof": dof, "points": len(pts)}
 
 
+def against_samples(points):
+    """The same points with samples per pixel as the x axis (time_se 0): the renders use fixed
+    seeds, so fit_slope of these depends on the estimator alone, not on how busy the machine was."""
+    return [{**p, "time": float(p["spp"]), "time_se": 0.0} for p in points]
+
+
 def time_to_target(points, fit, target):
     """Seconds to reach relative RMSE `target`, and how it was found (see the package docstring)."""
     pts = sorted((p for p in points if p["relative_rmse"]), key=lambda p: p["time"])
