@@ -34,7 +34,6 @@ __kernel void builtins(__global const float4* as, __global const float4* bs, __g
 def test_written_out_builtins_match_the_compilers_own(queue, tmp_path):
     if not program.builtins_are_calls(queue.device):
         pytest.skip("the default device inlines its own built-ins: inline_builtins.h is not used there")
-    pocl_queue = queue
     lines = "\n".join(f"    o[{k}] = {e};" for k, e in enumerate(EXPRESSIONS))
     (tmp_path / "builtins.cl").write_text(KERNEL % (len(EXPRESSIONS), lines))
     rng = np.random.default_rng(7)
@@ -45,13 +44,13 @@ def test_written_out_builtins_match_the_compilers_own(queue, tmp_path):
     b[16:32, 1] = 0.0                                  # a.x / 0: isfinite sees infinities
     outputs = []
     for ours in (True, False):
-        built = program.build(pocl_queue.context, "builtins.cl", {"BUILTINS_ARE_CALLS": ours}, directory=tmp_path)
+        built = program.build(queue.context, "builtins.cl", {"BUILTINS_ARE_CALLS": ours}, directory=tmp_path)
         mf = cl.mem_flags
-        bufs = [cl.Buffer(pocl_queue.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=x) for x in (a, b)]
+        bufs = [cl.Buffer(queue.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=x) for x in (a, b)]
         out = np.empty((n, len(EXPRESSIONS)), np.float32)
-        out_buf = cl.Buffer(pocl_queue.context, mf.WRITE_ONLY, out.nbytes)
-        program.kernel(built, "builtins")(pocl_queue, (n,), None, *bufs, out_buf)
-        cl.enqueue_copy(pocl_queue, out, out_buf)
+        out_buf = cl.Buffer(queue.context, mf.WRITE_ONLY, out.nbytes)
+        program.kernel(built, "builtins")(queue, (n,), None, *bufs, out_buf)
+        cl.enqueue_copy(queue, out, out_buf)
         outputs.append(out)
     ours, theirs = outputs
     eps = np.finfo(np.float32).eps
