@@ -255,9 +255,10 @@ HELPER int4 hit_triangles(__global const TriGroup* g, float3 o, const RayShear* 
     return ~mixed & (det != zero) & (t > (float4)(tmin)) & (t < (float4)(tmax));
 }
 
-/* Push the children a node's box test hit onto the stack, nearest on top, so they are visited
- * front to back (a close hit culls the boxes behind it); returns the new top. One way for each
- * width, each the faster where that width is used. */
+/* descend(stack_ref, stack_t, &top, child, enter): the nearest child that a node's box test hit
+ * (WIDE_EMPTY if none), the other hit children pushed onto the stack, nearest on top, so they
+ * are visited front to back (a close hit culls the boxes behind it). One way for each width,
+ * each the faster where that width is used. */
 #if NODE_WIDTH == 4
 /* One compare-and-swap of a sorting network: afterwards (ta, ra) is the nearer entry. */
 HELPER void order_pair(float* ta, int* ra, float* tb, int* rb) {
@@ -296,27 +297,73 @@ HELPER int push_hit_children(int* stack_ref, float* stack_t, int top, int4 child
     return top + hits;
 }
 
+/* The nearest child hit, the others pushed (nearest on top); WIDE_EMPTY if none was hit. */
+HELPER int descend(int* stack_ref, float* stack_t, int* top, int4 child, float4 enter) {
+    int below = *top;
+    *top = push_hit_children(stack_ref, stack_t, *top, child, enter);
+    return *top == below ? WIDE_EMPTY : stack_ref[--*top];
+}
+
 #else
-/* Eight children, where each work-item is a thread: an insertion sort of the hit children only.
- * Most nodes have one or two of their eight hit (surface rays on cornell_spheres: 1.5), so it
- * shifts little, and a branch costs a thread little. The sorting network of the 4-wide push,
- * grown to 19 compare-and-swaps and eight stores, made these rays 27% slower on PoCL. */
+/* Eight children, where each work-item is a thread: a branch costs a thread little, so the
+ * common cases take their own short way (Embree's single-ray traversal does the same). Most
+ * nodes have one or two of their eight children hit (surface rays on cornell_spheres: 1.5), so
+ * with one the ray goes straight on, with two one compare decides which waits on the stack, and
+ * only three or more are sorted. A loop over all eight lanes, testing each for a hit, spent a
+ * fifth of pt_naive_render's time (perf, cornell_spheres) in mispredicted branches. */
 #define BVH_STACK_SLACK 0
-HELPER int push_hit_children(int* stack_ref, float* stack_t, int top, int8 child, float8 enter) {
+
+/* Bit i set where child i was hit (entry distance not INFINITY). */
+HELPER uint hit_bits(float8 enter) {
+    int8 bit = (enter != (float8)(INFINITY)) & (int8)(1, 2, 4, 8, 16, 32, 64, 128);
+    return (uint)(bit.s0 | bit.s1 | bit.s2 | bit.s3 | bit.s4 | bit.s5 | bit.s6 | bit.s7);
+}
+
+/* Index of the lowest set bit of x != 0. */
+HELPER int lowest_bit(uint x) {
+#if BUILTINS_ARE_CALLS
+    return __builtin_ctz(x);   /* PoCL would call its ctz/clz; clang's built-in is one instruction */
+#else
+    return 31 - clz(x & (0u - x));
+#endif
+}
+
+/* Child i onto the stack, kept sorted from `bottom` up: nearest on top. */
+HELPER void insert_sorted(int* stack_ref, float* stack_t, int bottom, int* top, int ref, float t) {
+    int j = (*top)++;
+    for (; j > bottom && stack_t[j - 1] < t; --j) {   /* the farther ones stay below */
+        stack_t[j] = stack_t[j - 1]; stack_ref[j] = stack_ref[j - 1];
+    }
+    stack_t[j] = t; stack_ref[j] = ref;
+}
+
+HELPER int descend(int* stack_ref, float* stack_t, int* top, int8 child, float8 enter) {
+    uint bits = hit_bits(enter);
+    if (bits == 0) return WIDE_EMPTY;
     float t[NODE_WIDTH];
     int ref[NODE_WIDTH];
     vstore8(enter, 0, t);
     vstore8(child, 0, ref);
-    int bottom = top;
-    for (int i = 0; i < NODE_WIDTH; ++i) {
-        if (t[i] == INFINITY) continue;
-        int j = top++;
-        for (; j > bottom && stack_t[j - 1] < t[i]; --j) {   /* the farther ones stay below */
-            stack_t[j] = stack_t[j - 1]; stack_ref[j] = stack_ref[j - 1];
-        }
-        stack_t[j] = t[i]; stack_ref[j] = ref[i];
+    int a = lowest_bit(bits);
+    bits &= bits - 1;
+    if (bits == 0) return ref[a];                   /* one child hit: straight on */
+    int b = lowest_bit(bits);
+    bits &= bits - 1;
+    if (bits == 0) {                                /* two: the farther one waits */
+        bool b_nearer = t[b] < t[a];
+        int near = b_nearer ? b : a, far = b_nearer ? a : b;
+        stack_ref[*top] = ref[far]; stack_t[*top] = t[far]; ++*top;
+        return ref[near];
     }
-    return top;
+    int bottom = *top;                              /* three or more: sorted onto the stack */
+    insert_sorted(stack_ref, stack_t, bottom, top, ref[a], t[a]);
+    insert_sorted(stack_ref, stack_t, bottom, top, ref[b], t[b]);
+    for (; bits != 0; bits &= bits - 1) {
+        int i = lowest_bit(bits);
+        insert_sorted(stack_ref, stack_t, bottom, top, ref[i], t[i]);
+    }
+    --*top;
+    return stack_ref[*top];
 }
 #endif
 
@@ -341,13 +388,11 @@ HELPER Hit trace_closest(const SceneView* scene, float3 o, float3 d, float tmin,
          * step together instead of waiting for each other's leaf tests. */
         while (ref >= 0) {
             __global const WideNode* n = wide_node(scene, ref);
-            int below = top;
-            top = push_hit_children(stack_ref, stack_t, top, n->child, hit_boxes(n, o, inv_d, tmin, hit.t));
-            if (top == below) break;
-            ref = stack_ref[--top];
+            ref = descend(stack_ref, stack_t, &top, n->child, hit_boxes(n, o, inv_d, tmin, hit.t));
+            if (ref == WIDE_EMPTY) break;
             ++visited;
         }
-        if (ref < 0) {
+        if (ref != WIDE_EMPTY) {   /* a leaf */
             __global const TriGroup* g = tri_group(scene, ref);
             float4 t, u, v;
             int4 mask = hit_triangles(g, o, &shear, tmin, next_up(hit.t), &t, &u, &v);
@@ -380,10 +425,13 @@ HELPER bool trace_any(const SceneView* scene, float3 o, float3 d, float tmin, fl
     while (top > 0 && !blocked) {
         int ref = stack_ref[--top];
         ++visited;
-        if (ref >= 0) {
+        while (ref >= 0) {      /* inner nodes, as in trace_closest */
             __global const WideNode* n = wide_node(scene, ref);
-            top = push_hit_children(stack_ref, stack_t, top, n->child, hit_boxes(n, o, inv_d, tmin, tmax));
-        } else {
+            ref = descend(stack_ref, stack_t, &top, n->child, hit_boxes(n, o, inv_d, tmin, tmax));
+            if (ref == WIDE_EMPTY) break;
+            ++visited;
+        }
+        if (ref != WIDE_EMPTY) {
             float4 t, u, v;
             blocked = any4(hit_triangles(tri_group(scene, ref), o, &shear, tmin, tmax, &t, &u, &v));
         }
