@@ -1,18 +1,25 @@
 /* The in-place extension step, shared by pt_inplace_regen and pt_compact_regen's multi-pass
  * compaction: each work-item owns slot gid of a path stream and, if its path is alive,
- * extends it by one vertex (shadow ray traced inline). A path that ends writes its sample's
- * value and clears alive[gid]; the flags are then what regeneration (pt_inplace_regen) or the
- * scan of multi-pass compaction (pt_compact_regen) reads. */
+ * extends it by one vertex. A path that ends writes its sample's value and clears alive[gid];
+ * the flags are then what regeneration (pt_inplace_regen) or the scan of multi-pass compaction
+ * (pt_compact_regen) reads.
+ *
+ * The step is two kernels, as pt_compact_regen's immediate compaction does it (a wavefront split,
+ * Laine, Karras and Aila 2013): extend_in_place_trace finds the closest hit of each live slot's
+ * ray into a HitRecord stream, extend_in_place_shade shades it (emission, the shadow ray traced
+ * inline, BSDF sample, roulette). Where work-items run as SIMD lanes, the traversal loop then
+ * runs without the shading state around it (measured: results/issue22_lanes.md). Same image as
+ * one kernel: the same steps in the same order.
+ * `paths`, `hits`: structures of arrays of pass_args.capacity records (layout.h); the first
+ * `stream_length` slots take the step. */
 #ifndef EXTEND_IN_PLACE_H
 #define EXTEND_IN_PLACE_H
 
 #include "path.h"
 
-/* `paths`: a PathState structure of arrays of pass_args.capacity records (layout.h); its first
- * `stream_length` slots take the step. */
-__kernel void extend_in_place(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
-                              __global void* paths, __global int* alive, __global float4* radiance,
-                              __global LaneCounts* lane_counts)
+__kernel void extend_in_place_trace(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
+                                    __global void* paths, __global const int* alive, __global void* hits,
+                                    __global LaneCounts* lane_counts)
 {
     int gid = get_global_id(0);
     if (gid >= stream_length) return;
@@ -20,11 +27,35 @@ __kernel void extend_in_place(SCENE_PARAMS, const PtPass pass_args, const int st
     int was_alive = alive[gid];
     if (was_alive) {
         SceneView s = SCENE_INIT;
-        alive[gid] = path_extend_in_place(&s, path_state_soa(paths, pass_args.capacity), gid, pass_args.seed,
-                                          &count, radiance);
+        PathState p = path_state_load(path_state_soa(paths, pass_args.capacity), gid);
+        HitRecord hit = path_trace(&s, &p, &count);
+        hit_record_store(hit_record_soa(hits, pass_args.capacity), gid, &hit);
     }
 #if COUNT_SIMD
-    lane_counts[gid] = lane_counts_of(was_alive, &count);
+    lane_counts[gid] = lane_counts_of(was_alive, &count);   /* its traversal steps; shade adds the rest */
+#endif
+}
+
+__kernel void extend_in_place_shade(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
+                                    __global void* paths, __global int* alive, __global void* hits,
+                                    __global float4* radiance, __global LaneCounts* lane_counts)
+{
+    int gid = get_global_id(0);
+    if (gid >= stream_length || !alive[gid]) return;
+    SceneView s = SCENE_INIT;
+    LaneCounters count = {0, 0, 0};
+    PathStateSoA soa = path_state_soa(paths, pass_args.capacity);
+    PathState p = path_state_load(soa, gid);
+    ShadowRay shadow;
+    bool continues = path_shade_deferred(&s, &p, hit_record_load(hit_record_soa(hits, pass_args.capacity), gid),
+                                         pass_args.seed, &shadow);
+    if (shadow.slot >= 0 && shadow_unoccluded(&s, &shadow, &count)) p.radiance.xyz += shadow.contribution.xyz;
+    if (continues) path_state_store(soa, gid, &p);
+    else path_finish(radiance, &p);
+    alive[gid] = continues;
+#if COUNT_SIMD
+    lane_counts[gid].shadow_rays = count.shadow_rays;
+    lane_counts[gid].shadow_steps = count.shadow_steps;
 #endif
 }
 

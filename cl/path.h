@@ -198,15 +198,4 @@ HELPER void path_finish(__global float4* out, const PathState* p) {
     out[p->slot] = all_finite(L) ? (float4)(L, 0.0f) : (float4)(0.0f, 0.0f, 0.0f, 1.0f);
 }
 
-/* One extension of the path stored at index i of a stream, in place: a path that continues is
- * stored back, one that ends writes its sample's value. Returns whether it continues. */
-HELPER bool path_extend_in_place(const SceneView* s, PathStateSoA paths, int i, uint seed, LaneCounters* count,
-                                 __global float4* out) {
-    PathState p = path_state_load(paths, i);
-    bool continues = path_extend(s, &p, seed, count);
-    if (continues) path_state_store(paths, i, &p);
-    else path_finish(out, &p);
-    return continues;
-}
-
 #endif

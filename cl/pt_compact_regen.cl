@@ -12,14 +12,15 @@
  *   regenerate - new samples fill the end of the stream, so it keeps its size; they are
  *             consecutive pixels, side by side, so their primary rays are coherent.
  * Compaction is "immediate" (single pass, fused into shade: cl/compact.h) or multi-pass
- * (extend_in_place traces and shades in one kernel and writes alive flags,
+ * (extend_in_place_trace and _shade take the step in place and write alive flags,
  * toolkit/opencl/compaction.py scans, pt_compact_regen_gather moves).
  * Kernels this technique launches (toolkit/techniques/pt_compact_regen.py):
  *   pt_compact_regen_generate    here
  *   pt_compact_regen_trace       here (immediate compaction)
  *   pt_compact_regen_shade       here (immediate compaction: shade + compact)
  *   pt_compact_regen_shadow      here (immediate compaction)
- *   extend_in_place              cl/extend_in_place.h (multi-pass compaction; shared with pt_inplace_regen)
+ *   extend_in_place_trace        cl/extend_in_place.h (multi-pass compaction; shared with pt_inplace_regen)
+ *   extend_in_place_shade        cl/extend_in_place.h (multi-pass compaction; shared with pt_inplace_regen)
  *   the scan                     toolkit/opencl/compaction.py (multi-pass compaction)
  *   pt_compact_regen_gather      here (multi-pass compaction)
  * Every stream is a structure of arrays of pass_args.capacity records in one buffer (layout.h);

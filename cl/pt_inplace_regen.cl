@@ -5,7 +5,8 @@
  * active (the talk: ~30% active threads per warp).
  * Kernels this technique launches (toolkit/techniques/pt_inplace_regen.py):
  *   pt_inplace_regen_regenerate   here
- *   extend_in_place               cl/extend_in_place.h (shared with pt_compact_regen) */
+ *   extend_in_place_trace         cl/extend_in_place.h (shared with pt_compact_regen)
+ *   extend_in_place_shade         cl/extend_in_place.h (shared with pt_compact_regen) */
 #include "extend_in_place.h"
 
 /* Regenerate in place: a free slot takes the next sample of the pass's budget, if any is left.

@@ -15,8 +15,8 @@ from toolkit.opencl.device_scene import DeviceScene
 from toolkit.techniques import PtInplaceRegen, get_technique
 
 # The kernel that starts each iteration (one extension step over the stream).
-EXTEND = {"pt_inplace_regen": "extend_in_place", "pt_compact_regen": "pt_compact_regen_trace",
-          "pt_compact_regen/multipass": "extend_in_place"}
+EXTEND = {"pt_inplace_regen": "extend_in_place_trace", "pt_compact_regen": "pt_compact_regen_trace",
+          "pt_compact_regen/multipass": "extend_in_place_trace"}
 # What an iteration reads back: in place, the "any path alive" flag, once every
 # PtInplaceRegen.reads_every iterations; immediate compaction, the two stream lengths
 # (StreamCounter), every iteration (they size the next launches); multi-pass compaction, the

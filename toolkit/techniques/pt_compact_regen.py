@@ -8,8 +8,8 @@ Kernel: cl/pt_compact_regen.cl. The stream has a fixed size; one iteration:
     compact     - ended paths leave, survivors are packed at the start of the stream;
     regenerate  - new samples fill the end of the stream: consecutive pixels, side by side.
 With compaction="immediate" the compaction is fused into the shade kernel (one scan per
-work-group in local memory, one atomic per group); "multipass" extends in one kernel
-(extend_in_place, shared with pt_inplace_regen), then labels, scans and gathers.
+work-group in local memory, one atomic per group); "multipass" extends in place
+(extend_in_place_trace and _shade, shared with pt_inplace_regen), then labels, scans and gathers.
 Option `stream_size`: the paths in the stream (default: the device's, toolkit/opencl/work_sizes.py:
 32,768 on a CPU).
 """
@@ -122,9 +122,12 @@ class PtCompactRegen(Technique):
             lengths = self.read_ints(b.counters, len(StreamCounter))
             return int(lengths[StreamCounter.PATHS]), int(lengths[StreamCounter.SHADOW_RAYS])
         cl.enqueue_fill_buffer(self.queue, b.alive, np.int32(1), 0, 4 * length)   # every path in the stream is live
-        self.launch(self.kernel("extend_in_place"), length, **self.scene_args(), pass_args=pass_args,
-                    stream_length=np.int32(length), paths=b.stream, alive=b.alive, radiance=b.radiance,
+        self.launch(self.kernel("extend_in_place_trace"), length, **self.scene_args(), pass_args=pass_args,
+                    stream_length=np.int32(length), paths=b.stream, alive=b.alive, hits=b.hits,
                     lane_counts=b.lane_counts)
+        self.launch(self.kernel("extend_in_place_shade"), length, **self.scene_args(), pass_args=pass_args,
+                    stream_length=np.int32(length), paths=b.stream, alive=b.alive, hits=b.hits,
+                    radiance=b.radiance, lane_counts=b.lane_counts)
         indices, survivors = self.compactor.compact_indices(b.alive, length, method="multipass", out=b.indices)
         if survivors:
             self.launch(self.kernel("pt_compact_regen_gather"), survivors, pass_args=pass_args,

@@ -1,7 +1,7 @@
 """Path tracing with in-place sample regeneration (Novak et al. 2010).
 
 Kernel: cl/pt_inplace_regen.cl. Each work-item owns a slot. One iteration:
-    extend     - every slot with a live path traces one more vertex;
+    extend     - every slot with a live path traces one more vertex (two kernels: trace, then shade);
     regenerate - every slot whose path ended starts the next sample of the budget in place.
 Extension stays busy, but regeneration runs with only the terminated lanes active: the talk
 measures ~30% active threads per warp in that step.
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.layout import PATH_STATE, PT_PASS
+from toolkit.core.layout import HIT_RECORD, PATH_STATE, PT_PASS
 from toolkit.opencl.work_sizes import checked_size
 from toolkit.techniques.base import Technique, pixel_count
 
@@ -22,6 +22,7 @@ from toolkit.techniques.base import Technique, pixel_count
 class SlotBuffers:
     """pt_inplace_regen's device memory: made once per stream size, reused by every pass."""
     paths: cl.Buffer         # PathState per slot, a structure of arrays of `capacity` records: the slot's path
+    hits: cl.Buffer          # HitRecord per slot (the same layout): what its path's ray hit in this step
     lane_counts: cl.Buffer   # LaneCounts per slot: what it did in an extension step (COUNT_SIMD)
     regenerated: cl.Buffer   # int per slot: 1 where a regeneration started a sample (COUNT_SIMD)
     alive: cl.Buffer         # int per slot: 1 while it holds a live path, 0 while it is free
@@ -45,7 +46,8 @@ class PtInplaceRegen(Technique):
 
     def slot_buffers(self, slots):
         """The device memory of `slots` slots (run_pass makes it once per stream size)."""
-        return SlotBuffers(paths=self.soa_buffer(PATH_STATE, slots), lane_counts=self.lane_counts_buffer(slots),
+        return SlotBuffers(paths=self.soa_buffer(PATH_STATE, slots), hits=self.soa_buffer(HIT_RECORD, slots),
+                           lane_counts=self.lane_counts_buffer(slots),
                            regenerated=self.int_buffer(slots), alive=self.int_buffer(slots),
                            next_sample=self.int_buffer(1), any_alive=self.int_buffer(1))
 
@@ -74,9 +76,12 @@ class PtInplaceRegen(Technique):
             if step % reads_every == 0 and not self.read_ints(b.any_alive, 1)[0]:
                 break   # budget spent and every path has ended
             # Extend: every slot with a live path traces one more vertex.
-            self.launch(self.kernel("extend_in_place"), slots, **self.scene_args(), pass_args=pass_args,
-                        stream_length=np.int32(slots), paths=b.paths, alive=b.alive, radiance=b.radiance,
+            self.launch(self.kernel("extend_in_place_trace"), slots, **self.scene_args(), pass_args=pass_args,
+                        stream_length=np.int32(slots), paths=b.paths, alive=b.alive, hits=b.hits,
                         lane_counts=b.lane_counts)
+            self.launch(self.kernel("extend_in_place_shade"), slots, **self.scene_args(), pass_args=pass_args,
+                        stream_length=np.int32(slots), paths=b.paths, alive=b.alive, hits=b.hits,
+                        radiance=b.radiance, lane_counts=b.lane_counts)
             self.count_extend(b.lane_counts, slots, b.next_sample, budget)
         self.collect(film, b.radiance, budget)
 

@@ -2,7 +2,7 @@
  * "In-Place Sample Regeneration"). Your file replaces the toolkit's cl/pt_inplace_regen.cl:
  *     python -m toolkit grade inplace_regen --kernel THIS_FILE
  * Each work-item owns one slot of the path stream. After every extension step
- * (extend_in_place, given), the host runs pt_inplace_regen_regenerate over all slots: a slot
+ * (extend_in_place_trace and _shade, given), the host runs pt_inplace_regen_regenerate over all slots: a slot
  * whose path has ended starts the next sample of the pass's budget in place.
  * Fill in the region marked TODO; keep the kernel's name and arguments. */
 #include "extend_in_place.h"
