@@ -21,7 +21,7 @@ KERNEL_PHASES = {
     "pt_naive_render": ("generate + extend + shade", ("generate", "extend", "shadow"), ("closest", "shadow")),
     "pt_inplace_regen_regenerate": ("regenerate", ("generate",), ()),
     "extend_in_place_trace": ("extend: trace", ("extend",), ("closest",)),
-    "extend_in_place_shade": ("extend: shade", ("shadow",), ("shadow",)),
+    "extend_in_place_shade": ("extend: shade", ("extend", "shadow"), ("shadow",)),
     "pt_compact_regen_generate": ("regenerate", ("generate",), ()),
     "pt_compact_regen_trace": ("extend: trace", ("extend",), ("closest",)),
     "pt_compact_regen_shade": ("extend: shade + compact", ("extend", "compact"), ()),
