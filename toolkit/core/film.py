@@ -37,6 +37,26 @@ class Film:
     def add_pixel_major(self, radiance):
         """Samples laid out as (samples, pixels) in one array: the common case, without bincount."""
         per_pixel = radiance.reshape(-1, len(self.count), 4)
+        if np.any(per_pixel[..., 3] != 0) or not np.isfinite(per_pixel[..., :3]).all():
+            self._add_pixel_major_dropping(per_pixel)
+            return
+        # Every sample finite (the rule): one float64 row of pixels at a time, added in the order
+        # value.sum(0) adds them, so the sums are bit for bit those of the general path below,
+        # at a third of its time (no float64 copy of the whole pass; this runs on the host while
+        # the device renders the next pass, and takes CPU time from it on a CPU device).
+        total = per_pixel[0, :, :3].astype(np.float64)
+        squares = total * total
+        for row in per_pixel[1:]:
+            value = row[:, :3].astype(np.float64)
+            total += value
+            value *= value
+            squares += value
+        self.sum += total
+        self.sum_sq += squares
+        self.count += per_pixel.shape[0]
+
+    def _add_pixel_major_dropping(self, per_pixel):
+        """add_pixel_major where some sample is flagged (.w != 0) or not finite: it is counted and left out."""
         value = per_pixel[..., :3].astype(np.float64)
         bad = (per_pixel[..., 3] != 0) | ~np.isfinite(value).all(-1)
         value[bad] = 0.0
