@@ -27,9 +27,8 @@ __kernel void extend_in_place_trace(SCENE_PARAMS, const PtPass pass_args, const 
     int was_alive = alive[gid];
     if (was_alive) {
         SceneView s = SCENE_INIT;
-        PathState p = path_state_load(path_state_soa(paths, pass_args.capacity), gid);
-        HitRecord hit = path_trace(&s, &p, &count);
-        hit_record_store(hit_record_soa(hits, pass_args.capacity), gid, &hit);
+        path_trace_entry(&s, path_state_soa(paths, pass_args.capacity), hit_record_soa(hits, pass_args.capacity),
+                         gid, &count);
     }
 #if COUNT_SIMD
     lane_counts[gid] = lane_counts_of(was_alive, &count);   /* its traversal steps; shade adds the rest */

@@ -136,6 +136,14 @@ HELPER HitRecord path_trace(const SceneView* s, const PathState* p, LaneCounters
     return hit;
 }
 
+/* path_trace for entry i of a stream of paths, its hit stored at entry i of a stream of hits:
+ * the trace kernels of the wavefront techniques (pt_compact_regen, extend_in_place.h). */
+HELPER void path_trace_entry(const SceneView* s, PathStateSoA paths, HitRecordSoA hits, int i, LaneCounters* count) {
+    PathState p = path_state_load(paths, i);
+    HitRecord hit = path_trace(s, &p, count);
+    hit_record_store(hits, i, &hit);
+}
+
 /* Shade the vertex that the path's ray found (`hit`, from path_trace): add emission, prepare a
  * next-event shadow ray (shadow->slot >= 0 if there is one), sample the BSDF, roulette.
  * Returns false when the path has terminated. */

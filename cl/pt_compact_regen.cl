@@ -37,9 +37,8 @@ __kernel void pt_compact_regen_trace(SCENE_PARAMS, const PtPass pass_args, const
     if (gid >= stream_length) return;
     SceneView s = SCENE_INIT;
     LaneCounters count = {0, 0, 0};
-    PathState p = path_state_load(path_state_soa(stream, pass_args.capacity), gid);
-    HitRecord hit = path_trace(&s, &p, &count);
-    hit_record_store(hit_record_soa(hits, pass_args.capacity), gid, &hit);
+    path_trace_entry(&s, path_state_soa(stream, pass_args.capacity), hit_record_soa(hits, pass_args.capacity),
+                     gid, &count);
 #if COUNT_SIMD
     lane_counts[gid] = lane_counts_of(1, &count);   /* its traversal steps; shade adds the rest */
 #endif

@@ -19,6 +19,19 @@ def test_the_table_has_a_row_per_technique_with_both_ratios_and_the_talks():
     assert lines[2].split() == ["b", "50", "20", "1.00", "1.00", "1.00"]
 
 
-def test_where_intel_is_missing_it_says_why():
+def test_a_vectorizer_fixed_by_the_environment_is_named_and_nothing_is_timed(monkeypatch):
+    # Intel's runtime reads the variable once, for the whole process: lanes on and off cannot both
+    # be timed then, whether or not the runtime is installed here.
+    monkeypatch.setenv("CL_CONFIG_USE_VECTORIZER", "False")
     runtime, why = intel_runtime()
-    assert (runtime is None) == bool(why)
+    assert runtime is None and "CL_CONFIG_USE_VECTORIZER=False" in why and "unset it" in why
+
+
+def test_where_intel_is_missing_or_usable_it_says_which(monkeypatch):
+    monkeypatch.delenv("CL_CONFIG_USE_VECTORIZER", raising=False)
+    monkeypatch.delenv("CL_CONFIG_CPU_VECTORIZER_MODE", raising=False)
+    runtime, why = intel_runtime()
+    if runtime is None:
+        assert why and ("Intel" in why or "x86-64" in why), why
+    else:
+        assert why is None and "Intel" in runtime.device.platform.name

@@ -96,6 +96,15 @@ class Technique:
         the kernel's own parameter names, in its order (tests/test_kernel_args.py checks them)."""
         return program.launch(self.queue, kernel, n, *args, *named.values(), local_size=self.local_size)
 
+    def extend_in_place(self, pass_args, length, paths, alive, hits, radiance, lane_counts):
+        """The in-place extension step (cl/extend_in_place.h) over the first `length` slots of
+        `paths`: trace into `hits`, then shade; pt_inplace_regen and multi-pass compaction share it."""
+        self.launch(self.kernel("extend_in_place_trace"), length, **self.scene_args(), pass_args=pass_args,
+                    stream_length=np.int32(length), paths=paths, alive=alive, hits=hits, lane_counts=lane_counts)
+        self.launch(self.kernel("extend_in_place_shade"), length, **self.scene_args(), pass_args=pass_args,
+                    stream_length=np.int32(length), paths=paths, alive=alive, hits=hits, radiance=radiance,
+                    lane_counts=lane_counts)
+
     def scene_args(self):
         """The scene's kernel arguments (SCENE_PARAMS) by parameter name, for launch(**...)."""
         return dict(zip(SCENE_PARAM_NAMES, self.scene.args()))

@@ -29,7 +29,7 @@ class StreamBuffers:
     """pt_compact_regen's device memory: made once per stream size, reused by every pass."""
     stream: cl.Buffer        # PathState x capacity, a structure of arrays: the paths in flight, packed at its start
     next_stream: cl.Buffer   # the same: each step writes its survivors here, packed; then the two swap
-    hits: cl.Buffer          # HitRecord x capacity: each path's closest hit, from trace to shade (immediate)
+    hits: cl.Buffer          # HitRecord x capacity: each path's closest hit, from trace to shade
     shadow_rays: cl.Buffer   # ShadowRay x capacity: the shadow rays a step queued, packed (immediate compaction)
     lane_counts: cl.Buffer   # LaneCounts per path: what it did in an extension step (COUNT_SIMD)
     alive: cl.Buffer         # int per path: 1 where it survived the step (multi-pass compaction's flags)
@@ -122,12 +122,7 @@ class PtCompactRegen(Technique):
             lengths = self.read_ints(b.counters, len(StreamCounter))
             return int(lengths[StreamCounter.PATHS]), int(lengths[StreamCounter.SHADOW_RAYS])
         cl.enqueue_fill_buffer(self.queue, b.alive, np.int32(1), 0, 4 * length)   # every path in the stream is live
-        self.launch(self.kernel("extend_in_place_trace"), length, **self.scene_args(), pass_args=pass_args,
-                    stream_length=np.int32(length), paths=b.stream, alive=b.alive, hits=b.hits,
-                    lane_counts=b.lane_counts)
-        self.launch(self.kernel("extend_in_place_shade"), length, **self.scene_args(), pass_args=pass_args,
-                    stream_length=np.int32(length), paths=b.stream, alive=b.alive, hits=b.hits,
-                    radiance=b.radiance, lane_counts=b.lane_counts)
+        self.extend_in_place(pass_args, length, b.stream, b.alive, b.hits, b.radiance, b.lane_counts)
         indices, survivors = self.compactor.compact_indices(b.alive, length, method="multipass", out=b.indices)
         if survivors:
             self.launch(self.kernel("pt_compact_regen_gather"), survivors, pass_args=pass_args,

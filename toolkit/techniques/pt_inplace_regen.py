@@ -76,12 +76,7 @@ class PtInplaceRegen(Technique):
             if step % reads_every == 0 and not self.read_ints(b.any_alive, 1)[0]:
                 break   # budget spent and every path has ended
             # Extend: every slot with a live path traces one more vertex.
-            self.launch(self.kernel("extend_in_place_trace"), slots, **self.scene_args(), pass_args=pass_args,
-                        stream_length=np.int32(slots), paths=b.paths, alive=b.alive, hits=b.hits,
-                        lane_counts=b.lane_counts)
-            self.launch(self.kernel("extend_in_place_shade"), slots, **self.scene_args(), pass_args=pass_args,
-                        stream_length=np.int32(slots), paths=b.paths, alive=b.alive, hits=b.hits,
-                        radiance=b.radiance, lane_counts=b.lane_counts)
+            self.extend_in_place(pass_args, slots, b.paths, b.alive, b.hits, b.radiance, b.lane_counts)
             self.count_extend(b.lane_counts, slots, b.next_sample, budget)
         self.collect(film, b.radiance, budget)
 
