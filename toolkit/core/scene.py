@@ -399,3 +399,8 @@ def _load_reference(folder, camera):
 def bundled_scene_dir(name="cornell_box"):
     """Folder of a scene shipped with the toolkit (installed package or source checkout)."""
     return data_dir("toolkit.scenes", "scenes", f"{name}/scene.json") / name
+
+
+def bundled_scene_names():
+    """The names of the scenes shipped with the toolkit: the folders beside cornell_box's."""
+    return sorted(p.parent.name for p in bundled_scene_dir().parent.glob("*/scene.json"))

@@ -10,9 +10,14 @@ when there is one; it runs the same on a CPU) and writes one report, text and JS
 4. `bench` of every technique (toolkit/measure/bench.py): samples/s, and the talk's two ratios, stream
    over in-place path tracing (talk: 1.2x) and parallel over naive BDPT connect (talk: 1.15x);
 5. `compare` with the SIMD-efficiency figures (toolkit/measure/compare.py);
-6. GPU against CPU where the machine has both (talk: a GPU 8-18x a CPU).
+6. GPU against CPU where the machine has both (talk: a GPU 8-18x a CPU);
+7. time per phase (kernel) of the four techniques behind the talk's two ratios, beside their
+   SIMD efficiency (toolkit/measure/phases.py): where a ratio falls short, which phase costs;
+8. without --fast, samples/s against the stream size, the pool size and MLT's chain count, from
+   a sixteenth of the device's choice to twice it: whether the chosen sizes fill the device.
 
-Checks 2, 3 and 5 are correctness: any failure makes the exit code 1. The ratios are measured
+Step 2 also compares with CPU reference images carried from another machine, where given
+(toolkit/verify/cpu_references.py: a GPU machine without a CPU runtime). Checks 2, 3 and 5 are correctness: any failure makes the exit code 1. The ratios are measured
 and reported against the talk's figures, never asserted (a CPU is not a GPU).
 
 The budgets follow the device: every render holds several samples per slot of the stream or
@@ -21,6 +26,7 @@ renders (the test suite runs it on PoCL).
 """
 import json
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -28,6 +34,7 @@ from pathlib import Path
 import numpy as np
 import pyopencl as cl
 
+from toolkit import api
 from toolkit.api import as_scene
 from toolkit.core.scene import bundled_scene_dir
 from toolkit.core.validate import InputError, writable_file
@@ -36,6 +43,8 @@ from toolkit.measure.compare import compare
 from toolkit.opencl import device as devices
 from toolkit.opencl.device_model import device_warp_width
 from toolkit.opencl.work_sizes import device_work_sizes
+from toolkit.measure.phases import phase_rows
+from toolkit.verify import cpu_references
 from toolkit.verify.crosscheck import compare_with_embree
 from toolkit.verify.same_image import Check, same_image_checks
 
@@ -45,6 +54,8 @@ TALK_RATIOS = {"stream PT / in-place PT": ("pt_compact_regen", "pt_inplace_regen
 GPU_OVER_CPU_TARGET = 10.0
 BENCH_TECHNIQUES = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "pt_compact_regen/multipass",
                     "bdpt_naive_connect", "bdpt_parallel_connect", "bdpt_parallel_connect/direct_scatter", "mlt")
+PHASE_TECHNIQUES = ("pt_inplace_regen", "pt_compact_regen", "bdpt_naive_connect", "bdpt_parallel_connect")
+SWEEP_FACTORS = (1 / 16, 1 / 8, 1 / 4, 1 / 2, 1, 2)     # of the device's stream size, pool size, chain count
 COMPARE_TECHNIQUES = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "bdpt_naive_connect",
                       "bdpt_parallel_connect")
 FAST = {"same_resolution": (16, 16), "same_spp": 8, "rays": 2000, "bench_resolution": (32, 32), "bench_spp": 8,
@@ -69,20 +80,35 @@ def settings(sizes, fast):
             "scenes": ("cornell_box", "cornell_spheres")}
 
 
-def run(device=None, fast=False, out_dir="out/gpucheck", log=None):
-    """Run every step; returns the report (a dict, see format_report)."""
+def run(device=None, fast=False, out_dir="out/gpucheck", log=None, cpu_reference_folder=None, save=None):
+    """Run every step; returns the report (a dict, see format_report). `cpu_reference_folder`:
+    CPU images to compare with (cpu_references.py). `save(report)` is called after each step with
+    the report so far, so a run stopped by a time limit leaves what it measured."""
     log = log or (lambda text: print(f"gpucheck: {text}", file=sys.stderr, flush=True))
+    save = save or (lambda report: None)
     start = time.perf_counter()
     queue = devices.get_queue(device)
     dev = queue.device
     sizes = device_work_sizes(dev)
     s = settings(sizes, fast)
-    report = {"device": _device_report(dev, sizes), "fast": fast,
+    report = {"device": _device_report(dev, sizes), "fast": fast, "complete": False, "checks": [], "passed": True,
               "settings": {k: list(v) if isinstance(v, tuple) else v for k, v in s.items()}}
+    checks = []
+
+    def step_done():
+        report["checks"] = [{"step": step, "name": c.name, "passed": c.passed, "detail": c.detail,
+                             "figures": c.figures} for step, c in checks]
+        report["passed"] = all(c.passed for _, c in checks)
+        report["seconds"] = time.perf_counter() - start
+        save(report)
+
     scenes = {name: as_scene(bundled_scene_dir(name)) for name in s["scenes"]}
     box = scenes["cornell_box"]
-    checks = [("same image", check) for check in _same_image_step(dev, box, device, s, log)]
+    checks += [("same image", check) for check in _same_image_step(dev, box, device, s, log)]
+    checks += [("CPU reference", check) for check in _cpu_reference_step(cpu_reference_folder, device, log)]
+    step_done()
     checks += [("Embree", check) for check in _embree_step(scenes, queue, s, fast, log)]
+    step_done()
 
     res = s["bench_resolution"]
     log(f"[3/5] bench: {len(BENCH_TECHNIQUES)} techniques, {res[0]}x{res[1]}, {s['bench_spp']} spp, "
@@ -92,16 +118,75 @@ def run(device=None, fast=False, out_dir="out/gpucheck", log=None):
     rates = {name: row["samples_per_second"] for name, row in report["bench"]["techniques"].items()}
     report["ratios"] = {label: {"ratio": rates[a] / rates[b], "talk": talk, "of": f"{a} / {b}"}
                         for label, (a, b, talk) in TALK_RATIOS.items()}
+    step_done()
     report["compare"], compare_checks = _compare_step(box, device, s, out_dir, fast, log)
     checks += [("compare", check) for check in compare_checks]
+    step_done()
 
     log("[5/5] GPU against CPU")
     report["gpu_vs_cpu"] = gpu_vs_cpu(dev, report["device"]["gpu"], report["bench"], s, box, log)
-
-    report["checks"] = [{"step": step, "name": c.name, "passed": c.passed, "detail": c.detail} for step, c in checks]
-    report["passed"] = all(c.passed for _, c in checks)
-    report["seconds"] = time.perf_counter() - start
+    step_done()
+    report["phases"] = _phase_step(box, device, s, log)
+    step_done()
+    if not fast:
+        report["sweep"] = _sweep_step(box, device, sizes, s, log)
+    report["complete"] = True
+    step_done()
     return report
+
+
+def _cpu_reference_step(folder, device, log):
+    """Step 2, continued: this device against CPU images rendered elsewhere (none: no checks)."""
+    if folder is None:
+        return []
+    log(f"[1/5] CPU reference images from {folder}")
+    return cpu_references.checks(folder, device, log=lambda t: log(f"      {t}"))
+
+
+def _phase_step(box, device, s, log):
+    """Time per kernel of the techniques behind the talk's ratios, with each phase's SIMD
+    efficiency, from one render each at the bench's size: {technique: {seconds, rows}}."""
+    res = s["bench_resolution"]
+    log(f"[+] time per phase: {', '.join(PHASE_TECHNIQUES)}, {res[0]}x{res[1]}")
+    found = {}
+    for name in PHASE_TECHNIQUES:
+        spp = max(1, s["bench_spp"] // 8) if name.startswith("bdpt") else s["bench_spp"]
+        stats = api_render(box, name, spp, res, device, time_phases=True).stats
+        found[name] = {"seconds": stats["seconds"], "samples_per_second": stats["samples_per_second"],
+                       "rows": phase_rows(stats)}
+    return found
+
+
+def _sweep_step(box, device, sizes, s, log):
+    """Samples/s against the stream size (pt_compact_regen), the pool size (bdpt_parallel_connect)
+    and the chain count (mlt), SWEEP_FACTORS of the device's choice, at budgets of 8 PT samples
+    (4 BDPT samples) per slot of the largest size: {option: {"chosen", "rows": [(size, rate)]}}."""
+    found = {}
+    largest = max(SWEEP_FACTORS)
+    for technique, option, chosen, spp, per_slot in (
+            ("pt_compact_regen", "stream_size", sizes.stream_size, 16, 8),
+            ("bdpt_parallel_connect", "pool_size", sizes.pool_size, 2, 4),
+            ("mlt", "chains", sizes.pool_size, 2, 4)):
+        side = side_for(per_slot * largest * chosen, spp)
+        log(f"[+] sweep: {technique} {option} {', '.join(f'{int(chosen * f):,}' for f in SWEEP_FACTORS)}; "
+            f"{side}x{side}, {spp} spp")
+        rows = []
+        for factor in SWEEP_FACTORS:
+            size = max(256, int(chosen * factor) // 256 * 256)
+            try:
+                stats = api_render(box, technique, spp, (side, side), device, options={option: size},
+                                   count_simd=False).stats
+                rows.append({"size": size, "samples_per_second": stats["samples_per_second"],
+                             "seconds": stats["seconds"]})
+            except InputError as error:      # a size that does not fit the device: say so, go on
+                rows.append({"size": size, "error": str(error)})
+        found[option] = {"technique": technique, "chosen": chosen, "resolution": [side, side], "spp": spp,
+                         "rows": rows}
+    return found
+
+
+def api_render(scene, technique, spp, resolution, device, **kwargs):
+    return api.render(scene, technique=technique, spp=spp, seed=0, resolution=resolution, device=device, **kwargs)
 
 
 def _device_report(dev, sizes):
@@ -186,6 +271,7 @@ def gpu_vs_cpu(dev, is_gpu, bench_report, s, scene, log):
 
 
 def format_report(r):
+    """The report as text; a report saved part-way (r["complete"] false) says where it stopped."""
     d = r["device"]
     lines = [f"gpucheck{' --fast' if r['fast'] else ''}: {d['name']}; {d['implementation']}",
              f"  {'GPU' if d['gpu'] else 'CPU'}, {d['compute_units']} compute units; SIMD counters: warps of "
@@ -194,9 +280,36 @@ def format_report(r):
              f"({d['work_sizes_source']})", "", "Checks:"]
     for c in r["checks"]:
         lines.append(f"  {'PASS' if c['passed'] else 'FAIL'}  {c['step']}: {c['name']}: {c['detail']}")
+    if "bench" in r:
+        lines += _bench_lines(r, d)
+    if "compare" in r:
+        lines.append("SIMD efficiency (compare):")
+        for name, row in r["compare"].items():
+            eff = row["simd_efficiency"]
+            lines.append(f"  {name:<26} overall {eff.get('overall', float('nan')):6.1%}  "
+                         + ", ".join(f"{k} {v:.1%}" for k, v in eff.items() if k != "overall"))
+    g = r.get("gpu_vs_cpu")
+    if g and g["measured"]:
+        lines.append(f"GPU ({g['gpu']}) against CPU ({g['cpu']}): "
+                     + ", ".join(f"{n} {x:.1f}x" for n, x in g["ratios"].items()) + f" (target >= {g['target']:g}x)")
+    elif g:
+        lines.append(f"GPU against CPU: {g['note']}")
+    if "phases" in r:
+        lines += _phase_lines(r["phases"])
+    if "sweep" in r:
+        lines += _sweep_lines(r["sweep"])
+    failed = sum(not c["passed"] for c in r["checks"])
+    verdict = "PASSED" if r["passed"] else f"FAILED: {failed} check(s)"
+    if not r.get("complete", True):
+        verdict = f"INCOMPLETE (stopped part-way; so far {verdict})"
+    lines.append(f"{verdict} in {r.get('seconds', 0):.0f} s")
+    return "\n".join(lines)
+
+
+def _bench_lines(r, d):
     b = r["bench"]
-    lines += ["", f"bench: {b['scene']} {b['resolution'][0]}x{b['resolution'][1]}, {b['spp']} spp (BDPT and mlt: "
-              f"{max(1, b['spp'] // 8)}), median of {b['repeats']}"]
+    lines = ["", f"bench: {b['scene']} {b['resolution'][0]}x{b['resolution'][1]}, {b['spp']} spp (BDPT and mlt: "
+             f"{max(1, b['spp'] // 8)}), median of {b['repeats']}"]
     lines += [f"  {name:<40}{row['samples_per_second']:>14,.0f} samples/s" for name, row in b["techniques"].items()]
     lines.append("Stream against in-place (the talk's GPU figures):")
     for label, row in r["ratios"].items():
@@ -204,20 +317,31 @@ def format_report(r):
         lines.append(f"  {label} ({row['of']}): {row['ratio']:.2f}x, talk {row['talk']:.2f}x ({verdict})")
     if not d["gpu"]:
         lines.append("  (on a CPU: idle SIMD lanes cost little there, so these ratios say little about a GPU)")
-    lines.append("SIMD efficiency (compare):")
-    for name, row in r["compare"].items():
-        eff = row["simd_efficiency"]
-        lines.append(f"  {name:<26} overall {eff.get('overall', float('nan')):6.1%}  "
-                     + ", ".join(f"{k} {v:.1%}" for k, v in eff.items() if k != "overall"))
-    g = r["gpu_vs_cpu"]
-    if g["measured"]:
-        lines.append(f"GPU ({g['gpu']}) against CPU ({g['cpu']}): "
-                     + ", ".join(f"{n} {x:.1f}x" for n, x in g["ratios"].items()) + f" (target >= {g['target']:g}x)")
-    else:
-        lines.append(f"GPU against CPU: {g['note']}")
-    failed = sum(not c["passed"] for c in r["checks"])
-    lines.append(f"{'PASSED' if r['passed'] else f'FAILED: {failed} check(s)'} in {r['seconds']:.0f} s")
-    return "\n".join(lines)
+    return lines
+
+
+def _phase_lines(phases):
+    lines = ["Time per phase (ms; SIMD efficiency of the phase's lanes, traversal's in brackets):"]
+    for name, found in phases.items():
+        lines.append(f"  {name}: {found['seconds'] * 1e3:,.1f} ms, {found['samples_per_second']:,.0f} samples/s")
+        for row in found["rows"]:
+            eff = "" if row["simd_efficiency"] is None else f"  {row['simd_efficiency']:.1%}"
+            if row["traversal_efficiency"] is not None:
+                eff += f" [{row['traversal_efficiency']:.1%}]"
+            lines.append(f"    {row['kernel']:<34}{row['launches']:>6} x {row['ms']:>10,.2f} ms {row['share']:>6.1%}{eff}")
+    return lines
+
+
+def _sweep_lines(sweep):
+    lines = ["Samples/s against the work in flight (the device's choice marked *):"]
+    for option, found in sweep.items():
+        lines.append(f"  {found['technique']}, {option} ({found['resolution'][0]}x{found['resolution'][1]}, "
+                     f"{found['spp']} spp):")
+        for row in found["rows"]:
+            mark = "*" if row["size"] == found["chosen"] else " "
+            figure = f"{row['samples_per_second']:>14,.0f} samples/s" if "samples_per_second" in row else row["error"]
+            lines.append(f"   {mark}{row['size']:>10,}  {figure}")
+    return lines
 
 
 def report_path(out):
@@ -230,13 +354,20 @@ def report_path(out):
 
 
 def write_report(report, out):
-    """The text at `out` and the JSON beside it (same name, .json); returns both paths."""
+    """The text at `out` and the JSON beside it (same name, .json); returns both paths. Each file
+    is written whole beside its place, then moved there: a failed write leaves the old one."""
     text_path = Path(out)
     json_path = text_path.with_suffix(".json")
     text_path.parent.mkdir(parents=True, exist_ok=True)
-    text_path.write_text(format_report(report) + "\n")
-    json_path.write_text(json.dumps(report, indent=1, default=_plain) + "\n")
+    _replace(text_path, format_report(report) + "\n")
+    _replace(json_path, json.dumps(report, indent=1, default=_plain) + "\n")
     return text_path, json_path
+
+
+def _replace(path, text):
+    partial = path.with_name(f".{path.name}.partial")
+    partial.write_text(text)
+    os.replace(partial, path)
 
 
 def _plain(x):
