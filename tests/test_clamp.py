@@ -1,7 +1,8 @@
 """Firefly clamping, the scene's `integrator.clamp` (scenes/FORMAT.md): a contribution whose largest
-RGB component exceeds the clamp is scaled down to it. The path tracers clamp each sample on the
-host (toolkit/core/film.py), BDPT each connection on the device (cl/bdpt.h), mlt refuses it. What the
-clamp does to the error (less variance, a bias) is tested by the study: tests/test_study.py."""
+RGB component exceeds the clamp is scaled down to it. The path tracers clamp each sample where the
+film sums it (cl/film_reduce.cl; tests/test_film.py), BDPT each connection on the device
+(cl/bdpt.h), mlt refuses it. What the clamp does to the error (less variance, a bias) is tested
+by the study: tests/test_study.py."""
 import dataclasses
 import json
 import shutil
@@ -11,19 +12,9 @@ import numpy as np
 import pytest
 
 import toolkit
-from toolkit.core.film import clamp_radiance
 from toolkit.core.scene import SceneError, load_scene
 
 SCENES = Path(__file__).resolve().parent.parent / "scenes"
-
-
-def test_clamp_scales_by_the_largest_component_and_keeps_the_colour():
-    values = np.array([[4.0, 2.0, 1.0, 0.0], [0.5, 0.2, 0.1, 0.0], [np.nan, 9.0, 0.0, 1.0]], np.float32)
-    out = clamp_radiance(values, 2.0)
-    assert out[0, :3].tolist() == [2.0, 1.0, 0.5]                 # scaled by 2 / 4: same hue
-    assert out[1].tolist() == values[1].tolist()                   # under the clamp: untouched
-    assert np.isnan(out[2, 0]) and out[2, 1] == 9.0                # non-finite: left for the film to drop
-    assert clamp_radiance(values, None) is values
 
 
 def scene_with(tmp_path, **integrator):

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import toolkit.api
-from toolkit.verify import gpucheck
+from toolkit.verify import cpu_references as cpu_references_module, gpucheck
 
 from toolkit.verify import same_image
 from toolkit.cli import main
@@ -18,9 +18,18 @@ from toolkit.opencl.work_sizes import device_work_sizes
 
 
 @pytest.fixture(scope="module")
-def fast_run(tmp_path_factory):
+def cpu_references(tmp_path_factory):
+    """CPU reference images as they are carried to a GPU machine (toolkit/verify/cpu_references.py),
+    made here on the suite's device: the same samples, so they must agree."""
+    folder = tmp_path_factory.mktemp("cpu_references")
+    assert main(["gpucheck", "--write-cpu-references", str(folder)]) == 0
+    return folder
+
+
+@pytest.fixture(scope="module")
+def fast_run(tmp_path_factory, cpu_references):
     out = tmp_path_factory.mktemp("gpucheck") / "report.txt"
-    code = main(["gpucheck", "--fast", "--out", str(out)])
+    code = main(["gpucheck", "--fast", "--out", str(out), "--cpu-references", str(cpu_references)])
     return code, out, json.loads(out.with_suffix(".json").read_text())
 
 
@@ -33,8 +42,10 @@ def test_fast_gpucheck_passes_and_reports_what_the_issue_asks(fast_run):
     assert (d["warp_width"], d["stream_size"], d["pool_size"]) == (device_warp_width(device)[0], sizes.stream_size,
                                                                    sizes.pool_size)
     steps = {c["step"] for c in report["checks"]}
-    assert steps == {"same image", "Embree", "compare"}
+    assert steps == {"same image", "CPU reference", "Embree", "compare"}
     assert sum(c["step"] == "same image" for c in report["checks"]) >= 11
+    assert sum(c["step"] == "CPU reference" for c in report["checks"]) == len(cpu_references_module.RENDERS)
+    assert set(report["phases"]) == set(gpucheck.PHASE_TECHNIQUES) and report["complete"]
     assert set(report["bench"]["techniques"]) == set(gpucheck.BENCH_TECHNIQUES)
     assert all(row["samples_per_second"] > 0 for row in report["bench"]["techniques"].values())
     for label, (a, b, talk) in gpucheck.TALK_RATIOS.items():
@@ -72,6 +83,41 @@ def test_a_sample_scheduling_bug_fails_the_same_image_check(cornell_box, monkeyp
     checks = same_image.same_image_checks(cornell_box, resolution=(8, 8), spp=8)
     failed = [c.name for c in checks if not c.passed]
     assert failed == ["pt_compact_regen = pt_naive", "pt_compact_regen: stream_size 128 = the device's"]
+
+
+def test_a_wrong_cpu_reference_fails_its_check_and_only_it(cpu_references, tmp_path):
+    """A row of reference pixels off by a sample's worth (what a GPU that lost a sample in each
+    pixel of a work-group would show; a pixel or four may differ by a near tie, FLIPS_ALLOWED):
+    that reference's check fails, the others pass."""
+    folder = tmp_path / "refs"
+    folder.mkdir()
+    for path in cpu_references.iterdir():
+        (folder / path.name).write_bytes(path.read_bytes())
+    name = cpu_references_module.file_name("cornell_box", "pt_compact_regen")
+    image = np.load(folder / name)
+    image[10, :] += 1 / 8
+    np.save(folder / name, image)
+    checks = cpu_references_module.checks(folder)
+    assert [c.name.split(" = ")[0] for c in checks if not c.passed] == ["pt_compact_regen on cornell_box"]
+
+
+@pytest.mark.parametrize("change, message", [
+    (lambda m: m["entries"][0].update(scene="../../etc"), "is not a bundled scene"),
+    (lambda m: m["entries"][0].update(file="../outside.npy"), "must be a plain .npy name"),
+    (lambda m: m["entries"][0].update(technique="mlt"), "depend on its chain count"),
+    (lambda m: m["entries"][0].update(resolution=[64, 10**6]), "resolution must be"),
+    (lambda m: m.update(entries="all"), "'entries' must be a list"),
+])
+def test_a_bad_cpu_reference_folder_is_refused_before_any_work(cpu_references, tmp_path, capsys, change, message):
+    folder = tmp_path / "refs"
+    folder.mkdir()
+    for path in cpu_references.iterdir():
+        (folder / path.name).write_bytes(path.read_bytes())
+    manifest = json.loads((folder / "references.json").read_text())
+    change(manifest)
+    (folder / "references.json").write_text(json.dumps(manifest))
+    assert main(["gpucheck", "--fast", "--out", str(tmp_path / "r.txt"), "--cpu-references", str(folder)]) == 2
+    assert message in capsys.readouterr().err and not (tmp_path / "r.txt").exists()
 
 
 def test_a_bad_report_name_is_refused_before_any_work(tmp_path, capsys):

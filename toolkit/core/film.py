@@ -1,26 +1,11 @@
 """The film: per-pixel sums in float64 on the host, and a standard-error estimate.
 
 A float32 accumulator stops growing after ~1e7 additions of similar values, so the device
-only ever sums a handful of samples; everything else adds up here in float64. Every sample is
-an independent estimate of its pixel, so the standard error is sqrt(sample variance / n).
+only sums one pass (with a compensated sum: cl/film_reduce.cl, or BDPT's records on the host);
+the passes add up here in float64. Every sample is an independent estimate of its pixel, so the
+standard error is sqrt(sample variance / n).
 """
 import numpy as np
-
-
-def clamp_radiance(values, limit):
-    """Firefly clamping (scene integrator.clamp, scenes/FORMAT.md): each RGB row of `values`
-    whose largest component m exceeds `limit` is scaled by limit / m, so its colour is kept
-    (pbrt-v4's maxcomponentvalue). `limit` None: unchanged. Non-finite rows stay as they are,
-    so the film still counts and drops them. Biased: it removes energy, to remove variance."""
-    if limit is None:
-        return values
-    rgb = values[..., :3]
-    m = rgb.max(-1, keepdims=True)
-    over = np.isfinite(m) & (m > limit)
-    if over.any():
-        values = values.copy()
-        values[..., :3] = np.where(over, rgb * (limit / np.where(over, m, 1.0)), rgb)
-    return values
 
 
 class Film:
@@ -34,36 +19,15 @@ class Film:
         self.pass_sum = np.zeros((height * width, 3))
         self.pass_sum_sq = np.zeros((height * width, 3))
 
-    def add_pixel_major(self, radiance):
-        """Samples laid out as (samples, pixels) in one array: the common case, without bincount."""
-        per_pixel = radiance.reshape(-1, len(self.count), 4)
-        if np.any(per_pixel[..., 3] != 0) or not np.isfinite(per_pixel[..., :3]).all():
-            self._add_pixel_major_dropping(per_pixel)
-            return
-        # Every sample finite (the rule): one float64 row of pixels at a time, added in the order
-        # value.sum(0) adds them, so the sums are bit for bit those of the general path below,
-        # at a third of its time (no float64 copy of the whole pass; this runs on the host while
-        # the device renders the next pass, and takes CPU time from it on a CPU device).
-        total = per_pixel[0, :, :3].astype(np.float64)
-        squares = total * total
-        for row in per_pixel[1:]:
-            value = row[:, :3].astype(np.float64)
-            total += value
-            value *= value
-            squares += value
-        self.sum += total
-        self.sum_sq += squares
-        self.count += per_pixel.shape[0]
-
-    def _add_pixel_major_dropping(self, per_pixel):
-        """add_pixel_major where some sample is flagged (.w != 0) or not finite: it is counted and left out."""
-        value = per_pixel[..., :3].astype(np.float64)
-        bad = (per_pixel[..., 3] != 0) | ~np.isfinite(value).all(-1)
-        value[bad] = 0.0
-        self.nonfinite_samples += int(np.count_nonzero(bad))
-        self.sum += value.sum(0)
-        self.sum_sq += (value ** 2).sum(0)
-        self.count += per_pixel.shape[0]
+    def add_pixel_sums(self, sums, sums_sq, samples, dropped=0):
+        """A pass summed per pixel (on the device: toolkit/opencl/film_reduce.py): the sums and
+        the sums of squares of its finite samples (pixels, 3), `samples` per pixel of which
+        `dropped` in all were left out as non-finite: they count as zeros, and DroppedSamplesWarning
+        reports them (toolkit/api.py)."""
+        self.sum += sums
+        self.sum_sq += sums_sq
+        self.count += samples
+        self.nonfinite_samples += int(dropped)
 
     def add_pass(self, image, spp, nonfinite=0):
         """A whole pass as one image of spp samples per pixel (techniques whose samples add to

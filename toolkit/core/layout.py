@@ -219,10 +219,22 @@ MLT_ITERATION = Record("MltIteration", [
     ("pad1", "int"),
 ], "What the mutate and accept kernels of one Metropolis iteration share.")
 
+# One pixel of a path-tracing pass, summed on the device (cl/film_reduce.cl): the host adds these
+# up in float64 (toolkit/core/film.py), so it reads a pixel's sums instead of every sample.
+FILM_PIXEL = Record("FilmPixel", [
+    ("sum", "float4"),          # .xyz: the sum of the pixel's finite samples in this pass; .w unused
+    ("sum_sq", "float4"),       # .xyz: the sum of their squares (the standard error); .w unused
+    ("missing", "int"),         # samples never written (.w still -1): a sample-accounting bug
+    ("dropped", "int"),         # samples flagged non-finite (.w = 1): left out, counted, reported
+    ("pad0", "int"),
+    ("pad1", "int"),
+], "A pixel's sums over one pass of samples, 48 bytes.")
+
 RECORDS = [BVH_NODE, *WIDE_NODES.values(), TRI_GROUP, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY,
            HIT_RECORD, BDPT_VERTEX, SUBPATH, LANE_COUNTS, BDPT_SLOT, BDPT_PASS, BDPT_STEP, BDPT_REGENERATION,
            MLT_CHAIN, MLT_ITERATION]
 RECORDS += [PT_PASS, PT_REGENERATION]   # the path tracers' kernel arguments
+RECORDS += [FILM_PIXEL]
 
 SOA_RECORDS = [PATH_STATE, SHADOW_RAY, HIT_RECORD, SUBPATH]
 

@@ -101,8 +101,8 @@ class Scene:
         defines["RR_DEPTH"] = self.rr_depth if self.rr_depth >= 0 or not general else NO_LIMIT
         defines["USE_RUSSIAN_ROULETTE"] = general or (self.rr_depth >= 0 and self.max_depth != 0)
         # Firefly clamping: BDPT caps each connection on the device (cl/bdpt.h), so both connect
-        # phases clamp the same values; the path tracers clamp a whole sample on the host
-        # (toolkit/core/film.py clamp_radiance). Defined only when set: other scenes build unchanged.
+        # phases clamp the same values; the path tracers clamp a whole sample where the film sums
+        # them (cl/film_reduce.cl). Defined only when set: other scenes build unchanged.
         if self.clamp is not None:
             defines["CLAMP"] = float(self.clamp)
         return defines

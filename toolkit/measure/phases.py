@@ -38,6 +38,7 @@ KERNEL_PHASES = {
     "scan_blocks": ("scan", (), ()),
     "scan_add_block_offsets": ("scan", (), ()),
     "compact_scatter": ("compact (scatter)", (), ()),
+    "film_reduce": ("film: sum per pixel", (), ()),
 }
 HOST = "(host, transfers)"   # the render's wall time that no kernel accounts for
 

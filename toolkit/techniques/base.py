@@ -8,7 +8,8 @@ import pyopencl as cl
 from toolkit.opencl import program
 from toolkit.opencl.device_model import resolve_warp_width
 from toolkit.opencl.work_sizes import CPU_POOL_SIZE, CPU_STREAM_SIZE, check_fits, device_work_sizes
-from toolkit.core.film import Film, clamp_radiance
+from toolkit.core.film import Film
+from toolkit.opencl.film_reduce import FilmReduction
 from toolkit.core.layout import LANE_COUNTS, SCENE_PARAM_NAMES
 from toolkit.core.simd import PhaseCounter
 from toolkit.core.validate import InputError, local_size as checked_local_size, whole_number
@@ -33,7 +34,8 @@ class Technique:
     # Where `source` and its includes are looked up before cl/ (program.build's `directory`):
     # the autograder (toolkit/grading/grade.py) points it at a folder holding a student's file.
     source_dir = None
-    _collecting = None   # (film, host array, read event) of the pass collect queued last
+    _collecting = None   # (film, host sums, read event, samples per pixel) of the pass collect queued last
+    film_reduction = None   # the FilmReduction of collect, made at its first pass
 
     def __init__(self, queue, device_scene, warp_width=None, count_simd=True, extra_defines=None,
                  local_size=program.LOCAL_SIZE, general=False, pass_spp=None):
@@ -150,30 +152,32 @@ class Technique:
         return buf
 
     def collect(self, film, buffer, n):
-        """Read the pass's samples back into the film; every sample must have been written once.
-        The read is queued behind the pass's kernels, and the samples reach the film at the next
-        collect (after the next pass's kernels are queued) or at finish_collect: so the host adds
-        one pass to the film while the device runs the next, instead of the device waiting
-        (pt_naive at 256x256: 4-16% of a render's time went to these gaps). The queue is in
-        order, so the next pass's refill of `buffer` waits for this read."""
-        result = np.empty((n, 4), np.float32)
-        done = cl.enqueue_copy(self.queue, result, buffer, is_blocking=False)
+        """Sum the pass's `n` samples per pixel on the device (toolkit/opencl/film_reduce.py) and
+        queue the read of the sums, behind the pass's kernels; every sample must have been
+        written once. The sums reach the film at the next collect (after the next pass's kernels
+        are queued) or at finish_collect: so the host adds one pass to the film while the device
+        runs the next, instead of the device waiting. The queue is in order, so the next pass's
+        refill of `buffer` waits for the sums."""
+        pixels = film.width * film.height
+        if self.film_reduction is None:
+            self.film_reduction = FilmReduction(self.queue, self.local_size)
+        result, done = self.film_reduction.reduce(buffer, pixels, n // pixels, self.clamp)
         self.queue.flush()    # start the queued work now, not at the next wait
         self.finish_collect()
-        self._collecting = (film, result, done)
+        self._collecting = (film, result, done, n // pixels)
 
     def finish_collect(self):
-        """Add the samples of the pass whose read collect queued (if any) to its film."""
+        """Add the pixel sums of the pass whose read collect queued (if any) to its film."""
         pending, self._collecting = self._collecting, None
         if pending is None:
             return
-        film, result, done = pending
+        film, result, done, samples = pending
         done.wait()
-        missing = int(np.count_nonzero(result[:, 3] < 0))
+        missing = int(result["missing"].sum())
         if missing:
-            raise RuntimeError(f"{self.name}: {missing} of {len(result)} samples were never written "
+            raise RuntimeError(f"{self.name}: {missing} of {samples * len(result)} samples were never written "
                                "(sample accounting bug)")
-        film.add_pixel_major(clamp_radiance(result, self.clamp))
+        film.add_pixel_sums(result["sum"][:, :3], result["sum_sq"][:, :3], samples, int(result["dropped"].sum()))
 
     def reused(self, key, make):
         """Device memory that keeps its size from pass to pass (streams, vertex memory) is made
