@@ -284,3 +284,13 @@ def test_compiler_warnings_are_shown_and_fail_the_suite(implementation, tmp_path
     monkeypatch.setenv("TOOLKIT_WERROR", "1")
     with pytest.raises(KernelBuildError, match="warns.cl:1:"):
         program.build(context, "warns.cl", {}, directory=tmp_path)
+
+
+def test_a_compilers_notice_about_itself_is_no_warning():
+    """NVIDIA's OpenCL compiler (driver 580) writes this for every kernel it builds; a real
+    warning beside it still counts."""
+    from toolkit.opencl.program import warning_lines
+    log = ("(): Warning: Function pt_naive_render is a kernel, so overriding noinline attribute. "
+           "The function may be inlined when called.\n"
+           "<source>:12:5: warning: unused variable 'x'\n")
+    assert warning_lines(log) == ["<source>:12:5: warning: unused variable 'x'"]
