@@ -107,12 +107,14 @@ def test_a_wrong_cpu_reference_fails_its_check_and_only_it(cpu_references, tmp_p
     (lambda m: m["entries"][0].update(technique="mlt"), "depend on its chain count"),
     (lambda m: m["entries"][0].update(resolution=[64, 10**6]), "resolution must be"),
     (lambda m: m.update(entries="all"), "'entries' must be a list"),
+    (lambda m: m["entries"][0].update(file="link.npy"), "is a link"),
 ])
 def test_a_bad_cpu_reference_folder_is_refused_before_any_work(cpu_references, tmp_path, capsys, change, message):
     folder = tmp_path / "refs"
     folder.mkdir()
     for path in cpu_references.iterdir():
         (folder / path.name).write_bytes(path.read_bytes())
+    (folder / "link.npy").symlink_to(next(cpu_references.glob("*.npy")))
     manifest = json.loads((folder / "references.json").read_text())
     change(manifest)
     (folder / "references.json").write_text(json.dumps(manifest))

@@ -107,15 +107,19 @@ def _checked_entry(folder, i, entry):
     # The image's file: a plain name inside the folder, never a path that leaves it.
     if not isinstance(file, str) or not re.fullmatch(r"[A-Za-z0-9_.-]+\.npy", file):
         raise InputError(f"{where}: file must be a plain .npy name in the folder, got {file!r}")
+    path = folder / file
+    if path.is_symlink() or not path.resolve().is_relative_to(folder.resolve()):
+        raise InputError(f"{where}: {file} is a link; the images must be files in the folder")
     try:
-        image = np.load(folder / file, allow_pickle=False)
+        # mapped, not read: the shape is checked before a byte of a file of any size is loaded
+        image = np.load(path, mmap_mode="r", allow_pickle=False)
     except (OSError, ValueError) as error:
         raise InputError(f"{where}: cannot read {file}: {error}") from None
     width, height = resolution
     if image.shape != (height, width, 3) or image.dtype.kind != "f":
         raise InputError(f"{where}: {file} holds {image.dtype} {image.shape}, expected a float ({height}, {width}, 3)")
     return {"scene": scene, "technique": technique, "resolution": (width, height), "spp": spp, "seed": seed,
-            "image": image}
+            "image": np.array(image, np.float64)}
 
 
 def checks(folder, device=None, log=None):
