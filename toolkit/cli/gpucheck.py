@@ -2,7 +2,8 @@
 from pathlib import Path
 
 from toolkit.cli.options import DEVICE
-from toolkit.verify import cpu_references, gpucheck
+from toolkit.core.validate import InputError
+from toolkit.verify import cpu_references, gpucheck, offline_build, offline_report
 
 
 def add_command(sub):
@@ -23,10 +24,41 @@ def add_command(sub):
                         f"machine with a CPU runtime; default: {cpu_references.DEFAULT_FOLDER} where it exists)")
     p.add_argument("--write-cpu-references", metavar="DIR",
                    help="render the CPU reference images on --device (a CPU) into DIR, then stop")
+    offline = p.add_argument_group("offline GPU build (no OpenCL device needed)")
+    offline.add_argument("--offline", action="store_true",
+                         help="build every kernel of every technique and variant, as the host would on a GPU, for "
+                              "NVIDIA sm_90 (clang, then ptxas where found) and AMD gfx90a with clang and libclc "
+                              "(apt-get install clang-16 libclc-16); print registers, spills, stack, shared memory "
+                              "and occupancy per kernel; exit code 1 when a kernel does not build")
+    offline.add_argument("--json", metavar="FILE", help="with --offline: also write every build's figures to FILE")
     p.set_defaults(run=cmd_gpucheck)
 
 
+# The options of a run on a device, which --offline (no device) does not take.
+_DEVICE_RUN_OPTIONS = {"device": "--device", "fast": "--fast", "cpu_references": "--cpu-references",
+                       "write_cpu_references": "--write-cpu-references"}
+
+
+def cmd_offline(args):
+    given = [option for name, option in _DEVICE_RUN_OPTIONS.items() if getattr(args, name, None)]
+    if given:
+        raise InputError(f"--offline builds the kernels without a device; {' and '.join(given)} "
+                         f"{'belongs' if len(given) == 1 else 'belong'} to a run on a device")
+    json_file = offline_report.json_path(args.json) if args.json else None   # before the builds
+    tools = offline_build.find_toolchain()
+    report = offline_build.run(tools=tools, log=lambda text: print(f"gpucheck --offline: {text}", flush=True))
+    report["command"] = "python -m toolkit gpucheck --offline" + (f" --json {args.json}" if args.json else "")
+    print(offline_report.format_report(report))
+    if json_file:
+        print(f"wrote {offline_report.write_json(report, json_file)}")
+    return 0 if report["passed"] else 1
+
+
 def cmd_gpucheck(args):
+    if args.offline:
+        return cmd_offline(args)
+    if args.json:
+        raise InputError("--json goes with --offline; a run on a device writes its JSON beside --out")
     if args.write_cpu_references:
         manifest = cpu_references.write(args.write_cpu_references, device=args.device,
                                         log=lambda text: print(f"gpucheck: {text}", flush=True))

@@ -198,18 +198,18 @@ def check_output(path):
     return writable_file(path, "an image file")
 
 
-def writable_file(path, what="a file"):
-    """`path` (an --out) must not be a folder, and its folder must accept a new file: tried with
-    a temporary file that is removed at once. Returns the Path; else an InputError."""
-    path = utf8_path(path, "--out")
+def writable_file(path, what="a file", option="--out"):
+    """`path` (the value of `option`) must not be a folder, and its folder must accept a new file:
+    tried with a temporary file that is removed at once. Returns the Path; else an InputError."""
+    path = utf8_path(path, option)
     if path.is_dir():
-        raise InputError(f"--out {path}: is a folder, not {what}")
+        raise InputError(f"{option} {path}: is a folder, not {what}")
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", suffix=".probe"):
             pass
     except OSError as error:
-        raise InputError(f"--out {path}: cannot write there: {error.strerror or error}") from None
+        raise InputError(f"{option} {path}: cannot write there: {error.strerror or error}") from None
     return path
 
 

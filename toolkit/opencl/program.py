@@ -192,22 +192,9 @@ def build(context, name, defines=None, directory=None, arg_info=False):
     kernel.get_arg_info (tests/test_kernel_args.py compares them with the names the host passes).
     The context's SIMD-lanes setting (toolkit/opencl/lanes.py) is applied to every kernel;
     vector_widths(program) says what the compiler did with it."""
-    defines = dict(defines or {})
-    defines.setdefault("LOCAL_SIZE", LOCAL_SIZE)
     device = context.devices[0]
-    if builtins_are_calls(device):
-        defines.setdefault("BUILTINS_ARE_CALLS", True)   # cl/inline_builtins.h writes them out
     setting = lanes.of_context(context)
-    source = lanes.source_prefix(setting, device.native_vector_width_float) + expand_includes(name, directory)
-    options = define_options(defines)
-    if arg_info:
-        options.append("-cl-kernel-arg-info")
-    if os.environ.get("TOOLKIT_WERROR") == "1":
-        options.append("-Werror")  # the test suite: any compiler warning fails the build
-    if "Intel" in device.platform.name:
-        # Intel's vectorizer setting (toolkit/opencl/runtimes.py) changes the code built from the same
-        # options: name it in them, so that pyopencl's binary cache keeps the two apart.
-        options.append(f"-DINTEL_VECTORIZER_{os.environ.get('CL_CONFIG_USE_VECTORIZER', 'True')}")
+    source, options = build_inputs(context, name, defines, directory, arg_info)
     key = hashlib.sha256("\0".join([source, " ".join(options), device.name, device.platform.name,
                                     device.driver_version, cl.VERSION_TEXT]).encode()).hexdigest()
     if (key, context.int_ptr) in _memo:
@@ -231,6 +218,29 @@ def build(context, name, defines=None, directory=None, arg_info=False):
     lanes_log.append((name, setting, _widths[program.int_ptr]))
     _memo[(key, context.int_ptr)] = program
     return program
+
+
+def build_inputs(context, name, defines=None, directory=None, arg_info=False):
+    """(source, options): what build() hands the compiler of `context`'s device for cl/<name>
+    under `defines` (build's arguments). The offline GPU build (toolkit/verify/offline_build.py)
+    hands the same to clang, so that it compiles what the host would build on a GPU."""
+    defines = dict(defines or {})
+    defines.setdefault("LOCAL_SIZE", LOCAL_SIZE)
+    device = context.devices[0]
+    if builtins_are_calls(device):
+        defines.setdefault("BUILTINS_ARE_CALLS", True)   # cl/inline_builtins.h writes them out
+    setting = lanes.of_context(context)
+    source = lanes.source_prefix(setting, device.native_vector_width_float) + expand_includes(name, directory)
+    options = define_options(defines)
+    if arg_info:
+        options.append("-cl-kernel-arg-info")
+    if os.environ.get("TOOLKIT_WERROR") == "1":
+        options.append("-Werror")  # the test suite: any compiler warning fails the build
+    if "Intel" in device.platform.name:
+        # Intel's vectorizer setting (toolkit/opencl/runtimes.py) changes the code built from the same
+        # options: name it in them, so that pyopencl's binary cache keeps the two apart.
+        options.append(f"-DINTEL_VECTORIZER_{os.environ.get('CL_CONFIG_USE_VECTORIZER', 'True')}")
+    return source, options
 
 
 def _compile(program, name, source, options):
