@@ -6,8 +6,9 @@ import pyopencl as cl
 
 from toolkit.core.validate import InputError
 from toolkit.opencl import lanes, program, runtimes
-from toolkit.opencl.device import (HOW_TO_GET_OPENCL, RANKING, NoOpenCLError, candidates, describe, get_queue,
-                                   has_gpu, pick_device, probe_note)
+from toolkit.opencl.device import (RANKING, NoOpenCLError, candidates, choose, describe, get_queue, has_gpu,
+                                   pick_device, probe_note)
+from toolkit.opencl.install_advice import how_to_get_opencl
 from toolkit.opencl.device_model import device_warp_width, is_gpu
 from toolkit.opencl.work_sizes import device_work_sizes
 
@@ -23,20 +24,29 @@ def cmd_devices(args):
 
 
 def devices_report():
-    """Text for `python -m toolkit devices`."""
+    """Text for `python -m toolkit devices`. NoOpenCLError, saying what to install on this system,
+    where no OpenCL platform is found (the command then exits with 2, like every other)."""
     found = candidates()
     if not found:
-        return HOW_TO_GET_OPENCL
+        raise NoOpenCLError(how_to_get_opencl())
     lines = ["OpenCL devices, best first (select with --device P:D or PYOPENCL_CTX=P:D):"]
     for c in found:
         lines += _device_lines(c)
     lines.append("Ranking of usable devices: " + " > ".join(RANKING))
     try:
-        _, device = pick_device()
-        lines.append(f"The toolkit would pick: {describe(device)}")
+        chosen, why = choose(found) if not os.environ.get("PYOPENCL_CTX") else _selected(found)
+        lines.append(f"The toolkit would pick: {describe(chosen.device)}")
+        lines.append(f"  why: {why}")
     except NoOpenCLError as error:
         lines.append(f"The toolkit cannot pick a device: {error}")
     return "\n".join(lines + _environment_lines())
+
+
+def _selected(found):
+    """(the device PYOPENCL_CTX selects, why)."""
+    _, device = pick_device()
+    chosen = next(c for c in found if c.device.int_ptr == device.int_ptr)
+    return chosen, f"PYOPENCL_CTX={os.environ['PYOPENCL_CTX']} selects it"
 
 
 def _device_lines(c):
@@ -90,7 +100,7 @@ def _environment_lines():
             lines.append(f"({variable}={os.environ[variable]} is set)")
     if runtimes.registered_vendors:
         lines.append(f"Intel's CPU runtime from pip is registered beside the system's drivers "
-                     f"(OCL_ICD_VENDORS={runtimes.registered_vendors})"
+                     f"({runtimes.registration_variable()}={runtimes.registered_vendors})"
                      + "".join(f"; passed over: {why}" for why in runtimes.vendors_refused) + ".")
     elif runtimes.vendors_refused:
         lines.append("Intel's CPU runtime from pip is NOT registered: no vendors folder that only this user can "

@@ -16,6 +16,19 @@ class UnsafeFolder(OSError):
     """A folder another user could have written: its contents are not used."""
 
 
+def user_id():
+    """This user's id, or None on Windows: there a folder's access list, not an owner id and mode
+    bits, says who may write to it, and the per-user folders (%LOCALAPPDATA%, which platformdirs
+    names) are the user's own by default."""
+    return os.getuid() if hasattr(os, "getuid") else None
+
+
+def user_tag():
+    """A part of a folder name that differs between the users of one machine."""
+    uid = user_id()
+    return str(uid) if uid is not None else os.environ.get("USERNAME", "user")
+
+
 def unsafe_reason(path):
     """Why `path` cannot be trusted (another owner, writable by others, a symbolic link, not a
     folder), or None when it is the current user's own folder and only theirs to write."""
@@ -27,6 +40,8 @@ def unsafe_reason(path):
         return "it is a symbolic link"
     if not stat.S_ISDIR(info.st_mode):
         return "it is not a folder"
+    if user_id() is None:        # Windows: no owner id or mode bits to check (see user_id)
+        return None
     if info.st_uid != os.getuid():
         return f"it belongs to user id {info.st_uid}, not to this user ({os.getuid()})"
     if info.st_mode & (stat.S_IWGRP | stat.S_IWOTH):

@@ -13,12 +13,16 @@ the worker runs
 import ctypes
 import math
 import os
-import resource
 import signal
 import sys
 import threading
 from contextlib import contextmanager
 from dataclasses import dataclass
+
+try:
+    import resource
+except ImportError:      # Windows: no setrlimit, so no grading there (require_limits says so)
+    resource = None
 
 TIME_LIMIT = 10     # seconds per check (a check takes 0.1-3 s on a 2-core CPU): a loop that never
                     # ends in one function costs the few checks that call it, well within a minute
@@ -103,11 +107,20 @@ class GradingStopped(SystemExit):
     """The grader got SIGTERM or SIGHUP: it exits (128 + the signal) after its clean-up."""
 
 
+def require_limits():
+    """OSError where a worker's limits cannot be set: Windows has neither setrlimit nor SIGHUP."""
+    if resource is None or not hasattr(signal, "SIGHUP"):
+        raise OSError("the grader runs a submission under POSIX resource limits (setrlimit), which "
+                      "this system does not have: grade on Linux or macOS (WSL on Windows)")
+
+
 @contextmanager
 def stop_on_signals():
     """Within: SIGTERM and SIGHUP raise GradingStopped, so that the `finally` clauses kill the
     worker and remove its folder (their default action would leave both behind). A second
-    signal during that clean-up is ignored. Only the main thread can set signal handlers."""
+    signal during that clean-up is ignored. Only the main thread can set signal handlers.
+    Every grading run starts here, so here it refuses a system without the limits."""
+    require_limits()
     if threading.current_thread() is not threading.main_thread():
         yield
         return

@@ -15,6 +15,11 @@ figures and tests are measured on, and Intel's runtime is the fallback for CPUs 
 cannot compile for. Pick Intel's with `--device intel` for speed. Oclgrind is a simulator for
 finding memory errors, a thousand times slower: it is only used when asked for by name.
 
+`choose` says why it picked what it picked, naming the device and the cause (a GPU that passed
+the probe; else no GPU, or the GPUs that failed the probe and why), and `python -m toolkit
+devices` prints that. A GPU on a learner's laptop (Apple's, or a driver's on Windows) needs no
+set-up: toolkit/opencl/runtimes.py registers only what pip installed, where it installed it.
+
 `--device` / `PYOPENCL_CTX` (`P:D` indices or a part of the name) override the automatic
 choice; `TOOLKIT_HIDE_PLATFORMS` (comma-separated parts of platform names) makes platforms
 count as unusable, e.g. to run on Intel's runtime where PoCL also works.
@@ -33,8 +38,9 @@ import pyopencl as cl
 from toolkit.opencl import runtimes  # noqa: F401  (registers pip's OpenCL runtimes before the first OpenCL call)
 from toolkit.opencl import lanes
 from toolkit.opencl.device_model import is_gpu
+from toolkit.opencl.install_advice import fixes_when_nothing_builds, how_to_get_opencl
 from toolkit.opencl.probe_cache import read_verdict, verdict_file, write_verdict
-from toolkit.opencl.program import LOCAL_SIZE, KernelBuildError, build, expand_includes, kernel, launch
+from toolkit.opencl.program import LOCAL_SIZE, KernelBuildError, WorkGroupTooLarge, build, expand_includes, kernel, launch
 from toolkit.opencl.runtimes import intel_cpu_library
 
 
@@ -42,13 +48,9 @@ class NoOpenCLError(RuntimeError):
     pass
 
 
-HOW_TO_GET_OPENCL = (
-    "No OpenCL platform was found. Install the CPU implementation with\n"
-    "    pip install pocl-binary-distribution\n"
-    "or your GPU vendor's OpenCL driver, then run `python -m toolkit devices`."
-)
-
 RANKING = ("GPU", "PoCL (newest first)", "Intel CPU runtime", "other", "Oclgrind (only by name)")
+# What comes first at each rank, for the reason of a choice ("..., so PoCL comes next").
+RANK_NAMES = ("a GPU", "PoCL", "Intel's CPU runtime", "an implementation of another vendor", "Oclgrind")
 
 
 @dataclass
@@ -195,6 +197,8 @@ def _run_probe(device):
         queue.finish()
     except KernelBuildError as error:   # the compiler's verdict lasts; a build it could not run does not
         return False, first_error_line(str(error)), "BUILD_PROGRAM_FAILURE" in str(error)
+    except WorkGroupTooLarge as error:  # Apple's CPU device limits some kernels' work-groups
+        return False, str(error), True
     except cl.Error as error:
         return False, f"OpenCL error while probing: {str(error).splitlines()[0]}", False
     expected_sums = np.arange(PROBE_ITEMS).reshape(groups, LOCAL_SIZE).sum(axis=1)
@@ -240,7 +244,7 @@ def pick_device(selector=None):
     """The (platform, device) the toolkit uses: selector, else PYOPENCL_CTX, else the best usable."""
     found = candidates()
     if not found:
-        raise NoOpenCLError(HOW_TO_GET_OPENCL)
+        raise NoOpenCLError(how_to_get_opencl())
     selector = selector or os.environ.get("PYOPENCL_CTX") or None
     if selector:
         chosen = _parse_selector(selector, found)
@@ -248,10 +252,34 @@ def pick_device(selector=None):
             raise NoOpenCLError(f"OpenCL device {chosen.selector} ({describe(chosen.device)}) cannot "
                                 f"build the toolkit's kernels: {chosen.reason}")
         return chosen.platform, chosen.device
+    chosen, _ = choose(found)
+    return chosen.platform, chosen.device
+
+
+def choose(found):
+    """(the Candidate picked automatically from `found`, why): the best usable one by RANKING,
+    and a sentence that names it and the cause. NoOpenCLError when none can build."""
+    if not found:
+        raise NoOpenCLError(how_to_get_opencl())
     automatic = [c for c in found if c.usable and c.rank[0] < 4]
     if not automatic:
         raise NoOpenCLError(explain_no_usable_device(found))
-    return automatic[0].platform, automatic[0].device
+    chosen = automatic[0]
+    name = f"{chosen.device.name.strip()} ({chosen.implementation})"
+    passed_over = [f"{c.device.name.strip()} ({c.implementation}) {_why_not(c)}" for c in found
+                   if not c.usable and c.rank <= chosen.rank]
+    if chosen.is_gpu:
+        why = f"{name} is a GPU and passed the probe: a GPU comes first"
+    else:
+        gpus = [c for c in found if c.is_gpu]
+        why = (f"{name}: no GPU passed the probe" if gpus else f"{name}: there is no GPU") + \
+            f", and {RANK_NAMES[chosen.rank[0]]} comes next in the ranking"
+    return chosen, why + "".join(f"; {line}" for line in passed_over)
+
+
+def _why_not(c):
+    """How an unusable device fell out: "failed the probe: <the compiler's error>", or hidden."""
+    return f"is {c.reason}" if c.reason.startswith("hidden") else f"failed the probe: {c.reason}"
 
 
 def explain_no_usable_device(found):
@@ -268,12 +296,7 @@ def explain_no_usable_device(found):
         lines.append(f"Cause: {c.implementation}'s {c.compiler} does not know this CPU "
                      f"({_cpu_name()}), so it cannot compile for it.")
     lines.append("Fixes:")
-    if host_platform.system() == "Linux" and host_platform.machine() == "x86_64":
-        if intel_cpu_library() is None:
-            lines.append("  - pip install intel-opencl-rt intel-cmplr-lib-rt   (Intel's CPU runtime; "
-                         "the toolkit registers it by itself)")
-        lines.append("  - a distribution's PoCL with a newer LLVM, e.g. apt-get install pocl-opencl-icd")
-    lines.append("  - your GPU vendor's OpenCL driver")
+    lines += [f"  - {fix}" for fix in fixes_when_nothing_builds(intel_cpu_library() is not None)]
     if os.environ.get("TOOLKIT_HIDE_PLATFORMS"):
         lines.append(f"  - TOOLKIT_HIDE_PLATFORMS={os.environ['TOOLKIT_HIDE_PLATFORMS']} hides some platforms; unset it")
     return "\n".join(lines)

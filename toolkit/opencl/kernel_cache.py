@@ -25,7 +25,7 @@ from pathlib import Path
 import platformdirs
 
 from toolkit.core.package_data import APP_NAME
-from toolkit.core.private_folder import private_folder
+from toolkit.core.private_folder import private_folder, user_tag
 
 # pyopencl holds its lock only while it reads or writes one cache entry, for milliseconds; a lock
 # this old was left by a process that no longer runs (pyopencl itself gives up after 60 s).
@@ -106,7 +106,7 @@ def _private_pocl_cache():
     problem = unwritable(os.path.join(home, "pocl"))
     if not problem:
         return None
-    root = Path(tempfile.gettempdir()) / f"{APP_NAME}-{os.getuid()}"
+    root = Path(tempfile.gettempdir()) / f"{APP_NAME}-{user_tag()}"
     try:
         os.environ["POCL_CACHE_DIR"] = str(private_folder(private_folder(root) / "pocl-cache"))
     except OSError as error:     # UnsafeFolder among them: then PoCL keeps its default

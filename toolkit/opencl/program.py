@@ -57,6 +57,21 @@ class KernelBuildError(RuntimeError):
     """An OpenCL build failure, with the compiler log pointing into cl/ files."""
 
 
+class WorkGroupTooLarge(ValueError):
+    """A kernel that the device cannot run in work-groups of the size its program was built for."""
+
+
+def check_work_group(kernel_name, local_size, kernel_limit, device_name):
+    """Raise WorkGroupTooLarge when `local_size` is above the kernel's own limit on the device
+    (CL_KERNEL_WORK_GROUP_SIZE). A device's maximum work-group size is not enough to know: Apple's
+    CPU device allows fewer work-items to kernels that use barriers or local memory."""
+    if local_size > kernel_limit:
+        raise WorkGroupTooLarge(
+            f"{device_name} runs kernel {kernel_name} in work-groups of at most {kernel_limit} work-items "
+            f"(its CL_KERNEL_WORK_GROUP_SIZE), and the kernel is built for {local_size}: pick another "
+            f"device (--device), or render with local_size={kernel_limit} or less (toolkit.render's option)")
+
+
 class KernelBuildWarning(UserWarning):
     """A compiler warning in one of our kernels (the log's `warning:` lines)."""
 
@@ -358,6 +373,11 @@ def _fingerprint(value):
     return object()
 
 
+def _work_group_limit(kernel, device):
+    """The most work-items per work-group the device runs this kernel with."""
+    return kernel.get_work_group_info(cl.kernel_work_group_info.WORK_GROUP_SIZE, device)
+
+
 def _same_fingerprint(previous, current):
     """Whether an argument's value is the one set before. Only tuples (numpy values) are compared
     with ==; buffers by identity, because pyopencl 2022.3 (Debian 12's) raises TypeError when a
@@ -375,6 +395,8 @@ def launch(queue, kernel, n, *args, local_size=LOCAL_SIZE):
     if key not in _bound or _bound[key][0] is not kernel:
         # Keyed by the handle, checked by identity: a freed kernel's handle can be reused by
         # another kernel, which must not inherit this one's arguments (or program).
+        check_work_group(kernel.function_name, local_size, _work_group_limit(kernel, queue.device),
+                         queue.device.name.strip())
         _bound[key] = (kernel, cl.Kernel(kernel.program, kernel.function_name), [_UNSET] * kernel.num_args)
     _, own, last = _bound[key]
     if len(args) != len(last):

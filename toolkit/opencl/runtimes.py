@@ -1,5 +1,11 @@
 """Make the OpenCL implementations that pip installed visible, beside the system's drivers.
 
+Only where pip installed one (setup.cfg): on Linux x86-64 and on x86-64 Windows. On macOS
+pyopencl's wheel uses Apple's OpenCL (its CPU and GPU devices), and a GPU driver registers itself
+where its installer put it (/etc/OpenCL/vendors, the Windows registry): nothing to do for those.
+On Windows, Intel's runtime is added through OCL_ICD_FILENAMES (toolkit/opencl/windows_runtime.py).
+The rest of this text is about Linux.
+
 pyopencl's bundled ICD loader finds PoCL (`pocl-binary-distribution`) by itself, and the
 system's drivers through /etc/OpenCL/vendors. Intel's CPU runtime (`intel-opencl-rt`) ships an
 `.icd` file that names a placeholder path, so no loader finds it. This module writes a vendors
@@ -29,6 +35,7 @@ process: see toolkit/opencl/lanes.py.
 """
 import hashlib
 import os
+import platform
 import shutil
 import stat
 import tempfile
@@ -37,18 +44,24 @@ from pathlib import Path
 
 from toolkit.core.package_data import APP_NAME, user_cache_folder
 from toolkit.core.private_folder import UnsafeFolder, private_folder, unsafe_reason
+from toolkit.opencl import windows_runtime
 
 SYSTEM_VENDORS = Path("/etc/OpenCL/vendors")
 
 
+# The library of Intel's CPU runtime in its pip wheel, per system (its wheels: setup.cfg).
+INTEL_CPU_LIBRARY = {"Linux": "libintelocl.so", "Windows": "intelocl64.dll"}
+
+
 def intel_cpu_library():
     """Path of the pip-installed Intel CPU OpenCL library, or None."""
+    name = INTEL_CPU_LIBRARY.get(platform.system())
     try:
         files = metadata.distribution("intel-opencl-rt").files or []
     except metadata.PackageNotFoundError:
         return None
     for file in files:
-        if file.name == "libintelocl.so":
+        if file.name == name:
             path = Path(file.locate()).resolve()
             if path.is_file():
                 return path
@@ -136,12 +149,18 @@ def pip_icd_lines():
 
 
 def register_pip_runtimes():
-    """Point the ICD loader at the system's drivers plus pip's Intel CPU runtime.
+    """Make pip's Intel CPU runtime visible to the loader, on the systems where pip installs it.
 
-    Returns the vendors folder used, or None when nothing was registered (no Intel runtime,
-    `OCL_ICD_VENDORS` already set, `TOOLKIT_NO_PIP_RUNTIMES=1`, or no folder that only this user
-    can write: `vendors_refused` then says why)."""
-    if os.environ.get("OCL_ICD_VENDORS") or os.environ.get("TOOLKIT_NO_PIP_RUNTIMES") == "1":
+    Returns what was registered (on Linux the vendors folder, on Windows the OCL_ICD_FILENAMES
+    setting), or None when nothing was: no Intel runtime (macOS, ARM Linux: none from pip), the
+    user's own `OCL_ICD_VENDORS` / `OCL_ICD_FILENAMES`, `TOOLKIT_NO_PIP_RUNTIMES=1`, or (Linux) no
+    folder that only this user can write: `vendors_refused` then says why."""
+    if os.environ.get("TOOLKIT_NO_PIP_RUNTIMES") == "1":
+        return None
+    if platform.system() == "Windows":
+        library = intel_cpu_library()
+        return windows_runtime.register(library) if library else None
+    if platform.system() != "Linux" or os.environ.get("OCL_ICD_VENDORS"):
         return None
     icd_lines = pip_icd_lines()
     if icd_lines is None:
@@ -150,6 +169,11 @@ def register_pip_runtimes():
     if folder is not None:
         os.environ["OCL_ICD_VENDORS"] = str(folder)
     return folder
+
+
+def registration_variable():
+    """The loader's variable through which pip's runtime is registered on this system."""
+    return "OCL_ICD_FILENAMES" if platform.system() == "Windows" else "OCL_ICD_VENDORS"
 
 
 vendors_refused = []   # why a vendors folder was passed over (`python -m toolkit devices` shows it)
