@@ -172,14 +172,19 @@ def test_without_ptxas_the_ptx_is_still_made_for_sm90(tmp_path):
     assert all(row["ok"] and row["assembled"] is False and row["registers"] is None for row in rows)
 
 
-@pytest.mark.parametrize("target", offline_build.TARGETS, ids=lambda t: t.key)
-def test_a_kernel_that_does_not_build_names_its_file_and_line(target, tmp_path):
-    tools = toolchain_or_skip()
+def test_a_kernel_that_does_not_build_names_its_file_and_line(monkeypatch, capsys):
+    """On both targets: the kernel, its program, the renders that build it and clang's error at
+    its file and line (the #line markers of program.expand_includes); exit code 1."""
+    toolchain_or_skip()
     broken = HostBuild("broken.cl", '#line 1 "broken.h"\n__kernel void broken_kernel(__global int* out)\n'
-                                    "{\n    out[0] = undeclared;\n}\n", ["-DLOCAL_SIZE=64"], 64)
-    rows = offline_build.compile_program(broken, target, tools, tmp_path)
-    assert [row["kernel"] for row in rows] == ["broken_kernel"] and not rows[0]["ok"]
-    assert "broken.h:3:14: error: use of undeclared identifier 'undeclared'" in rows[0]["error"]
+                                    "{\n    out[0] = undeclared;\n}\n", ["-DLOCAL_SIZE=64"], 64, ["a test's scene"])
+    monkeypatch.setattr(offline_build, "host_builds", lambda vendor, *selection: [broken])
+    assert main(["gpucheck", "--offline"]) == 1
+    printed = capsys.readouterr().out
+    for target in ("nvptx64", "amdgcn"):
+        assert f"FAILED `broken_kernel` for {target} (cl/broken.cl, used by a test's scene)" in printed
+    assert printed.count("broken.h:3:14: error: use of undeclared identifier 'undeclared'") == 2
+    assert "0 of 1 kernel builds succeeded" in printed and "2 kernel builds failed" in printed
 
 
 # --- the command ---------------------------------------------------------------------------------

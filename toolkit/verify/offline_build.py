@@ -134,9 +134,9 @@ def compile_program(build, target, tools, folder):
     result = _run(command)
     if result.returncode != 0:
         return _failed(build, f"clang: {_errors(result.stderr)}")
-    if target.key == "amdgcn":
-        return _amdgcn_rows(output.read_text())
-    return _nvptx_rows(build, target, tools, output)
+    rows = _amdgcn_rows(output.read_text()) if target.key == "amdgcn" else _nvptx_rows(build, target, tools, output)
+    declared = _KERNEL_IN_SOURCE.findall(build.source)   # the tables list kernels in this order on every target
+    return sorted(rows, key=lambda row: declared.index(row["kernel"]) if row["kernel"] in declared else len(declared))
 
 
 def _row(kernel, ok=True, error=None, registers=None, spill_bytes=None, stack_bytes=None, shared_bytes=None, **more):
@@ -195,17 +195,18 @@ def run(scenes=None, techniques=None, counters=COUNT_SIMD, tools=None, workers=N
         log(f"{len(jobs)} builds ({len(jobs) // len(TARGETS)} programs x {len(TARGETS)} targets) "
             f"on {workers or os.cpu_count()} threads")
 
-    def one(job):
-        target, build = job
+    def one(index):
+        target, build = jobs[index]
         with tempfile.TemporaryDirectory(prefix="offline_build_") as folder:
             rows = compile_program(build, target, tools, folder)
-        return [{"target": target.key, "program": build.name, **row, "local_size": build.local_size,
-                 "options": build.options, "uses": build.uses} for row in rows]
+        return [{"target": target.key, "program": build.name, "build": index, **row} for row in rows]
 
     with ThreadPoolExecutor(max_workers=workers or os.cpu_count()) as pool:
-        kernels = [row for rows in pool.map(one, jobs) for row in rows]
+        kernels = [row for rows in pool.map(one, range(len(jobs))) for row in rows]
+    # Each build's inputs once (its options and the renders that use it); each kernel row names its build.
+    builds = [{"target": target.key, "program": build.name, "local_size": build.local_size,
+               "options": build.options, "uses": build.uses} for target, build in jobs]
     return {"command": "python -m toolkit gpucheck --offline", "clang": tools.clang_version,
             "libclc": str(tools.libclc), "ptxas": tools.ptxas and f"{tools.ptxas} (CUDA {tools.ptxas_version})",
-            "targets": {t.key: t.label for t in TARGETS}, "programs": len(jobs) // len(TARGETS),
-            "builds": len(jobs), "seconds": round(time.perf_counter() - start, 1),
-            "passed": bool(kernels) and all(row["ok"] for row in kernels), "kernels": kernels}
+            "targets": {t.key: t.label for t in TARGETS}, "seconds": round(time.perf_counter() - start, 1),
+            "passed": bool(kernels) and all(row["ok"] for row in kernels), "builds": builds, "kernels": kernels}

@@ -84,7 +84,8 @@ def failures(report):
     lines = []
     for row in report["kernels"]:
         if not row["ok"]:
-            uses = ", ".join(row["uses"][:3]) + (f" and {len(row['uses']) - 3} more" if len(row["uses"]) > 3 else "")
+            used_by = report["builds"][row["build"]]["uses"]
+            uses = ", ".join(used_by[:3]) + (f" and {len(used_by) - 3} more" if len(used_by) > 3 else "")
             error = row["error"].replace("\n", "\n    ")
             lines.append(f"- FAILED `{row['kernel']}` for {row['target']} (cl/{row['program']}, used by {uses}):\n"
                          f"    {error}")
@@ -93,7 +94,8 @@ def failures(report):
 
 def format_report(report):
     """The printed report, in Markdown: what was built with what, one table per target, failures."""
-    out = [f"{report['programs']} programs, each built for {len(report['targets'])} targets in "
+    targets = len(report["targets"])
+    out = [f"{len(report['builds']) // targets} programs, each built for {targets} targets in "
            f"{report['seconds']:.0f} s, with {report['clang']} and libclc ({report['libclc']}); "
            + (f"PTX assembled by ptxas, {report['ptxas']}." if report["ptxas"] else
               "no ptxas found: the PTX is checked, not assembled (no registers; install a CUDA toolkit "
