@@ -49,8 +49,12 @@ def test_the_host_code_gives_every_program_with_a_gpus_defines():
             if "-DBVH_WIDE=1" in build.options:
                 assert "-DNODE_WIDTH=4" in build.options, build.options
             assert build.local_size == program.LOCAL_SIZE and build.uses
-        # counters on and off, and a scene of its own for the dielectric's code
-        assert len([b for b in builds if b.name == "pt_naive.cl"]) == 4
+        # counters on and off, and the dielectric's code for cornell_spheres only
+        naive = [build for build in builds if build.name == "pt_naive.cl"]
+        assert {"-DCOUNT_SIMD=1" in b.options for b in naive} == {True, False}
+        assert {"-DHAS_DIELECTRIC=1" in b.options for b in naive} == {True, False}
+        assert any(use.startswith("cornell_spheres ") for b in naive if "-DHAS_DIELECTRIC=1" in b.options
+                   for use in b.uses)
     assert (program.build, cl.Buffer, cl.Kernel) == saved
 
 
