@@ -3,7 +3,7 @@ import argparse
 import sys
 import warnings
 
-from toolkit.cli import bench, compare, course, crosscheck, devices, gpucheck, grade, render, study
+from toolkit.cli import bench, compare, course, crosscheck, demo, devices, gpucheck, grade, render, study
 from toolkit.cli.devices import devices_report
 from toolkit.cli.options import DEVICE_HELP
 from toolkit.core.scene import SceneError
@@ -16,7 +16,7 @@ __all__ = ["build_parser", "main", "devices_report"]
 
 # The registry: each module adds its command's subparser and sets `run`, the function that runs
 # it (toolkit/cli/render.py is the pattern to copy). `--help` lists the commands in this order.
-COMMANDS = (render, devices, crosscheck, compare, bench, gpucheck, study, grade, course)
+COMMANDS = (render, devices, crosscheck, compare, bench, gpucheck, study, grade, course, demo)
 
 
 def build_parser():

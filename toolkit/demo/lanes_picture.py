@@ -1,0 +1,101 @@
+"""The lanes picture: for a few warps, which lanes are busy at each step, drawn as a grid of
+lanes (across) against steps (down), one coloured cell per busy lane.
+
+What it samples. The SIMD counters (toolkit/core/simd.py, PhaseCounter) see every lane of every
+step the techniques count per iteration: a boolean mask of the lanes that did the step's work
+(in-place regeneration's slots, from the LaneCounts the kernels write), a count of lanes packed
+at the start of a compacted stream (compaction, regeneration at the stream's end), or each
+lane's number of loop iterations (pt_naive's one loop per path, where a lane is busy at
+iteration k while its path has more than k vertices to go). WarpSampler is a PhaseCounter that
+counts as before and also keeps, for the steps that have an iteration number, the lanes of
+`warps` warps spread evenly over the launch (in-place regeneration: the same slots at every
+step; a compacted stream: warps of the packed paths; pt_naive: warps of pixels across the
+image). A few warps stand for all, as every warp of a launch does the same kind of work. Steps counted without an iteration
+(shadow rays, the connect phase, Metropolis's mutations) are in the efficiency figures only.
+"""
+from collections import deque
+
+import numpy as np
+
+from toolkit.core.simd import PhaseCounter
+
+SAMPLED_WARPS = 4     # warps drawn side by side
+KEPT_STEPS = 96       # the most recent steps kept (rows of the picture)
+
+# RGBA colours: a busy lane by phase, an idle lane, and the gap between two warps.
+BUSY = {"extend": (52, 120, 198, 255), "walk": (52, 120, 198, 255), "generate": (230, 126, 34, 255)}
+BUSY_OTHER = (120, 80, 170, 255)
+IDLE = (225, 225, 225, 255)
+GAP = (255, 255, 255, 255)
+
+
+class WarpSampler(PhaseCounter):
+    """A PhaseCounter that also keeps the lanes of `warps` warps of each counted step (a row: its
+    phase and a boolean per lane), the last `kept` of them."""
+
+    def __init__(self, warp_width=32, warps=SAMPLED_WARPS, kept=KEPT_STEPS):
+        super().__init__(warp_width)
+        self.warps = warps
+        self.rows = deque(maxlen=kept)
+        self.steps = 0     # rows ever added: the picture changes when this does
+
+    def add_stream_step(self, phase, mask_or_count, length=None, iteration=None, capacity=None, draining=False):
+        super().add_stream_step(phase, mask_or_count, length, iteration, capacity, draining)
+        if iteration is None:
+            return
+        if np.ndim(mask_or_count) == 0:       # a count of lanes packed at the start of the launch
+            busy = np.ones(int(mask_or_count), bool)
+        else:
+            busy = np.asarray(mask_or_count, bool)
+        self.rows.append((phase, self.sampled(busy)))
+        self.steps += 1
+
+    def add_loop_iterations(self, phase, lane_iterations, first_iteration=0):
+        super().add_loop_iterations(phase, lane_iterations, first_iteration)
+        x = self.sampled(np.asarray(lane_iterations, np.int64))
+        # Each warp issues until its own longest lane is done: rows up to the sampled warps' longest.
+        for k in range(int(x.max()) if len(x) else 0):
+            self.rows.append((phase, x > k))
+            self.steps += 1
+
+    def sampled(self, lanes):
+        """The lanes of `warps` warps spread evenly over the launch (its first warps would be the
+        image's top row, or a compacted stream's always-full head), padded with idle lanes."""
+        w, k = self.warp_width, self.warps
+        launched = -(-len(lanes) // w)
+        picks = np.unique(((np.arange(k) + 0.5) * launched / k).astype(int)) if launched else []
+        out = np.zeros(k * w, lanes.dtype)
+        for i, warp in enumerate(picks):
+            part = lanes[warp * w:(warp + 1) * w]
+            out[i * w:i * w + len(part)] = part
+        return out
+
+
+def lanes_picture(rows, warp_width, warps=SAMPLED_WARPS, steps=KEPT_STEPS):
+    """An RGBA image (steps, warps x (W + 1) - 1, 4) of uint8: row i is the i-th of the last
+    `steps` rows (phase, busy lanes), oldest at the top; each lane one pixel: busy in its
+    phase's colour (BUSY), idle light grey (IDLE), and blank (GAP) where its warp did not issue
+    the step at all (no lane busy: the counters count no issued lanes for it either). A blank
+    column separates two warps; rows not yet rendered are blank."""
+    width = warps * (warp_width + 1) - 1
+    picture = np.empty((steps, width, 4), np.uint8)
+    picture[:] = GAP
+    lane = np.arange(warps * warp_width)
+    columns = lane + lane // warp_width         # warp w's lanes start at pixel w x (W + 1)
+    for i, (phase, busy) in enumerate(list(rows)[-steps:]):
+        busy = np.asarray(busy, bool)[:len(lane)]
+        issued = np.repeat(busy.reshape(-1, warp_width).any(1), warp_width)
+        picture[i, columns[issued]] = IDLE
+        picture[i, columns[busy]] = BUSY.get(phase, BUSY_OTHER)
+    return picture
+
+
+def busy_share(rows, warp_width):
+    """Busy lanes / lanes of the warps that issued, over the sampled rows: the picture's own
+    SIMD efficiency (it follows the counters' for the same steps)."""
+    busy = issued = 0
+    for _, lanes in rows:
+        warps = np.asarray(lanes, bool).reshape(-1, warp_width)
+        busy += int(warps.sum())
+        issued += int(warps.any(1).sum()) * warp_width
+    return busy / issued if issued else float("nan")
