@@ -12,6 +12,10 @@ from toolkit.core.layout import RAY_OFFSET_ULPS
 NO_HIT = -1
 
 
+class EmbreeMissing(OSError):
+    """embreex is not installed (no wheels for this machine): the command says so, exit 2."""
+
+
 def _center_of(scene):
     """The rebasing centre DeviceScene uses (midpoint of the vertex bounding box, float64)."""
     lo, hi = scene.vertices.min(0), scene.vertices.max(0)
@@ -39,8 +43,13 @@ class EmbreeIntersector:
     def __init__(self, scene, center=None):
         # Here, not at the top: embreex takes ~1 s to import, and only the cross-checks and the
         # ray benchmark use it (and `gpucheck` runs without it).
-        from embreex import rtcore_scene
-        from embreex.mesh_construction import TriangleMesh
+        try:
+            from embreex import rtcore_scene
+            from embreex.mesh_construction import TriangleMesh
+        except ImportError as error:   # ARM Linux: no wheels, so setup.cfg does not ask for it there
+            raise EmbreeMissing(f"Embree (the embreex package) cannot be imported ({error}): pip has it for "
+                                "x86-64 and for macOS on Apple silicon; the Embree cross-check and the ray "
+                                "benchmark need it") from None
         self.scene = scene
         self.center = _center_of(scene) if center is None else np.asarray(center, np.float64)
         self.triangles = rebased_triangles(scene, self.center)
