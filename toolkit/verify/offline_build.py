@@ -55,6 +55,7 @@ TARGETS = (
 CLANG_NAMES = ("clang-16", "clang")
 LIBCLC_FOLDERS = ("/usr/lib/clc", "/usr/lib/llvm-16/lib/clc", "/usr/share/clc", "/usr/local/lib/clc")
 INSTALL_HINT = "on Debian or Ubuntu: apt-get install clang-16 libclc-16"
+CUDA_PTXAS = Path("/usr/local/cuda/bin/ptxas")
 
 
 @dataclass
@@ -78,8 +79,7 @@ def _output(command):
 def find_ptxas():
     """NVIDIA's PTX assembler: on PATH, in CUDA's usual folder, or in PyPI's nvidia-cuda-nvcc
     wheel (nvidia/cu13/bin, nvidia/cuda_nvcc/bin); None where there is none."""
-    found = shutil.which("ptxas") or next((str(p) for p in [Path("/usr/local/cuda/bin/ptxas")] if p.is_file()), None)
-    if found:
+    if found := shutil.which("ptxas") or (str(CUDA_PTXAS) if CUDA_PTXAS.is_file() else None):
         return found
     spec = find_spec("nvidia")
     for folder in (spec.submodule_search_locations or []) if spec else []:
