@@ -89,13 +89,3 @@ def lanes_picture(rows, warp_width, warps=SAMPLED_WARPS, steps=KEPT_STEPS):
         picture[i, columns[busy]] = BUSY.get(phase, BUSY_OTHER)
     return picture
 
-
-def busy_share(rows, warp_width):
-    """Busy lanes / lanes of the warps that issued, over the sampled rows: the picture's own
-    SIMD efficiency (it follows the counters' for the same steps)."""
-    busy = issued = 0
-    for _, lanes in rows:
-        warps = np.asarray(lanes, bool).reshape(-1, warp_width)
-        busy += int(warps.sum())
-        issued += int(warps.any(1).sum()) * warp_width
-    return busy / issued if issued else float("nan")

@@ -69,14 +69,14 @@ class DemoView:
         chosen = "{}x{}".format(*settings.resolution)
         if chosen not in resolutions:
             resolutions.append(chosen)
-        self.techniques = pn.widgets.MultiChoice(name=f"Techniques (1 to {MOST_TECHNIQUES})", options=list(TECHNIQUES),
+        self.techniques = pn.widgets.MultiChoice(label=f"Techniques (1 to {MOST_TECHNIQUES})", options=list(TECHNIQUES),
                                                  value=list(settings.techniques), max_items=MOST_TECHNIQUES, width=420)
-        self.scene = pn.widgets.Select(name="Scene", options=self.scenes.names(), value=settings.scene, width=200)
-        self.resolution = pn.widgets.Select(name="Resolution", options=resolutions, value=chosen, width=110)
-        self.lanes_choice = pn.widgets.RadioButtonGroup(name="SIMD lanes", options=["off", "on"],
+        self.scene = pn.widgets.Select(label="Scene", options=self.scenes.names(), value=settings.scene, width=200)
+        self.resolution = pn.widgets.Select(label="Resolution", options=resolutions, value=chosen, width=110)
+        self.lanes_choice = pn.widgets.RadioButtonGroup(label="SIMD lanes", options=["off", "on"],
                                                         value=settings.lanes or "off", visible=False)
-        self.pause = pn.widgets.Toggle(name="Pause", width=80)
-        self.reset = pn.widgets.Button(name="Reset", width=80)
+        self.pause = pn.widgets.Toggle(label="Pause", width=80)
+        self.reset = pn.widgets.Button(label="Reset", width=80)
         self.techniques.param.watch(lambda e: self.change(techniques=tuple(e.new)), "value")
         self.scene.param.watch(lambda e: self.change(scene=e.new), "value")
         self.resolution.param.watch(lambda e: self.change(resolution=parse_resolution(e.new)), "value")

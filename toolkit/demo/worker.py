@@ -11,6 +11,7 @@ objects of its cached programs (toolkit/opencl/program.py sets a kernel's argume
 launch), so their passes take turns instead of interleaving.
 """
 import threading
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -19,7 +20,7 @@ from toolkit.measure.reference import reference_at, reference_problem, rmse
 from toolkit.opencl.device import describe, get_queue
 from toolkit.opencl.device_scene import DeviceScene
 from toolkit.opencl.lanes import can_choose
-from toolkit.demo.lanes_picture import busy_share, lanes_picture
+from toolkit.demo.lanes_picture import lanes_picture
 from toolkit.demo.progressive import PASS_SECONDS, progressive
 from toolkit.demo.settings import Settings, checked
 from toolkit.demo.tone_map import to_rgba
@@ -40,9 +41,10 @@ class Frame:
     mean: float                  # the image's mean (linear, over pixels and RGB)
     efficiency: dict             # SIMD efficiency per phase so far
     lanes: np.ndarray            # the lanes picture (lanes_picture.py), RGBA
-    lanes_busy: float            # busy share of the sampled lanes
     means: list                  # [(seconds, mean)] so far: the startup-bias plot
     number: int                  # passes so far: the page redraws when it changes
+    samples: int = 0             # samples (mlt: mutations) so far
+    published: float = 0.0       # time.monotonic() when the frame was made (bench.py's clock)
 
 
 @dataclass
@@ -89,6 +91,8 @@ class RenderWorker:
 
     def change(self, **changes):
         """New settings (checked now: an InputError for a bad value); the thread rebuilds at its next turn."""
+        if "scene" in changes:
+            self.scenes.path(changes["scene"])      # only a key of the allowed scenes, never a path
         with self._lock:
             self._requested = self._requested.changed(**changes)
             self._rebuild = True
@@ -177,8 +181,9 @@ class RenderWorker:
                       rmse=None if self._reference is None else rmse(image, self._reference), mean=mean,
                       efficiency=r.efficiency(),
                       lanes=lanes_picture(sampler.rows, sampler.warp_width, sampler.warps),
-                      lanes_busy=busy_share(sampler.rows, sampler.warp_width), means=list(means),
-                      number=self.snapshot().frames.get(r.name, _NO_FRAME).number + 1)
+                      means=list(means),
+                      number=self.snapshot().frames.get(r.name, _NO_FRAME).number + 1,
+                      samples=r.samples, published=time.monotonic())
         with self._lock:
             frames = dict(self._snapshot.frames, **{r.name: frame})
             self._snapshot = _replaced(self._snapshot, frames=frames)

@@ -1,0 +1,88 @@
+"""The demo in a real browser: headless chromium opens `python -m toolkit demo`'s page, sees the
+image change at least three times and the SIMD efficiency figures appear, switches the
+techniques as a viewer would, finds no console error, and saves a screenshot for the docs
+(docs/_build/demo.png, shown on the demo's page: docs/conf.py copies it in). Closing the tab then
+stops the server, leaving no process."""
+import os
+import re
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from chromium_page import BROWSER, ChromiumPage
+
+ROOT = Path(__file__).resolve().parent.parent
+SCREENSHOT = ROOT / "docs" / "_build" / "demo.png"
+
+DOCUMENT = "Bokeh.documents[0]"
+# A checksum of the pixels that a technique's image has in the page now (null before it exists).
+CHECKSUM = """(() => {{
+  const source = window.Bokeh && Bokeh.documents.length ? Bokeh.documents[0].get_model_by_name('image:{name}') : null;
+  if (!source) return null;
+  const pixels = source.data.image[0];
+  let sum = 0;
+  for (let i = 0; i < pixels.length; i++) sum = (sum + pixels[i] * (i + 1)) % 1000000007;
+  return sum;
+}})()"""
+EFFICIENCY = ("Array.from(Bokeh.documents[0].all_models).filter(m => (m.css_classes || [])"
+              ".includes('simd-efficiency')).map(m => m.text).join('')")
+
+
+def changes_seen(page, name, wanted, timeout=60):
+    """The distinct checksums of `name`'s image, polled until `wanted` changes were seen."""
+    seen, deadline = [], time.monotonic() + timeout
+    while time.monotonic() < deadline and len(seen) < wanted + 1:
+        value = page.evaluate(CHECKSUM.format(name=name))
+        if value is not None and (not seen or value != seen[-1]):
+            seen.append(value)
+        time.sleep(0.05)
+    return len(seen) - 1
+
+
+@pytest.fixture
+def demo_server():
+    pytest.importorskip("panel", reason='the demo needs Panel: pip install ".[demo]"')
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    server = subprocess.Popen([sys.executable, "-m", "toolkit", "demo", "--no-browser", "--port", str(port),
+                               "--resolution", "96x96", "--techniques", "pt_naive,pt_inplace_regen"],
+                              cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
+                              start_new_session=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
+    line = server.stdout.readline()
+    assert "serving the demo at" in line, line + server.stdout.read()
+    yield server, f"http://127.0.0.1:{port}/"
+    if server.poll() is None:
+        os.killpg(server.pid, signal.SIGKILL)
+        server.wait()
+
+
+@pytest.mark.skipif(BROWSER is None, reason="no headless browser (chromium) installed: apt-get install chromium")
+def test_demo_in_a_browser(demo_server):
+    pytest.importorskip("websocket", reason="websocket-client drives the browser: pip install '.[test]'")
+    server, url = demo_server
+    with ChromiumPage() as page:
+        page.open(url)
+        assert changes_seen(page, "pt_naive", 3) >= 3, "the image did not change three times"
+        figures = page.wait_for(f"(() => {{ const t = {EFFICIENCY}; return /pt_inplace_regen/.test(t) && "
+                                r"(t.match(/\d+\.\d%/g) || []).length >= 6 ? t : null })()", timeout=30)
+        assert "talk ~33%" in figures and "talk ~30%" in figures
+        # Switch the techniques as the viewer's choice box does (its model's value, synced to the server).
+        page.evaluate(f"Array.from({DOCUMENT}.all_models).find(m => m.type === 'MultiChoice').value = "
+                      "['pt_naive', 'pt_inplace_regen', 'pt_compact_regen']")
+        assert changes_seen(page, "pt_compact_regen", 2) >= 2, "the added technique's image did not change"
+        page.wait_for(f"/pt_compact_regen[\\s\\S]*99\\.\\d%/.test({EFFICIENCY})", timeout=30)
+        time.sleep(1.5)           # a few more frames for the screenshot: the lanes pictures fill
+        page.screenshot(SCREENSHOT)
+        errors = list(page.errors)
+    assert SCREENSHOT.stat().st_size > 20_000
+    assert not errors, errors
+    # The tab is closed: its session ends, then the server, leaving nothing behind.
+    assert server.wait(timeout=30) == 0
+    output = server.stdout.read()
+    assert "the last tab was closed" in output and "Traceback" not in output, output
