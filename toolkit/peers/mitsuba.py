@@ -155,11 +155,17 @@ def _bsdf(material):
     return {"type": "twosided", "bsdf": bsdf}     # FORMAT.md: two-sided except dielectrics
 
 
-def to_mitsuba(scene, folder, width=None, height=None, spp=16):
+INTEGRATORS = ("path", "ptracer")
+
+
+def to_mitsuba(scene, folder, width=None, height=None, spp=16, integrator="path"):
     """A Mitsuba 3 scene dict for `scene` (FORMAT.md's conventions): pinhole camera with the same
-    field of view, a box filter one pixel wide, the `path` integrator with the scene's max_depth and
-    rr_depth, one-sided area lights, geometric normals. Meshes are written as PLY files to
-    `folder`, one per (material, emission) group of triangles."""
+    field of view, a box filter one pixel wide, the `integrator` (`path`, or `ptracer`: Mitsuba's
+    light tracer, for scenes whose light reaches the camera's room through a narrow opening) with
+    the scene's max_depth and rr_depth, one-sided area lights, geometric normals. Meshes are
+    written as PLY files to `folder`, one per (material, emission) group of triangles."""
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"integrator must be one of {', '.join(INTEGRATORS)}, got {integrator!r}")
     width, height = width or scene.camera.width, height or scene.camera.height
     if scene.clamp is not None:
         raise ValueError(f"{scene.name}: integrator.clamp has no counterpart in Mitsuba's path integrator; "
@@ -168,7 +174,7 @@ def to_mitsuba(scene, folder, width=None, height=None, spp=16):
     rr_depth = scene.rr_depth if scene.rr_depth >= 0 else 1 << 30          # -1: no roulette
     out = {
         "type": "scene",
-        "integrator": {"type": "path", "max_depth": int(scene.max_depth), "rr_depth": int(rr_depth),
+        "integrator": {"type": integrator, "max_depth": int(scene.max_depth), "rr_depth": int(rr_depth),
                        "hide_emitters": False},
         "sensor": {
             "type": "perspective", "fov": float(cam.fov_deg), "fov_axis": cam.fov_axis,
@@ -203,10 +209,11 @@ def _camera_transform(mi, cam):
 class MitsubaRenderer:
     """A converted scene loaded into Mitsuba once; `render(spp, seed)` returns (image, seconds)."""
 
-    def __init__(self, scene, width=None, height=None):
+    def __init__(self, scene, width=None, height=None, integrator="path"):
         self.mi, self.variant, self.why_not_llvm = load_mitsuba()
         self._folder = tempfile.TemporaryDirectory(prefix="toolkit_mitsuba_")
-        description = to_mitsuba(scene, self._folder.name, width, height)
+        description = to_mitsuba(scene, self._folder.name, width, height, integrator=integrator)
+        self.integrator = description["integrator"]
         description["sensor"]["to_world"] = _camera_transform(self.mi, scene.camera)
         self.scene = self.mi.load_dict(description)
 
