@@ -17,6 +17,8 @@ sys.path[:0] = [str(ROOT), str(DOCS / "_ext")]          # the checkout's toolkit
 # The notebooks' kernels inherit this environment: fast mode, the checkout's toolkit, and
 # matplotlib's inline backend (an MPLBACKEND of Agg would show no figures).
 os.environ.setdefault("TOOLKIT_FAST_NOTEBOOKS", "1")
+# No one watches a notebook the build runs: the live demo's widget renders a few frames and shows a still.
+os.environ["TOOLKIT_NOTEBOOK_HEADLESS"] = "1"
 os.environ["PYTHONPATH"] = os.pathsep.join([str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p])
 os.environ.pop("MPLBACKEND", None)
 # A "python3" kernel that runs this interpreter, ahead of any kernelspec of the user's that
@@ -46,6 +48,25 @@ def copy_into_docs(source, pattern):
 copy_into_docs("tutorials", "*.ipynb")
 copy_into_docs("tutorials", "assignments/**/*.md")
 copy_into_docs("results", "*.md")
+
+
+def demo_screenshot():
+    """docs/demo.md shows the live demo's screenshot, which tests/test_demo_browser.py takes into
+    docs/_build/demo.png (not committed: it is remade by every run of the test). The page includes
+    docs/_build/demo_screenshot.md, written here: the image where it exists, else a line saying how
+    to make it, so that a build without it has no missing image (and no warning under -W)."""
+    build = DOCS / "_build"
+    build.mkdir(exist_ok=True)
+    if (build / "demo.png").is_file():
+        text = ("![The demo in headless chromium: three path tracers side by side, their SIMD efficiency beside "
+                "the talk's, the lanes of four warps per technique, and the image means over time](demo.png)\n")
+    else:
+        text = ("*No screenshot in this build: `python -m pytest tests/test_demo_browser.py` takes it "
+                "(into docs/_build/demo.png), and the next build shows it here.*\n")
+    (build / "demo_screenshot.md").write_text(text, encoding="utf-8")
+
+
+demo_screenshot()
 
 project = "SIMD-efficient light transport toolkit"
 author = "the toolkit's authors"

@@ -117,7 +117,8 @@ def test_every_command_is_registered_with_its_help_and_handler():
     from toolkit.cli import build_parser
     parser = build_parser()
     commands = next(a for a in parser._actions if a.dest == "command").choices
-    assert list(commands) == ["render", "devices", "crosscheck", "compare", "bench", "gpucheck", "study", "grade", "course"]
+    assert list(commands) == ["render", "devices", "crosscheck", "compare", "bench", "gpucheck", "study", "grade", "course",
+                             "demo"]
     for name, p in commands.items():
         assert callable(p.get_default("run")), name
         options = {o for a in p._actions for o in a.option_strings}

@@ -4,7 +4,6 @@ techniques as a viewer would, finds no console error, and saves a screenshot for
 (docs/_build/demo.png, shown on the demo's page: docs/conf.py copies it in). Closing the tab then
 stops the server, leaving no process."""
 import os
-import re
 import signal
 import socket
 import subprocess
@@ -51,7 +50,7 @@ def demo_server():
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     server = subprocess.Popen([sys.executable, "-m", "toolkit", "demo", "--no-browser", "--port", str(port),
-                               "--resolution", "96x96", "--techniques", "pt_naive,pt_inplace_regen"],
+                               "--resolution", "64x64", "--techniques", "pt_naive,pt_inplace_regen"],
                               cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                               start_new_session=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
     line = server.stdout.readline()

@@ -56,6 +56,7 @@ def test_notebook_runs_and_its_checks_pass(path, python3_kernel, monkeypatch):
     # The kernel inherits this environment: fast mode, no display, and the toolkit under test
     # (the checkout this file belongs to) ahead of any installed copy.
     monkeypatch.setenv("TOOLKIT_FAST_NOTEBOOKS", "1")
+    monkeypatch.setenv("TOOLKIT_NOTEBOOK_HEADLESS", "1")      # the live demo's widget: a few frames, then a still
     monkeypatch.setenv("MPLBACKEND", "Agg")
     monkeypatch.setenv("PYTHONPATH", os.pathsep.join(
         [str(ROOT)] + [p for p in [os.environ.get("PYTHONPATH")] if p]))

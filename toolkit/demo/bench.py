@@ -18,7 +18,7 @@ from toolkit.demo.settings import Settings
 from toolkit.demo.view import PERIOD_MS, DemoView
 
 
-def bench_live_view(scenes, settings=Settings(), device=None, seconds=6.0, repeats=2):
+def bench_live_view(scenes, settings=Settings(), device=None, seconds=6.0, repeats=3):
     """{technique: figures} for each technique of `settings`, at its resolution and seed."""
     scene = scenes.load(settings.scene)
     width, height = settings.resolution
