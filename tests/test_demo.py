@@ -20,7 +20,7 @@ from toolkit.core.simd import PhaseCounter
 from toolkit.core.validate import InputError
 from toolkit.demo import DemoUnavailable, require_panel
 from toolkit.demo.efficiency import efficiency_html, talk_figure
-from toolkit.demo.lanes_picture import BUSY, GAP, IDLE, WarpSampler, lanes_picture
+from toolkit.demo.lanes_picture import BUSY, DRAIN_ROW, GAP, IDLE, WarpSampler, lanes_picture
 from toolkit.demo.scenes import SceneChoices
 from toolkit.demo.settings import Settings, parse_resolution
 from toolkit.demo.tone_map import packed_for_bokeh, to_rgba
@@ -45,6 +45,8 @@ def test_lanes_picture_from_made_up_counters():
     sampler.add_stream_step("extend", 5, iteration=1)
     sampler.add_loop_iterations("extend", np.array([2, 1, 1, 1, 0, 0, 0, 0]))
     sampler.add_stream_step("shadow", np.ones(8, bool))     # no iteration: in the counters only, no row
+    for step in (4, 5):                                      # a pass's final drain: one dark row for both steps
+        sampler.add_stream_step("extend", np.array([1, 0, 0, 0, 0, 0, 0, 0], bool), iteration=step, draining=True)
     picture = lanes_picture(sampler.rows, warp_width=4, warps=2, steps=8)
 
     assert picture.shape == (8, 2 * 5 - 1, 4) and picture.dtype == np.uint8
@@ -57,14 +59,18 @@ def test_lanes_picture_from_made_up_counters():
     assert pixel(picture, 2, 0, 3, 4) == BUSY["extend"]
     assert [pixel(picture, 3, 0, lane, 4) for lane in range(4)] == [BUSY["extend"]] + [IDLE] * 3
     assert pixel(picture, 3, 1, 0, 4) == GAP
-    # No more rows: the shadow step had no iteration. The gap column between the warps stays blank.
-    assert (picture[4:] == GAP).all() and (picture[:, 4] == GAP).all()
+    # Row 4: the drain's marker; then no more rows (the shadow step had no iteration). The gap column
+    # between the warps stays blank.
+    assert all(pixel(picture, 4, warp, lane, 4) == DRAIN_ROW for warp in (0, 1) for lane in range(4))
+    assert (picture[5:] == GAP).all() and (picture[:, 4] == GAP).all()
     # The sampler still counts like the PhaseCounter it is.
     counter = PhaseCounter(4)
     counter.add_stream_step("generate", np.array([1, 1, 1, 1, 0, 0, 0, 0], bool), iteration=0)
     counter.add_stream_step("extend", 5, iteration=1)
     counter.add_loop_iterations("extend", np.array([2, 1, 1, 1, 0, 0, 0, 0]))
     counter.add_stream_step("shadow", np.ones(8, bool))
+    for step in (4, 5):
+        counter.add_stream_step("extend", np.array([1, 0, 0, 0, 0, 0, 0, 0], bool), iteration=step, draining=True)
     assert sampler.efficiency() == counter.efficiency()
 
 
@@ -72,7 +78,7 @@ def test_lanes_sampled_spread_over_the_launch():
     """Warps spread over a long launch, not its first ones (the image's top row)."""
     sampler = WarpSampler(warp_width=4, warps=2)
     mask = np.zeros(400, bool)
-    mask[100:104] = True        # warp 25 of 100: the first of two sampled ones (at 1/4 and 3/4)
+    mask[92:96] = True          # warp 23 of 100: the first of two sampled ones (golden-ratio steps: 23, 61)
     sampler.add_stream_step("extend", mask, iteration=0)
     assert sampler.rows[0][1][:4].all() and not sampler.rows[0][1][4:].any()
 

@@ -28,11 +28,14 @@ CHECKSUM = """(() => {{
   for (let i = 0; i < pixels.length; i++) sum = (sum + pixels[i] * (i + 1)) % 1000000007;
   return sum;
 }})()"""
+STATUS = ("window.Bokeh && Bokeh.documents.length ? Array.from(Bokeh.documents[0].all_models)"
+          ".filter(m => typeof m.text === 'string' || typeof m.object === 'string')"
+          ".map(m => m.text || m.object).join(' | ').slice(0, 2000) : 'no Bokeh document'")
 EFFICIENCY = ("Array.from(Bokeh.documents[0].all_models).filter(m => (m.css_classes || [])"
               ".includes('simd-efficiency')).map(m => m.text).join('')")
 
 
-def changes_seen(page, name, wanted, timeout=60):
+def changes_seen(page, name, wanted, timeout=120):
     """The distinct checksums of `name`'s image, polled until `wanted` changes were seen."""
     seen, deadline = [], time.monotonic() + timeout
     while time.monotonic() < deadline and len(seen) < wanted + 1:
@@ -67,7 +70,8 @@ def test_demo_in_a_browser(demo_server):
     server, url = demo_server
     with ChromiumPage() as page:
         page.open(url)
-        assert changes_seen(page, "pt_naive", 3) >= 3, "the image did not change three times"
+        seen = changes_seen(page, "pt_naive", 3)
+        assert seen >= 3, f"the image changed {seen} times; the page says: {page.evaluate(STATUS)}"
         figures = page.wait_for(f"(() => {{ const t = {EFFICIENCY}; return /pt_inplace_regen/.test(t) && "
                                 r"(t.match(/\d+\.\d%/g) || []).length >= 6 ? t : null })()", timeout=30)
         assert "talk ~33%" in figures and "talk ~30%" in figures

@@ -8,10 +8,16 @@ at the start of a compacted stream (compaction, regeneration at the stream's end
 lane's number of loop iterations (pt_naive's one loop per path, where a lane is busy at
 iteration k while its path has more than k vertices to go). WarpSampler is a PhaseCounter that
 counts as before and also keeps, for the steps that have an iteration number, the lanes of
-`warps` warps spread evenly over the launch (in-place regeneration: the same slots at every
-step; a compacted stream: warps of the packed paths; pt_naive: warps of pixels across the
-image). A few warps stand for all, as every warp of a launch does the same kind of work. Steps counted without an iteration
-(shadow rays, the connect phase, Metropolis's mutations) are in the efficiency figures only.
+`warps` warps spread over the launch (in-place regeneration: the same slots at every step; a
+compacted stream: warps of the packed paths; pt_naive: warps of pixels across the image). A few
+warps stand for all, as every warp of a launch does the same kind of work. Steps counted without
+an iteration (shadow rays, the connect phase, Metropolis's mutations) are in the efficiency
+figures only.
+
+The final drain of a pass (every sample of its budget started, nothing regenerates, the stream
+or the slots empty: the counters mark those steps `draining`) is one dark row in the picture, not
+its steps: it is as long as the pass's longest path, and would fill the picture at the end of every
+pass, hiding the steady state the talk's figures are about. The efficiency table counts it.
 """
 from collections import deque
 
@@ -21,10 +27,13 @@ from toolkit.core.simd import PhaseCounter
 
 SAMPLED_WARPS = 4     # warps drawn side by side
 KEPT_STEPS = 96       # the most recent steps kept (rows of the picture)
+GOLDEN = (5 ** 0.5 - 1) / 2
 
 # RGBA colours: a busy lane by phase, an idle lane, and the gap between two warps.
 BUSY = {"extend": (52, 120, 198, 255), "walk": (52, 120, 198, 255), "generate": (230, 126, 34, 255)}
 BUSY_OTHER = (120, 80, 170, 255)
+DRAIN = "drain"                   # the marker row's phase
+DRAIN_ROW = (70, 70, 70, 255)
 IDLE = (225, 225, 225, 255)
 GAP = (255, 255, 255, 255)
 
@@ -43,6 +52,11 @@ class WarpSampler(PhaseCounter):
         super().add_stream_step(phase, mask_or_count, length, iteration, capacity, draining)
         if iteration is None:
             return
+        if draining:     # the pass's final drain: one marker row for all of it (see the module's docstring)
+            if not self.rows or self.rows[-1][0] != DRAIN:
+                self.rows.append((DRAIN, np.zeros(self.warps * self.warp_width, bool)))
+                self.steps += 1
+            return
         if np.ndim(mask_or_count) == 0:       # a count of lanes packed at the start of the launch
             busy = np.ones(int(mask_or_count), bool)
         else:
@@ -59,11 +73,13 @@ class WarpSampler(PhaseCounter):
             self.steps += 1
 
     def sampled(self, lanes):
-        """The lanes of `warps` warps spread evenly over the launch (its first warps would be the
-        image's top row, or a compacted stream's always-full head), padded with idle lanes."""
+        """The lanes of `warps` warps spread over the launch, padded with idle lanes. Not its first
+        warps (the image's top row, or a compacted stream's always-full head), nor evenly spaced
+        ones: a pass is whole images of samples, so even spacing picks the same pixels in each.
+        Golden-ratio steps land on warps far apart in the launch and in the image."""
         w, k = self.warp_width, self.warps
         launched = -(-len(lanes) // w)
-        picks = np.unique(((np.arange(k) + 0.5) * launched / k).astype(int)) if launched else []
+        picks = np.unique((np.modf((np.arange(k) + 1) * GOLDEN)[0] * launched).astype(int)) if launched else []
         out = np.zeros(k * w, lanes.dtype)
         for i, warp in enumerate(picks):
             part = lanes[warp * w:(warp + 1) * w]
@@ -75,14 +91,18 @@ def lanes_picture(rows, warp_width, warps=SAMPLED_WARPS, steps=KEPT_STEPS):
     """An RGBA image (steps, warps x (W + 1) - 1, 4) of uint8: row i is the i-th of the last
     `steps` rows (phase, busy lanes), oldest at the top; each lane one pixel: busy in its
     phase's colour (BUSY), idle light grey (IDLE), and blank (GAP) where its warp did not issue
-    the step at all (no lane busy: the counters count no issued lanes for it either). A blank
-    column separates two warps; rows not yet rendered are blank."""
+    the step at all (no lane busy: the counters count no issued lanes for it either); a pass's
+    final drain is one dark row (DRAIN_ROW). A blank column separates two warps; rows not yet
+    rendered are blank."""
     width = warps * (warp_width + 1) - 1
     picture = np.empty((steps, width, 4), np.uint8)
     picture[:] = GAP
     lane = np.arange(warps * warp_width)
     columns = lane + lane // warp_width         # warp w's lanes start at pixel w x (W + 1)
     for i, (phase, busy) in enumerate(list(rows)[-steps:]):
+        if phase == DRAIN:
+            picture[i, columns] = DRAIN_ROW
+            continue
         busy = np.asarray(busy, bool)[:len(lane)]
         issued = np.repeat(busy.reshape(-1, warp_width).any(1), warp_width)
         picture[i, columns[issued]] = IDLE

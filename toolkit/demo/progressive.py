@@ -2,10 +2,11 @@
 watch: `advance()` runs one short pass and returns.
 
 A plain `toolkit.render` runs its whole sample budget before it returns. The live view needs the
-image between passes, and controls (pause, a new technique) that act within a fraction of a
-second, so here the render loop of Technique.render is run one pass per call, and the pass is
-sized to take about `pass_seconds` on this device. Metropolis (mlt) is no pass-based technique:
-its chains keep running, and each call runs iterations of every chain until the time is up.
+image between passes, and controls (pause, a new technique) that act within a pass, so here the
+render loop of Technique.render is run one pass per call, with the plain render's passes (about
+2^18 samples: a quarter to half a second on the 2-core CPU). Metropolis (mlt) is no pass-based
+technique: its chains keep running, and each call runs iterations of every chain for about
+pass_seconds.
 """
 import time
 
@@ -17,10 +18,10 @@ from toolkit.techniques import get_technique
 from toolkit.techniques.base import pixel_count
 from toolkit.demo.lanes_picture import WarpSampler
 
-# Seconds one pass should take: short enough that a pause or a change acts at once, long enough
-# that the per-pass work (the film's sum, the counters, the page's update) stays a small share.
+# Seconds a pass should about take: a pass of over four times this is halved, so that a pause or a
+# change still acts within about a second; the per-pass work (the film, the counters, the page's
+# update) stays a small share of it.
 PASS_SECONDS = 0.25
-STREAMS_PER_PASS = 8
 
 
 class ProgressiveRender:
@@ -39,27 +40,22 @@ class ProgressiveRender:
         self.film = Film(width, height)
         self.seconds = 0.0          # time spent rendering (this technique's passes only)
         self.spp = 0                # samples per pixel so far
-        # A stream technique needs passes of several streams' worth of samples, or each pass is mostly a
-        # start and a drain: its steady state (the talk's figures) never shows, and the drains cost samples/s
-        # (4 streams a pass lost ~10% against a plain render's 8 on the 2-core CPU). At least STREAMS_PER_PASS.
-        in_flight = getattr(self.tech, "stream_size", None) or getattr(self.tech, "pool_size", None) or 1
-        self.pass_spp = max(1, -(-STREAMS_PER_PASS * in_flight // (width * height)))   # then grows to pass_seconds
+        # The passes of a plain render (Technique.passes: about 2^18 samples, several streams' worth for the
+        # stream techniques, so their steady state shows and their drains cost as little as there); halved
+        # only where one takes far longer than pass_seconds (a slow device, a large image).
+        self.pass_spp = self.tech.passes(width * height, 1 << 30)
 
     def advance(self):
         """Render one pass (pass_spp samples per pixel, same seeds as a plain render would use)."""
-        pixels = pixel_count(self.camera)
-        count = min(self.pass_spp, self.tech.passes(pixels, 1 << 30))   # never past the technique's own batch
+        count = self.pass_spp
         start = time.perf_counter()
         self.tech.run_pass(self.film, self.camera, self.seed, self.spp, count)
         self.tech.finish_collect()
         took = time.perf_counter() - start
         self.seconds += took
         self.spp += count
-        # Aim the next pass at pass_seconds (within a factor of two per step: no oscillation).
-        if took < self.pass_seconds / 2:
-            self.pass_spp *= 2
-        elif took > 2 * self.pass_seconds and self.pass_spp > 1:
-            self.pass_spp //= 2
+        if took > 4 * self.pass_seconds and self.pass_spp > 1:
+            self.pass_spp //= 2      # a control should act within about a second
 
     def image(self):
         return self.film.image()

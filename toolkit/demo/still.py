@@ -22,8 +22,8 @@ def still_png(snapshot):
         for phase, value in frame.efficiency.items():
             talk = talk_figure(frame.technique, phase)
             figures.append(f"{phase} {value:.0%}" + (f" (talk ~{talk:.0%})" if talk is not None else ""))
-        axes[1, column].set_title("SIMD efficiency: " + ", ".join(figures[:3]) + "\n" + ", ".join(figures[3:]),
-                                  fontsize=7)
+        lines = [", ".join(figures[i:i + 2]) for i in range(0, len(figures), 2)]
+        axes[1, column].set_title("SIMD efficiency\n" + "\n".join(lines), fontsize=7)
         axes[1, column].set_xlabel(f"lanes of the sampled warps (W = {snapshot.warp_width})")
         axes[1, column].set_ylabel("step (newest at the bottom)")
         axes[0, column].set_xticks([])

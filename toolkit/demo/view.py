@@ -30,7 +30,9 @@ LANES_NOTE = (
     "Each row is one step of the technique (newest at the bottom), each pixel one lane of {warps} warps of "
     "{w} lanes spread over the step's launch: <span style='color:rgb{extend}'>■</span> busy extending a path, "
     "<span style='color:rgb{generate}'>■</span> busy starting a sample, <span style='color:#bbb'>■</span> idle "
-    "in a warp that issued the step, blank: the warp had no work and did not issue it. From the SIMD counters "
+    "in a warp that issued the step, blank: the warp had no work and did not issue it; a dark line: the final "
+    "drain of a pass (every sample started, the stream emptying), left out here and counted in the table. "
+    "From the SIMD counters "
     "(toolkit/core/simd.py): the lanes each counted step had busy, as the kernels reported them.")
 
 
