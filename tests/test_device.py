@@ -63,11 +63,24 @@ def test_environment_variable_overrides(monkeypatch):
         device.pick_device()
 
 
+# PoCL 3.0's LLVM 14 knows no CPU newer than Zen 4: on a Zen 5 its probe fails with this, and the
+# toolkit falls back to Intel's CPU runtime (issue 17). The one failure the suite expects.
+POCL_UNKNOWN_CPU = "unknown target CPU"
+
+
+def pocl_fails_on_this_cpu():
+    return any("Portable" in c.platform.name and not c.usable and POCL_UNKNOWN_CPU in c.reason
+               for c in device.candidates())
+
+
 def test_every_device_passes_the_probe_here():
     """The machines this suite runs on can build with every implementation they have (PoCL and
-    Intel's CPU runtime on x86-64 Linux); a failing probe here is a regression to look at."""
+    Intel's CPU runtime on x86-64 Linux); a failing probe here is a regression to look at, but
+    for PoCL 3.0 on a CPU its LLVM does not know (POCL_UNKNOWN_CPU)."""
     found = [c for c in device.candidates() if "TOOLKIT_HIDE_PLATFORMS" not in c.reason]
-    assert found and all(c.usable for c in found), [(c.implementation, c.reason) for c in found]
+    failing = [c for c in found if not c.usable
+               and not ("Portable" in c.platform.name and POCL_UNKNOWN_CPU in c.reason)]
+    assert found and any(c.usable for c in found) and not failing, [(c.implementation, c.reason) for c in found]
     if platform.system() == "Linux" and platform.machine() == "x86_64":
         names = {c.platform.name for c in found}
         assert any("Intel" in n for n in names), f"intel-opencl-rt is a dependency here; found {names}"
@@ -123,6 +136,9 @@ def test_without_pocl_the_fallback_is_picked_and_renders_the_same_image(tmp_path
     to float rounding. Both runs pick automatically, whatever device this suite runs on."""
     if not (platform.system() == "Linux" and platform.machine() == "x86_64"):
         pytest.skip("Intel's CPU runtime (the fallback) is installed on x86-64 Linux only")
+    if pocl_fails_on_this_cpu():
+        pytest.skip("PoCL 3.0 fails its probe on this CPU (unknown to its LLVM): the fallback is what "
+                    "every test here already runs on, and there is no PoCL image to compare with")
     summaries = {}
     for name, hide in (("pocl", ""), ("fallback", "portable")):
         result = run_cli("render", "--spp", "2", "--resolution", "16x16", "--seed", "5", "--no-progress",
