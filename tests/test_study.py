@@ -294,7 +294,8 @@ def test_study_command_end_to_end(tmp_path, capsys):
     report = json.loads(printed.strip().splitlines()[-1])
     assert json.loads((out / "study.json").read_text()) == report
     assert "slope" in printed and "bias^2" in printed and "pt_naive" in printed
-    assert set(report["plots"]) == {"rmse_vs_time", "bias_variance", "image_strip"}
+    # Two budgets: the image grid (every run at every budget beside the reference, issue 40's figure) too.
+    assert set(report["plots"]) == {"rmse_vs_time", "bias_variance", "image_strip", "image_grid"}
     for path in report["plots"].values():
         assert open(path, "rb").read(8) == b"\x89PNG\r\n\x1a\n"
     assert report["runs"]["pt_naive"]["plan"] == [4, 8] and report["budget_unit"] == "spp"

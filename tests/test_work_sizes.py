@@ -15,7 +15,7 @@ from toolkit.opencl import device
 from toolkit.opencl import program
 from toolkit.core.layout import BDPT_VERTEX
 from toolkit.core.validate import InputError
-from toolkit.opencl.work_sizes import (CPU_POOL_SIZE, CPU_STREAM_SIZE, INT_MAX, buffer_plan, check_fits,
+from toolkit.opencl.work_sizes import (CPU_CHAINS_PER_UNIT, CPU_POOL_SIZE, CPU_STREAM_SIZE, INT_MAX, buffer_plan, check_fits,
                                 choose_work_sizes, device_work_sizes, problems)
 from toolkit.cli import devices_report
 
@@ -129,3 +129,16 @@ def test_a_given_size_is_used_and_does_not_change_the_image(cornell_box, techniq
 def test_devices_shows_the_sizes(queue):
     sizes = device_work_sizes(queue.device)
     assert f"in flight: {sizes.text()}" in devices_report()
+
+
+def test_mlt_chains_fill_the_device_and_no_more():
+    """mlt's chains (issue 40): every chain more adds startup bias, so a CPU gets a few
+    work-groups' worth per core (CPU_CHAINS_PER_UNIT), not its whole BDPT pool; a GPU one per
+    resident work-item, within the chains' limit of 2^18 (an H200 has 270,336)."""
+    cpu = choose_work_sizes(False, compute_units=2, max_alloc=4 * GiB, global_memory=16 * GiB)
+    assert cpu.chains == 2 * CPU_CHAINS_PER_UNIT < cpu.pool_size
+    many_cores = choose_work_sizes(False, compute_units=64, max_alloc=4 * GiB, global_memory=16 * GiB)
+    assert many_cores.chains == many_cores.pool_size            # never more chains than slots
+    assert choose_work_sizes(**H200).chains == 1 << 18
+    small_gpu = dict(H200, name="RTX 2080", compute_units=46, compute_capability=(7, 5))
+    assert choose_work_sizes(**small_gpu).chains == 46 * 1024

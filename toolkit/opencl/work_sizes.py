@@ -23,12 +23,19 @@ from dataclasses import dataclass
 import pyopencl as cl
 
 from toolkit.core.layout import BDPT_SLOT, BDPT_VERTEX, LANE_COUNTS, PATH_STATE, SHADOW_RAY, SUBPATH
-from toolkit.core.validate import InputError, whole_number
+from toolkit.core.validate import LIMITS, InputError, whole_number
 from toolkit.opencl.device_model import device_warp_width, vendor_of
 from toolkit.opencl.device_model import is_gpu as device_is_gpu
 
 CPU_STREAM_SIZE = 1 << 15      # paths per PT stream on a CPU (the project's size since the start)
 CPU_POOL_SIZE = 1 << 12        # BDPT samples in flight on a CPU
+CPU_CHAINS_PER_UNIT = 512      # mlt's chains per CPU core: CHAINS_MEASURED below
+# mlt's chains. Every chain must make many mutations before its start is forgotten (startup
+# bias: the talk's "many parallel samplers means lots of bias"), so there should be as few
+# chains as keep the device busy. A GPU needs one per resident work-item (its pool size). A CPU
+# core runs one work-group at a time: a few groups per core balance the cores, and more chains
+# only add bias. CHAINS_MEASURED: on door_ajar, 64x64, a 2-core EPYC, 10 s and 60 s
+# (results/issue40_mlt_door.md), 512 chains had the lowest error, 4,096 (the pool) the highest.
 
 # NVIDIA: maximum resident threads per SM, by compute capability (CUDA C++ Programming Guide,
 # "Technical Specifications per Compute Capability", row "Maximum number of resident threads
@@ -56,11 +63,13 @@ MEMORY_SHARE = 4               # stream + pool memory at most global memory / ME
 @dataclass(frozen=True)
 class WorkSizes:
     stream_size: int     # paths in flight in pt_inplace_regen and pt_compact_regen
-    pool_size: int       # samples in flight in the BDPT techniques (mlt: its default chain count)
+    pool_size: int       # samples in flight in the BDPT techniques and mlt
     why: str             # how they were chosen, for `devices`, render and compare
+    chains: int = None   # mlt's chains: enough to fill the device, no more (CPU_CHAINS_PER_UNIT)
 
     def text(self):
-        return f"stream {self.stream_size:,} paths, BDPT pool {self.pool_size:,} samples ({self.why})"
+        return (f"stream {self.stream_size:,} paths, BDPT pool {self.pool_size:,} samples, "
+                f"mlt {self.chains:,} chains ({self.why})")
 
 
 def resident_per_unit(vendor="", vendor_id=None, warp_width=32, compute_capability=None,
@@ -87,7 +96,7 @@ def resident_per_unit(vendor="", vendor_id=None, warp_width=32, compute_capabili
 def choose_work_sizes(is_gpu, compute_units=1, max_alloc=None, global_memory=None, max_vertices=64,
                       **vendor):
     """WorkSizes for a device described by these properties (device_work_sizes reads them):
-    - a CPU: CPU_STREAM_SIZE and CPU_POOL_SIZE (module docstring);
+    - a CPU: CPU_STREAM_SIZE and CPU_POOL_SIZE (module docstring), and mlt_chains;
     - a GPU: both = compute units x resident work-items per unit (resident_per_unit), rounded
       up to a multiple of 256, so every resident slot of the GPU holds a path or a sample.
     Both then shrink (halving) until the buffers fit the device (fits)."""
@@ -105,7 +114,14 @@ def choose_work_sizes(is_gpu, compute_units=1, max_alloc=None, global_memory=Non
         pool, shrunk = pool // 2, True
     if shrunk:
         why += "; halved to fit the device's memory"
-    return WorkSizes(stream, pool, why)
+    return WorkSizes(stream, pool, why, mlt_chains(is_gpu, compute_units, pool))
+
+
+def mlt_chains(is_gpu, compute_units, pool):
+    """mlt's chains on a device (see CPU_CHAINS_PER_UNIT): a GPU's resident work-items (its
+    pool), a CPU's cores x CPU_CHAINS_PER_UNIT; never more than the pool nor the chains' limit (LIMITS)."""
+    chains = pool if is_gpu else max(1, int(compute_units)) * CPU_CHAINS_PER_UNIT
+    return min(chains, pool, LIMITS["mlt.chains"][1])
 
 
 def device_properties(device):

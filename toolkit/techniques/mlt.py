@@ -68,7 +68,7 @@ Options (keyword arguments of toolkit.render(..., options=...)):
 
 | option | default | meaning |
 | --- | --- | --- |
-| `chains` | the BDPT pool size (4096 on a CPU; `devices` shows it) | independent chains; 1 .. 2^18 (`mlt.chains`), at most the mutations of the render |
+| `chains` | the device's (`devices` shows it; toolkit/opencl/work_sizes.py mlt_chains): a GPU's resident work-items, CPU_CHAINS_PER_UNIT per core on a CPU: enough to fill the device, as every chain more adds startup bias | independent chains; 1 .. 2^18 (`mlt.chains`), at most the mutations of the render |
 | `large_step` | 0.3 | probability of a large step (every dimension fresh) |
 | `small_step` | 1/16 | the largest size of a small step, Kelemen's s2 (the smallest, s1, is s2 / 16); see SMALL_STEP |
 | `start` | `naive` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of its own `candidates` large steps, chosen in proportion to f, and weighted. `pool`: at one of all chains' candidates, chosen in proportion to f, weight 1. At equal time (30 s, 32x32, two-core CPU) pool's RMSE was 0.0064 against naive's 0.0066 on covered_lamp and 0.0091 against 0.019 on cornell_spheres, where naive chains are still biased; on cornell_box, where they are not, naive was ahead (0.0060 against 0.0072). At 10 s (3 repetitions, results/issue10_mlt.md) pool removes naive's detected bias on covered_lamp and cornell_spheres but adds variance (chains that start at the same bright candidate): RMSE 0.113 against 0.108 (covered_lamp), 0.072 against 0.128 (cornell_spheres). `naive` stays the default, as in the talk: its start is one iteration |
@@ -90,7 +90,8 @@ import pyopencl as cl
 
 from toolkit.core.film import Film
 from toolkit.core.layout import MLT_CHAIN, MLT_ITERATION, MltMode
-from toolkit.core.validate import LIMITS, InputError, finite_number, whole_number
+from toolkit.core.validate import InputError, finite_number, whole_number
+from toolkit.opencl.work_sizes import device_work_sizes
 from toolkit.techniques.base import pixel_count
 from toolkit.techniques.bdpt_evaluator import BdptEvaluator, BdptPoolTechnique, per_pixel_sums
 from toolkit.techniques.bdpt_parallel_connect import ParallelConnect
@@ -128,8 +129,8 @@ class Mlt(BdptPoolTechnique):
                    # cl/mlt_proposals.h mlt_index: a CPU reads a vertex's dimensions from one cache line
                    "MLT_CHAIN_MAJOR": bool(queue.device.type & cl.device_type.CPU)}
         super().__init__(queue, device_scene, defines, pool_size, coalesced_scatter, **kwargs)
-        if self.chain_count is None:   # one chain per slot of the BDPT pool, within the chains' limit
-            self.chain_count = min(self.pool_size, LIMITS["mlt.chains"][1])
+        if self.chain_count is None:   # enough to fill the device, no more (toolkit/opencl/work_sizes.py mlt_chains)
+            self.chain_count = min(device_work_sizes(queue.device, self.max_vertices).chains, self.pool_size)
         if regenerate_fraction is None:
             # One connect phase per iteration, after its last proposal has terminated: when the
             # pool holds every chain's proposal, no slot is regenerated before the chains accept,

@@ -1,6 +1,8 @@
-"""The study's three plots: RMSE against time (log-log, with the 1/sqrt(t) guide), bias^2 and
-variance stacked per run at the largest budget, and an image strip with false-colour error at
-equal time. Each file is written to a temporary file and renamed over the old one."""
+"""The study's plots: RMSE against time (log-log, with the 1/sqrt(t) guide), bias^2 and
+variance stacked per run at the largest budget, an image strip with false-colour error at
+equal time, and, with more than one budget, the image grid: every run at every budget beside
+the reference (the talk's figure of MLT at 10 s, 1 min and 10 min). Each file is written to a
+temporary file and renamed over the old one."""
 import numpy as np
 
 from toolkit.core.images import to_srgb8, write_atomically
@@ -9,8 +11,9 @@ from toolkit.measure.study.report import slope_text
 
 
 def save_plots(report, renders, scene, out_dir):
-    """The three plots of `report` in `out_dir`: {"rmse_vs_time", "bias_variance", "image_strip"}: paths
-    (bias_variance only where every run has a bias^2). `renders` as in report.run_report."""
+    """The plots of `report` in `out_dir`: {"rmse_vs_time", "bias_variance", "image_strip", "image_grid"}:
+    paths (bias_variance only where every run has a bias^2, image_grid only with several budgets).
+    `renders` as in report.run_report."""
     # Imported here: matplotlib takes ~0.5 s to import, and only a study written to disk plots.
     from matplotlib.figure import Figure
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -23,6 +26,9 @@ def save_plots(report, renders, scene, out_dir):
         paths["bias_variance"] = _save(_bias_variance(fig, report), out_dir / f"{name}_study_bias_variance.png")
     fig = Figure(figsize=(2.6 * len(report["runs"]) + 1, 5.6))
     paths["image_strip"] = _save(_image_strip(fig, report, renders, scene), out_dir / f"{name}_study_image_strip.png")
+    if len(report["budgets"]) > 1:
+        fig = Figure(figsize=(2.1 * (len(report["budgets"]) + 1), 2.4 * len(report["runs"]) + 0.4))
+        paths["image_grid"] = _save(_image_grid(fig, report, renders, scene), out_dir / f"{name}_study_image_grid.png")
     return paths
 
 
@@ -103,4 +109,34 @@ def _image_strip(fig, report, renders, scene):
             a.set_yticks([])
     fig.colorbar(im, ax=axes[1, :].tolist(), label="|error| (radiance, mean of RGB)", shrink=0.8)
     fig.suptitle(f"{report['scene']}: equal time, the largest budget, first repetition", fontsize=9)
+    return fig
+
+
+def _image_grid(fig, report, renders, scene):
+    """A row per run, a column per budget (the first repetition), the reference at the end of
+    the first row; one exposure for all, from the reference (its 98th percentile shows white, so
+    that a few bright pixels, a light or a crack, do not leave the rest dark)."""
+    runs, budgets = report["runs"], report["budgets"]
+    unit = "s" if report["budget_unit"] == "seconds" else "spp"
+    first = next(iter(runs.values()))
+    ref, ref_err = reference_at(scene, *first["resolution"])
+    noise = float((ref_err ** 2).mean())     # the reference's own, taken out of each RMSE as in figures.py
+    exposure = 1.0 / max(float(np.percentile(ref.mean(-1), 98)), 1e-12)
+    axes = fig.subplots(len(runs), len(budgets) + 1, squeeze=False)
+    for i, (label, run) in enumerate(runs.items()):
+        for k, point in enumerate(run["points"]):
+            image = renders[(label, k)]["images"][0]
+            axes[i, k].imshow(to_srgb8((image * exposure).astype(np.float32)))
+            rel = np.sqrt(max(point["rmse_each"][0] ** 2 - noise, 0.0)) / point["reference_mean"]
+            spp = "" if unit == "spp" else f" ({point['spp']} spp)"
+            axes[i, k].set_title(f"{label}, {budgets[k]:g} {unit}{spp}\nrel. RMSE {rel:.1%}", fontsize=8)
+        axes[i, -1].axis("off")
+    axes[0, -1].axis("on")
+    axes[0, -1].imshow(to_srgb8((ref * exposure).astype(np.float32)))
+    axes[0, -1].set_title("reference", fontsize=8)
+    for a in axes.flat:
+        a.set_xticks([])
+        a.set_yticks([])
+    fig.suptitle(f"{report['scene']}: each run at each budget (first repetition), one exposure", fontsize=9)
+    fig.tight_layout()
     return fig
