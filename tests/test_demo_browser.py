@@ -89,3 +89,26 @@ def test_demo_in_a_browser(demo_server):
     assert server.wait(timeout=30) == 0
     output = server.stdout.read()
     assert "the last tab was closed" in output and "Traceback" not in output, output
+
+
+@pytest.mark.skipif(BROWSER is None, reason="no headless browser (chromium) installed: apt-get install chromium")
+def test_two_tabs_at_once(demo_server):
+    """Two tabs (two browsers: two sessions, each with its own render thread) both converge; closing
+    one leaves the other live, and the server stops only when the second has closed too."""
+    pytest.importorskip("websocket", reason="websocket-client drives the browser: pip install '.[test]'")
+    server, url = demo_server
+    with ChromiumPage(900, 1200) as first, ChromiumPage(900, 1200) as second:
+        first.open(url)
+        second.open(url)
+        for tab in (first, second):
+            seen = changes_seen(tab, "pt_naive", 2)
+            assert seen >= 2, f"a tab's image changed {seen} times; it says: {tab.evaluate(STATUS)}"
+        errors = list(first.errors)
+        first.close()
+        assert changes_seen(second, "pt_naive", 2) >= 2, "the other tab stopped when the first was closed"
+        assert server.poll() is None, "the server stopped while a tab was still open"
+        errors += second.errors
+    assert not errors, errors
+    assert server.wait(timeout=30) == 0
+    output = server.stdout.read()
+    assert "the last tab was closed" in output and "Traceback" not in output, output
