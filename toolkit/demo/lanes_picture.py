@@ -47,6 +47,7 @@ class WarpSampler(PhaseCounter):
         self.warps = warps
         self.rows = deque(maxlen=kept)
         self.steps = 0     # rows ever added: the picture changes when this does
+        self._picks = {}   # launch size -> sampled_lanes
 
     def add_stream_step(self, phase, mask_or_count, length=None, iteration=None, capacity=None, draining=False):
         super().add_stream_step(phase, mask_or_count, length, iteration, capacity, draining)
@@ -77,14 +78,28 @@ class WarpSampler(PhaseCounter):
         warps (the image's top row, or a compacted stream's always-full head), nor evenly spaced
         ones: a pass is whole images of samples, so even spacing picks the same pixels in each.
         Golden-ratio steps land on warps far apart in the launch and in the image."""
-        w, k = self.warp_width, self.warps
-        launched = -(-len(lanes) // w)
-        picks = np.unique((np.modf((np.arange(k) + 1) * GOLDEN)[0] * launched).astype(int)) if launched else []
-        out = np.zeros(k * w, lanes.dtype)
-        for i, warp in enumerate(picks):
-            part = lanes[warp * w:(warp + 1) * w]
-            out[i * w:i * w + len(part)] = part
+        index = self._picks.get(len(lanes))
+        if index is None:   # a launch size seen first: where each drawn lane comes from (-1: padding)
+            index = self._picks[len(lanes)] = sampled_lanes(len(lanes), self.warp_width, self.warps)
+        out = np.zeros(len(index), lanes.dtype)
+        drawn = index >= 0
+        out[drawn] = lanes[index[drawn]]
         return out
+
+
+def sampled_lanes(launched_lanes, warp_width, warps):
+    """For WarpSampler.sampled: the index into a launch of `launched_lanes` lanes of each lane drawn,
+    `warps` warps of `warp_width` lanes at golden-ratio steps over the launch; -1 where a picked warp
+    runs past the launch's end, or fewer warps than `warps` were launched. Worked out once per
+    launch size: in-place regeneration counts hundreds of steps a pass, all of the same size."""
+    w, k = warp_width, warps
+    launched = -(-launched_lanes // w)
+    picks = np.unique((np.modf((np.arange(k) + 1) * GOLDEN)[0] * launched).astype(int)) if launched else []
+    index = np.full(k * w, -1, np.int64)
+    for i, warp in enumerate(picks):
+        lanes = np.arange(warp * w, min((warp + 1) * w, launched_lanes))
+        index[i * w:i * w + len(lanes)] = lanes
+    return index
 
 
 def lanes_picture(rows, warp_width, warps=SAMPLED_WARPS, steps=KEPT_STEPS):
