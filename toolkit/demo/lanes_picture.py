@@ -47,7 +47,7 @@ class WarpSampler(PhaseCounter):
         self.warps = warps
         self.rows = deque(maxlen=kept)
         self.steps = 0     # rows ever added: the picture changes when this does
-        self._picks = {}   # launch size -> sampled_lanes
+        self._picks = (None, None)   # (launch size, its sampled_lanes): the last size seen
 
     def add_stream_step(self, phase, mask_or_count, length=None, iteration=None, capacity=None, draining=False):
         super().add_stream_step(phase, mask_or_count, length, iteration, capacity, draining)
@@ -78,9 +78,10 @@ class WarpSampler(PhaseCounter):
         warps (the image's top row, or a compacted stream's always-full head), nor evenly spaced
         ones: a pass is whole images of samples, so even spacing picks the same pixels in each.
         Golden-ratio steps land on warps far apart in the launch and in the image."""
-        index = self._picks.get(len(lanes))
-        if index is None:   # a launch size seen first: where each drawn lane comes from (-1: padding)
-            index = self._picks[len(lanes)] = sampled_lanes(len(lanes), self.warp_width, self.warps)
+        size, index = self._picks
+        if size != len(lanes):   # only the last size is kept: a compacted stream's length changes every step
+            index = sampled_lanes(len(lanes), self.warp_width, self.warps)
+            self._picks = (len(lanes), index)
         out = np.zeros(len(index), lanes.dtype)
         drawn = index >= 0
         out[drawn] = lanes[index[drawn]]

@@ -30,6 +30,8 @@ from toolkit.core.private_folder import private_folder, user_tag
 # pyopencl holds its lock only while it reads or writes one cache entry, for milliseconds; a lock
 # this old was left by a process that no longer runs (pyopencl itself gives up after 60 s).
 STALE_LOCK_SECONDS = 20.0
+# The option that keeps kernels' parameter names (program.build(arg_info=True)); such builds skip the cache.
+ARG_INFO_OPTION = "-cl-kernel-arg-info"
 
 
 
@@ -150,7 +152,7 @@ def build_with_cache(program, options, compiler_warning):
     # A binary loses its parameters' names: Intel's CPU runtime answers get_arg_info of a program
     # made from a cached binary with KERNEL_ARG_INFO_NOT_AVAILABLE, though it was built with
     # -cl-kernel-arg-info. Such a build (tests/test_kernel_args.py) is made from source every time.
-    cache_dir = False if "-cl-kernel-arg-info" in options else build_cache_dir()
+    cache_dir = False if ARG_INFO_OPTION in options else build_cache_dir()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         program = program.build(options=options, cache_dir=cache_dir)

@@ -20,7 +20,7 @@ import pyopencl as cl
 from toolkit.core.layout import c_header
 from toolkit.core.package_data import data_dir
 from toolkit.opencl import kernel_times, lanes, stubs
-from toolkit.opencl.kernel_cache import build_with_cache
+from toolkit.opencl.kernel_cache import ARG_INFO_OPTION, build_with_cache
 
 # The default work-group size. A program is built for one local size (the LOCAL_SIZE define: the
 # kernels' reqd_work_group_size and __local arrays) and must be launched with it: the techniques
@@ -248,7 +248,7 @@ def build_inputs(context, name, defines=None, directory=None, arg_info=False):
     source = lanes.source_prefix(setting, device.native_vector_width_float) + expand_includes(name, directory)
     options = define_options(defines)
     if arg_info:
-        options.append("-cl-kernel-arg-info")
+        options.append(ARG_INFO_OPTION)
     if os.environ.get("TOOLKIT_WERROR") == "1":
         options.append("-Werror")  # the test suite: any compiler warning fails the build
     if "Intel" in device.platform.name:
