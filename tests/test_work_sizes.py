@@ -132,8 +132,8 @@ def test_devices_shows_the_sizes(queue):
 
 
 def test_mlt_chains_fill_the_device_and_no_more():
-    """mlt's chains (issue 40): every chain more adds startup bias, so a CPU gets a few
-    work-groups' worth per core (CPU_CHAINS_PER_UNIT), not its whole BDPT pool; a GPU one per
+    """mlt's chains (issue 40): every chain more adds startup bias, so a CPU gets as many per core
+    as hide an iteration's fixed launch costs (CPU_CHAINS_PER_UNIT), not its whole BDPT pool; a GPU one per
     resident work-item, within the chains' limit of 2^18 (an H200 has 270,336)."""
     cpu = choose_work_sizes(False, compute_units=2, max_alloc=4 * GiB, global_memory=16 * GiB)
     assert cpu.chains == 2 * CPU_CHAINS_PER_UNIT < cpu.pool_size

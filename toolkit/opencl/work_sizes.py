@@ -29,13 +29,17 @@ from toolkit.opencl.device_model import is_gpu as device_is_gpu
 
 CPU_STREAM_SIZE = 1 << 15      # paths per PT stream on a CPU (the project's size since the start)
 CPU_POOL_SIZE = 1 << 12        # BDPT samples in flight on a CPU
-CPU_CHAINS_PER_UNIT = 512      # mlt's chains per CPU core: CHAINS_MEASURED below
+CPU_CHAINS_PER_UNIT = 1024     # mlt's chains per CPU core: CHAINS_MEASURED below
 # mlt's chains. Every chain must make many mutations before its start is forgotten (startup
 # bias: the talk's "many parallel samplers means lots of bias"), so there should be as few
-# chains as keep the device busy. A GPU needs one per resident work-item (its pool size). A CPU
-# core runs one work-group at a time: a few groups per core balance the cores, and more chains
-# only add bias. CHAINS_MEASURED: on door_ajar, 64x64, a 2-core EPYC, 10 s and 60 s
-# (results/issue40_mlt_door.md), 512 chains had the lowest error, 4,096 (the pool) the highest.
+# chains as keep the device busy. A GPU needs one per resident work-item (its pool size). On a
+# CPU the lanes are few, but each iteration's ~60 launches (two walk steps per vertex of the
+# longest subpath) cost a fixed time each: a CPU is full when an iteration's work hides that
+# cost. CHAINS_MEASURED (results/issue40_mlt_door.md; door_ajar, 64x64, a 2-core EPYC, Intel's
+# runtime): mutations/s at steady state 159k with 512 chains, 222k with 1,024, 267k with 2,048,
+# 285k with 4,096, ~270k beyond: 2,048 (1,024 per core) is within 10% of the most. At equal time
+# (60 s, 3 runs each) 2,048 chains had the lowest error: relative RMSE 0.123, against 0.135
+# with 1,024 (variance: fewer mutations) and 0.132 with 4,096 (startup bias, z = 3.9).
 
 # NVIDIA: maximum resident threads per SM, by compute capability (CUDA C++ Programming Guide,
 # "Technical Specifications per Compute Capability", row "Maximum number of resident threads
