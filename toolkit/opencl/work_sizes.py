@@ -33,8 +33,8 @@ CPU_CHAINS_PER_UNIT = 1024     # mlt's chains per CPU core: CHAINS_MEASURED belo
 # mlt's chains. Every chain must make many mutations before its start is forgotten (startup
 # bias: the talk's "many parallel samplers means lots of bias"), so there should be as few
 # chains as keep the device busy. A GPU needs one per resident work-item (its pool size). On a
-# CPU the lanes are few, but each iteration's ~60 launches (two walk steps per vertex of the
-# longest subpath) cost a fixed time each: a CPU is full when an iteration's work hides that
+# CPU the lanes are few, but each iteration's ~60 launches (one per stream and walk step, ~30 steps on
+# door_ajar: its longest subpath) cost a fixed time each: a CPU is full when an iteration's work hides that
 # cost. CHAINS_MEASURED (results/issue40_mlt_door.md; door_ajar, 64x64, a 2-core EPYC, Intel's
 # runtime): mutations/s at steady state 159k with 512 chains, 222k with 1,024, 267k with 2,048,
 # 285k with 4,096, ~270k beyond: 2,048 (1,024 per core) is within 10% of the most. At equal time

@@ -7,9 +7,10 @@ The standard error comes from the spread of `passes` independent renders (seeds 
 each of `spp` samples per pixel. `path` is the integrator the shared scenes' references were
 made with. `ptracer` (Mitsuba's light tracer) is for scenes whose light reaches the camera's room
 only through a narrow opening, where a path tracer's eye paths rarely pass it: on door_ajar,
-light tracing's variance per second is ~90x lower (measured when the scene was made; results/issue40_mlt_door.md). Each pass's
-image is kept in `<folder>/reference_passes.npz` as it comes, so a long run that is stopped
-loses nothing: `--resume` carries on from there.
+light tracing's variance per second is ~90x lower (measured when the scene was made, commit
+de7443a; results/issue40_mlt_door.md). Each pass's image is kept in
+`<folder>/reference_passes.npz` as it comes, so a long run that is stopped loses nothing:
+`--resume` carries on from there.
 """
 import argparse
 import json
