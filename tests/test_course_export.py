@@ -13,6 +13,7 @@ import pytest
 
 from toolkit.cli import main
 from toolkit.grading.checks import ASSIGNMENTS
+from toolkit.grading.edition import STUDENT_SOURCES
 from toolkit.grading.export import export
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -103,7 +104,10 @@ def test_the_student_edition_holds_no_solution_body(editions):
     assert "instructor_guide" in (instructor / "docs/course.md").read_text()
     quick_start = lambda readme: readme.split("## Quick start")[1].split("```")[1]   # the two commands
     assert quick_start((student / "README.md").read_text()) == quick_start((ROOT / "README.md").read_text())
-    assert "STUDENT = True" in (student / "toolkit/core/edition.py").read_text()
+    # the one line that marks the edition (toolkit/grading/edition.py); the checkout's says "not the student's"
+    marked = f'DEFAULT_SOURCES = "{STUDENT_SOURCES}"'
+    assert marked in (student / "toolkit/opencl/program.py").read_text()
+    assert marked not in (instructor / "toolkit/opencl/program.py").read_text()
     # the docs' pages include these parts of the README: the student's README has them too
     from toolkit.grading.export import README_MARKS
     for mark in README_MARKS:
@@ -153,7 +157,8 @@ def test_the_student_editions_stubs_build_and_a_technique_says_what_it_needs(edi
     student, _ = editions
     built = _in(student, """
 from toolkit.core.scene import bundled_scene_dir, load_scene
-from toolkit.opencl import program, stubs
+from toolkit.grading import stubs
+from toolkit.opencl import program
 from toolkit.opencl.device import get_queue
 from toolkit.opencl.device_scene import DeviceScene
 from toolkit.techniques import BdptParallelConnect, PtCompactRegen, PtInplaceRegen
@@ -165,9 +170,9 @@ try:
     raise SystemExit("built from an untouched stub without a word")
 except stubs.AssignmentNotWritten as error:
     print(error)
-stubs.refused = set()   # build them all as they are: every stub must compile
+as_they_are = stubs.CourseSources(refused=set())   # build them all as they are: every stub must compile
 for cls in (PtCompactRegen, PtInplaceRegen, BdptParallelConnect):
-    cls(queue, scene)
+    cls(queue, scene, sources=as_they_are)
 print("built")
 """ % str(student))
     assert built.returncode == 0, built.stderr[-3000:]

@@ -10,7 +10,7 @@ from toolkit.core.scene import SceneError
 from toolkit.opencl import program
 from toolkit.opencl.device import NoOpenCLError
 from toolkit.opencl.program import KernelBuildError
-from toolkit.opencl.stubs import AssignmentNotWritten
+from toolkit.grading.stubs import AssignmentNotWritten
 
 __all__ = ["build_parser", "main", "devices_report"]
 

@@ -24,8 +24,8 @@ import re
 import secrets
 from pathlib import Path
 
-from toolkit.core import edition
 from toolkit.core.images import write_atomically
+from toolkit.grading import edition
 from toolkit.grading.checks import ASSIGNMENTS
 from toolkit.grading.grade import grade
 from toolkit.grading.report import format_report
@@ -88,7 +88,7 @@ def grade_class(submissions, out, names=None, time_limit=TIME_LIMIT, device=None
     """Grade every student of `submissions` for assignments `names` (all if None); write
     grades.csv and reports/ into `out`, on hidden inputs `inputs` (drawn if None). Returns
     ({student: {assignment: result}}, inputs)."""
-    if edition.STUDENT:
+    if edition.student():
         raise ValueError("this is the student edition: it lacks the reference solutions that the hidden checks "
                          "compare with; grade the class from the instructor edition")
     names = list(ASSIGNMENTS) if names is None else names

@@ -1,11 +1,14 @@
 """What a check works with: the device queue, the folder holding the submission, the bundled
 scenes on the device, and the techniques built from the submission or from the toolkit's files.
-A build from the submission finds its files through sources() (sources.py: what it may include)."""
+A build from the submission finds its files through sources() (sources.py: what it may include),
+a build from the toolkit's files through reference_sources() (stubs.py: the reference solution is
+refused where it is a stub, in the student edition)."""
 import numpy as np
 import pyopencl as cl
 
 from toolkit.core.scene import bundled_scene_dir, load_scene
 from toolkit.grading.sources import SubmissionSources
+from toolkit.grading.stubs import CourseSources
 from toolkit.opencl import program
 from toolkit.opencl.device import get_queue
 from toolkit.opencl.device_scene import DeviceScene
@@ -43,13 +46,12 @@ class Context:
             self._scenes[name] = (scene, DeviceScene(self.queue, scene))
         return self._scenes[name]
 
-    def technique(self, cls, student=True, scene="cornell_box", folder=None, **attributes):
+    def technique(self, cls, student=True, scene="cornell_box", folder=None, **options):
         """An instance of technique `cls` built from the submission (or the toolkit's own files); from
-        `folder` (a variant of the submission, beside it) if given."""
-        if student:
-            attributes["source_dir"] = self.sources(folder)
-        variant = type(cls.__name__, (cls,), attributes)
-        return variant(self.queue, self.scene(scene)[1])
+        `folder` (a variant of the submission, beside it) if given. `options`: the technique's own
+        (stream_size=256, ...), as toolkit.render passes them."""
+        sources = self.sources(folder) if student else self.reference_sources()
+        return cls(self.queue, self.scene(scene)[1], sources=sources, **options)
 
     def build(self, name, defines=None):
         return program.build(self.queue.context, name, defines, directory=self.sources())
@@ -57,6 +59,16 @@ class Context:
     def sources(self, folder=None):
         """Where a build of the submission (in `folder`, by default the submission's) finds its files."""
         return SubmissionSources(folder or self.folder, self.assignment.replaces, self.assignment.headers)
+
+    def reference_sources(self):
+        """Where a build of the toolkit's own files finds them: cl/, refusing the graded file if it
+        is a stub (and, in the student edition, always: it is not the reference there). The other
+        assignments' stubs build as they are."""
+        return CourseSources(refused={self.assignment.replaces})
+
+    def toolkit_source(self, name):
+        """The text of the toolkit's cl/<name>, the reference (ReferenceMissing where it is not held)."""
+        return self.reference_sources().read(program.cl_dir() / name)
 
     def buffer(self, array):
         return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR,

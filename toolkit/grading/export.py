@@ -7,8 +7,9 @@ The student edition is a whole working tree, as a course hands out a project ske
   - cl/: each assignment's solution file (Assignment.replaces) replaced by its stub, whole (every
     stub is a whole file that builds in the solution's place), so that the techniques which use
     it run on the student's code; a build that reads an untouched stub says which assignment it
-    needs (toolkit/opencl/stubs.py), and core/edition.py says "student" (the grader then never
-    takes cl/'s files for the reference solution);
+    needs (stubs.py): the student edition's builds read cl/ through stubs.CourseSources, the one
+    line that marks the edition (edition.py; the grader then never takes cl/'s files for the
+    reference solution);
   - tutorials/: the notebooks with the cells tagged "solution" replaced by exercises and no saved
     outputs (notebooks.py); the handouts and the grader's kernels in tutorials/assignments/;
   - tests/: not the toolkit's suite (it asserts the reference solutions' numbers and images, which
@@ -26,9 +27,8 @@ import shutil
 import subprocess
 from pathlib import Path
 
-from toolkit.core import edition
 from toolkit.core.package_data import CHECKOUT
-from toolkit.grading import notebooks
+from toolkit.grading import edition, notebooks
 from toolkit.grading.checks import ASSIGNMENTS
 
 # Top-level entries of the checkout that the student edition holds (tests/ and README.md are its own).
@@ -47,7 +47,7 @@ def export(target, instructor=False, root=CHECKOUT):
         raise ValueError(f"{target} exists and is not an empty folder: give a new folder for the course")
     if not (Path(root) / "setup.cfg").is_file() or not (Path(root) / "tutorials").is_dir():
         raise ValueError(f"course export needs the toolkit's source checkout; {root} is not one")
-    if instructor and edition.STUDENT:
+    if instructor and edition.student():
         raise ValueError("this is the student edition: it holds no solutions to export an instructor edition from")
     files = source_files(root)
     if not instructor:
@@ -61,8 +61,7 @@ def export(target, instructor=False, root=CHECKOUT):
     written = list(files)
     for a in ASSIGNMENTS.values():   # every stub in its solution's place
         shutil.copyfile(Path(root) / "tutorials/assignments" / a.name / a.stub, target / "cl" / a.replaces)
-    edition_file = target / "toolkit/core/edition.py"
-    edition_file.write_text(edition_file.read_text().replace("\nSTUDENT = False\n", "\nSTUDENT = True\n"))
+    edition.mark_student(target / "toolkit/opencl/program.py")
     for name in files:
         if name.startswith("tutorials/") and name.endswith(".ipynb"):
             path = target / name

@@ -7,8 +7,8 @@
 
 A submission is copied into a fresh folder under the name of the toolkit file it replaces
 (`compact.h`, `bdpt_parallel_connect.cl`, `mis.h`, `pt_inplace_regen.cl`) and built in its place:
-program.build looks includes up in that folder first, then in cl/ (Technique.source_dir does the
-same for a technique). The toolkit itself is never edited. The student's file may include only
+program.build looks includes up in that folder first, then in cl/ (a technique is given the same
+Sources: Context.technique). The toolkit itself is never edited. The student's file may include only
 what sources.py allows: the toolkit headers its assignment lists, by a plain name.
 
 The checks of one submission run in one worker subprocess, under limits (limits.py), which

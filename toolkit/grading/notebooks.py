@@ -20,7 +20,7 @@ write, say) are handed to install(), and a cell that needs one of them before th
 written it says so in one line, as for an assignment."""
 import ast
 
-from toolkit.opencl.stubs import AssignmentNotWritten
+from toolkit.grading.stubs import AssignmentNotWritten
 
 SOLUTION_TAG = "solution"
 REMOVED = ("**Exercise.** The cell that was here shows the solution of an assignment: write it yourself "
@@ -139,7 +139,7 @@ class _GoOn(ast.NodeTransformer):
 def _handler(exception, function):
     """except <exception> as _toolkit_error_: toolkit.grading.notebooks.<function>(_toolkit_error_)"""
     call = ast.parse(f"__import__('toolkit.grading.notebooks', fromlist=['x']).{function}(_toolkit_error_)").body[0]
-    kind = ast.parse(f"__import__('toolkit.opencl.stubs', fromlist=['x']).AssignmentNotWritten"
+    kind = ast.parse(f"__import__('toolkit.grading.stubs', fromlist=['x']).AssignmentNotWritten"
                      if exception == "AssignmentNotWritten" else exception, mode="eval").body
     return ast.ExceptHandler(type=kind, name="_toolkit_error_", body=[call])
 

@@ -11,8 +11,8 @@ refused: the compiler would read whatever it names, another student's file or /p
 """
 import re
 
-from toolkit.opencl.program import (INCLUDE_LINE, MAX_SOURCE_SIZE, KernelBuildError, Sources, cl_dir,
-                                    inlined_include)
+from toolkit.grading.stubs import CourseSources
+from toolkit.opencl.program import INCLUDE_LINE, MAX_SOURCE_SIZE, KernelBuildError, cl_dir, inlined_include
 
 # A name a student may include: letters, digits, `_`, `-` and dots, not starting with a dot.
 _PLAIN_NAME = re.compile(r"[A-Za-z0-9_][A-Za-z0-9_.-]*")
@@ -87,13 +87,14 @@ def _directives_of(lines):
             yield first, match.group(1)
 
 
-class SubmissionSources(Sources):
+class SubmissionSources(CourseSources):
     """Where a build of a submission finds its files (program.Sources): its folder, then cl/, as for
     any build; but what the student's file (`replaces`, in `folder`) includes must pass the rules
-    of this module's docstring, and its text is read as it is checked."""
+    of this module's docstring, and its text is read as it is checked. The toolkit's own copy of
+    `replaces` is refused if it is the stub (stubs.py: CourseSources); other stubs build as they are."""
 
     def __init__(self, folder, replaces, headers):
-        super().__init__(folder)
+        super().__init__(folder, refused={replaces})
         self.replaces, self.headers = replaces, tuple(headers)
 
     def _is_students(self, path):

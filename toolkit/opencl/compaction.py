@@ -34,13 +34,13 @@ class Compactor:
 
     `local_size` is the work-group size its kernels are built for (LOCAL_SIZE) and launched with;
     a technique passes its own. Immediate compaction's output order depends on it (the groups),
-    the alive set does not.
+    the alive set does not. `sources`: where the build finds cl/'s files (program.Sources; None: cl/).
     """
 
-    def __init__(self, queue, local_size=program.LOCAL_SIZE):
+    def __init__(self, queue, local_size=program.LOCAL_SIZE, sources=None):
         self.queue = queue
         self.local_size = checked_local_size(local_size)
-        self.program = program.build(queue.context, "compact.cl", {"LOCAL_SIZE": self.local_size})
+        self.program = program.build(queue.context, "compact.cl", {"LOCAL_SIZE": self.local_size}, directory=sources)
         # One kernel object each (every `program.name` access would create a new one).
         self._kernels = {name: cl.Kernel(self.program, name) for name in
                          ("scan_blocks", "scan_add_block_offsets", "compact_scatter", "compact_immediate")}

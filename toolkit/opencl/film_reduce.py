@@ -16,11 +16,12 @@ from toolkit.opencl import program
 class FilmReduction:
     """Sums a pass's pixel-major samples per pixel on `queue`'s device; one per technique."""
 
-    def __init__(self, queue, local_size=program.LOCAL_SIZE):
+    def __init__(self, queue, local_size=program.LOCAL_SIZE, sources=None):
+        """`sources`: where the build finds cl/'s files (program.Sources; None: cl/)."""
         self.queue = queue
         self.local_size = local_size
-        self.kernel = program.kernel(program.build(queue.context, "film_reduce.cl", {"LOCAL_SIZE": local_size}),
-                                     "film_reduce")
+        built = program.build(queue.context, "film_reduce.cl", {"LOCAL_SIZE": local_size}, directory=sources)
+        self.kernel = program.kernel(built, "film_reduce")
         self._sums = {}    # pixels -> the FilmPixel buffer, made once per image size
 
     def reduce(self, radiance, pixels, samples, clamp=None):

@@ -7,6 +7,7 @@ processes pyopencl's binary cache (kernel_cache.py: built without it where it ca
 and PoCL's kernel cache keep compiled code on disk.
 """
 import hashlib
+import importlib
 import os
 import re
 import sys
@@ -19,7 +20,7 @@ import pyopencl as cl
 
 from toolkit.core.layout import c_header
 from toolkit.core.package_data import data_dir
-from toolkit.opencl import kernel_times, lanes, stubs
+from toolkit.opencl import kernel_times, lanes
 from toolkit.opencl.kernel_cache import ARG_INFO_OPTION, build_with_cache
 
 # The default work-group size. A program is built for one local size (the LOCAL_SIZE define: the
@@ -45,8 +46,8 @@ def cl_dir():
 
 
 def toolkit_source(name):
-    """The text of cl/<name>, the toolkit's own file (AssignmentNotWritten if it is still a stub)."""
-    return Sources().read(cl_dir() / name)
+    """The text of cl/<name>, the toolkit's own file, read as every build reads it (default_sources)."""
+    return default_sources().read(cl_dir() / name)
 
 
 def _pyopencl_include_dir():
@@ -118,17 +119,33 @@ class Sources:
         raise KernelBuildError(f"OpenCL source not found: {bases[0] / name}")
 
     def read(self, path):
-        text = path.read_text()
-        if path.parent == cl_dir():   # the toolkit's own file: still an assignment's stub? (stubs.py)
-            stubs.check_written(path.name, text)
-        return text
+        """The text of a file that find() named (a subclass may refuse it or check it first)."""
+        return path.read_text()
+
+    def toolkit_only(self):
+        """These rules on the toolkit's own files only (no folder): what the shared parts of a
+        technique built from this Sources (its compactor, its film reduction) are built from."""
+        return Sources()
+
+
+# The Sources class of a build given no Sources of its own, as "module:Class". This one line is
+# what the course's student edition changes (toolkit/grading/export.py): it names a subclass that
+# refuses a cl/ file that is still an untouched assignment stub, so that a learner's render says
+# what it needs instead of drawing black. The renderer itself knows nothing of the course.
+DEFAULT_SOURCES = "toolkit.opencl.program:Sources"
+
+
+def default_sources(folder=None):
+    """A Sources of the DEFAULT_SOURCES class that looks in `folder` (then cl/)."""
+    module, name = DEFAULT_SOURCES.split(":")
+    return getattr(importlib.import_module(module), name)(folder)
 
 
 def expand_includes(name, directory=None):
     """Source text of cl/<name> (or <directory>/<name>) with its quoted includes inlined, each
     file once however it is named. Includes are looked up in `directory`, then in cl/; a
     Sources as `directory` decides itself where a build finds its files."""
-    sources = directory if isinstance(directory, Sources) else Sources(directory)
+    sources = directory if isinstance(directory, Sources) else default_sources(directory)
     return _Expansion(sources).include(name)
 
 

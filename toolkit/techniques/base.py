@@ -31,19 +31,19 @@ class Technique:
     # Whether shadow rays go to a queue traced by a kernel of their own (counted there).
     shadow_queue = False
     iterations = 0   # extension steps over all passes so far (for per-iteration plots)
-    # Where `source` and its includes are looked up before cl/ (program.build's `directory`):
-    # the autograder (toolkit/grading/grade.py) points it at a folder holding a student's file.
-    source_dir = None
     _collecting = None   # (film, host sums, read event, samples per pixel) of the pass collect queued last
     film_reduction = None   # the FilmReduction of collect, made at its first pass
 
     def __init__(self, queue, device_scene, warp_width=None, count_simd=True, extra_defines=None,
-                 local_size=program.LOCAL_SIZE, general=False, pass_spp=None):
+                 local_size=program.LOCAL_SIZE, general=False, pass_spp=None, sources=None):
         """`warp_width`: W of the SIMD counters; None: the device's (toolkit.opencl.device_model.device_warp_width).
         `general`: build the general kernel (every material and feature compiled in, Scene.features)
         instead of the one specialized to the scene; both compute the same image.
         `pass_spp` (an option of every technique): samples per pixel in one pass instead of what
-        fills `target_batch`; a cost knob of the speed-accuracy study (toolkit/measure/study/)."""
+        fills `target_batch`; a cost knob of the speed-accuracy study (toolkit/measure/study/).
+        `sources` (an option of every technique): where `source` and its includes are found, a
+        folder whose files replace cl/'s of the same name, or a program.Sources (the autograder
+        passes one that holds a student's file, toolkit/grading/context.py); None: cl/."""
         self.pass_spp = None if pass_spp is None else whole_number("technique.pass_spp", pass_spp, "pass_spp")
         # Firefly clamping (scene integrator.clamp): applied where samples reach the film.
         self.clamp = device_scene.scene.clamp
@@ -64,8 +64,9 @@ class Technique:
         defines.update(extra_defines or {})
         defines["LOCAL_SIZE"] = self.local_size
         self.defines = defines
+        self.sources = sources if isinstance(sources, program.Sources) else program.default_sources(sources)
         start = time.perf_counter()
-        self.program = program.build(queue.context, self.source, defines, directory=self.source_dir)
+        self.program = program.build(queue.context, self.source, defines, directory=self.sources)
         self.build_seconds = time.perf_counter() - start
         self.simd = PhaseCounter(warp_width)
         self.traversal = PhaseCounter(warp_width)
@@ -73,13 +74,11 @@ class Technique:
     def in_flight(self, option, given, max_vertices=64):
         """The work a stream technique keeps in flight (option "stream_size" or "pool_size"):
         `given` (checked: the device must hold its buffers, toolkit.opencl.work_sizes.check_fits), else
-        a size the class sets (the grader's variants do), else the device's choice
+        the device's choice
         (toolkit.opencl.work_sizes.choose_work_sizes: a GPU's resident work-items, a CPU's own sizes).
         The pass grows with it (target_batch), so every slot still runs several samples a pass."""
         if given is not None:
             size, why = check_fits(self.queue.device, option, given, max_vertices), "given"
-        elif getattr(type(self), option) is not None:
-            size, why = getattr(type(self), option), f"set by {type(self).__name__}"
         else:
             chosen = device_work_sizes(self.queue.device, max_vertices)
             size, why = getattr(chosen, option), chosen.why
@@ -160,7 +159,7 @@ class Technique:
         refill of `buffer` waits for the sums."""
         pixels = film.width * film.height
         if self.film_reduction is None:
-            self.film_reduction = FilmReduction(self.queue, self.local_size)
+            self.film_reduction = FilmReduction(self.queue, self.local_size, self.sources.toolkit_only())
         result, done = self.film_reduction.reduce(buffer, pixels, n // pixels, self.clamp)
         self.queue.flush()    # start the queued work now, not at the next wait
         self.finish_collect()

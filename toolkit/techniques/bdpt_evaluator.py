@@ -109,7 +109,6 @@ class BdptPoolTechnique(Technique):
     which add them into an image, and mlt, whose chains propose them. It builds the walk's kernels
     for the scene, sizes the pool for the device and makes its compactor; the subclass makes its
     evaluator with the connect phase it wants (self.bdpt)."""
-    pool_size = None            # samples in flight (each stores MAX_VERTICES eye + light vertices); None: the device's
     target_batch = 1 << 14      # samples per pass: many passes give the standard error
     max_vertices = 64           # per subpath when the depth is unbounded; paths this long carry ~1e-10 of the energy at albedo 0.7
 
@@ -120,8 +119,9 @@ class BdptPoolTechnique(Technique):
         walk.update(kwargs.pop("extra_defines", None) or {})
         checked_size("pool_size", pool_size)         # its range now, before the build; the device's memory after
         super().__init__(queue, device_scene, extra_defines=walk, **kwargs)
+        # samples in flight (each stores MAX_VERTICES eye + light vertices); None: the device's
         self.pool_size = self.in_flight("pool_size", pool_size, self.max_vertices)
-        self.compactor = Compactor(queue, local_size=self.local_size)
+        self.compactor = Compactor(queue, local_size=self.local_size, sources=self.sources.toolkit_only())
         self.bdpt = None            # the subclass's BdptEvaluator
 
     def extra_stats(self):

@@ -47,17 +47,17 @@ class PtCompactRegen(Technique):
     name = "pt_compact_regen"
     family = "pt"
     source = "pt_compact_regen.cl"
-    stream_size = None   # paths in the stream; None: the device's (toolkit/opencl/work_sizes.py)
 
     def __init__(self, *args, compaction="immediate", stream_size=None, **kwargs):
         checked_size("stream_size", stream_size)     # its range now, before the build; the device's memory after
         super().__init__(*args, **kwargs)
-        self.stream_size = self.in_flight("stream_size", stream_size)
+        self.stream_size = self.in_flight("stream_size", stream_size)   # paths in the stream; None: the device's
         if compaction not in ("immediate", "multipass"):
             raise ValueError(f"compaction must be 'immediate' or 'multipass', not {compaction!r}")
         self.compaction = compaction
         self.shadow_queue = compaction == "immediate"
-        self.compactor = Compactor(self.queue, self.local_size) if compaction == "multipass" else None
+        multipass = compaction == "multipass"
+        self.compactor = Compactor(self.queue, self.local_size, self.sources.toolkit_only()) if multipass else None
 
     def stream_buffers(self, size):
         """The device memory of a stream of `size` paths (run_pass makes it once per stream size)."""

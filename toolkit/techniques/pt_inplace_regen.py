@@ -35,13 +35,13 @@ class PtInplaceRegen(Technique):
     name = "pt_inplace_regen"
     family = "pt"
     source = "pt_inplace_regen.cl"
-    stream_size = None   # slots (work-items) that stay resident; None: the device's (toolkit/opencl/work_sizes.py)
 
     reads_every = 4      # iterations per blocking read of the "any path alive" flag (counters off)
 
     def __init__(self, *args, stream_size=None, **kwargs):
         checked_size("stream_size", stream_size)     # its range now, before the build; the device's memory after
         super().__init__(*args, **kwargs)
+        # slots (work-items) that stay resident; None: the device's (toolkit/opencl/work_sizes.py)
         self.stream_size = self.in_flight("stream_size", stream_size)
 
     def slot_buffers(self, slots):

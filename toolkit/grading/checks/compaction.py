@@ -42,7 +42,7 @@ def _compaction_program(c, reference_scan=False, counted_atomics=False):
     if not (reference_scan or counted_atomics):
         return _build_in(c, c.folder)
     student = (Path(c.folder) / "compact.h").read_text()
-    text = _with_reference_scan(student) if reference_scan else student
+    text = _with_reference_scan(c, student) if reference_scan else student
     if counted_atomics:
         includes, code, defines = instrument.preprocessed(text, _DEFINES)
         text = instrument.assemble(includes, instrument.ATOMIC_PRELUDE, instrument.counted_atomics(code), defines)
@@ -69,10 +69,10 @@ def _build_in(c, directory):
 _SCAN_DEFINITION = re.compile(r"\bcompact_group_scan(\s*\([^()]*\)\s*\{)")
 
 
-def _with_reference_scan(student):
+def _with_reference_scan(c, student):
     """The student's compact.h with their compact_group_scan renamed (kept, unused) and the
     toolkit's defined first, under its name. The student's lines keep their numbers (#line)."""
-    toolkit = program.toolkit_source("compact.h")
+    toolkit = c.toolkit_source("compact.h")
     start = toolkit.rindex("\n", 0, toolkit.index(" int compact_group_scan(")) + 1   # its line: static inline ...
     end = toolkit.index("\n}\n", start) + 3
     renamed, found = _SCAN_DEFINITION.subn(r"student_compact_group_scan\1", student, count=1)

@@ -35,7 +35,7 @@ def build(c):
     """Everything the checks build: the grader kernel, the toy target with the student's file and
     the toolkit's, and (if it runs) the MLT technique for the image."""
     c.build("mlt_mutation_checks.cl", _DEFINES)
-    for directory in (c.sources(), None):
+    for directory in (c.sources(), c.reference_sources()):
         program.build(c.queue.context, "mlt_test.cl", _DEFINES, directory=directory)
     if c.runs("image"):
         _mlt(c)
@@ -172,7 +172,7 @@ def _check_large_step(c):
     for mode, p in ((MltMode.START, 0.3), (MltMode.MUTATE, 1.0), (MltMode.MUTATE, 0.3), (MltMode.MUTATE, 0.0)):
         it = _iteration(chains, c.seed(7), mode, p)
         got, large = _mutate(c, c.sources(), it, current, dims)
-        _, expected_large = _mutate(c, None, it, current, dims)
+        _, expected_large = _mutate(c, c.reference_sources(), it, current, dims)
         where = f"{mode.name} with large_step {p}"
         wrong = np.flatnonzero(large != expected_large)
         if len(wrong):
@@ -261,8 +261,7 @@ _IMAGE_SEEDS = 11   # independent MLT renders: the z-test wants >= 10 degrees of
 
 
 def _mlt(c):
-    variant = type("Mlt", (Mlt,), {"source_dir": c.sources()})
-    return variant(c.queue, c.scene("cornell_box")[1], chains=256, candidates=8, start="resample")
+    return c.technique(Mlt, chains=256, candidates=8, start="resample")
 
 
 @ASSIGNMENT.check("image", 10, "mlt with your mutation matches the cornell_box reference within statistical "

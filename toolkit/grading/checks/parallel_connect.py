@@ -24,7 +24,7 @@ def build(c):
     _parallel_connect(c)
     if c.runs("image"):
         c.technique(BdptNaiveConnect, student=False)
-        c.technique(BdptParallelConnect, folder=_variant(c, "reference_parts", _with_reference_parts(_student(c))))
+        c.technique(BdptParallelConnect, folder=_variant(c, "reference_parts", _with_reference_parts(c, _student(c))))
 
 
 def _parallel_connect(c):
@@ -58,12 +58,12 @@ def _toolkit_part(text, start):
 _PARTS = {"find_sample": "HELPER int find_sample(", "bdpt_parallel_connect_count": "__kernel void bdpt_parallel_connect_count("}
 
 
-def _with_reference_parts(student):
+def _with_reference_parts(c, student):
     """The student's file with their count kernel and find_sample renamed (kept, unused) and the
     toolkit's defined first, under their names: the `image` check then grades the rest of their
     file (the local index and the connection kernel), not again the bugs that `count` and
     `search` report. The student's lines keep their numbers (#line)."""
-    toolkit = program.toolkit_source(_STUDENT)
+    toolkit = c.toolkit_source(_STUDENT)
     parts = []
     for name, start in _PARTS.items():
         student, found = re.subn(rf"\b{name}(\s*\([^()]*\)\s*\{{)", rf"student_{name}\1", student, count=1)
@@ -195,7 +195,7 @@ def _check_logarithmic(c):
                                "the image of bdpt_naive_connect", "each connection's local index within its "
                   "sample picks its strategy (s, t): every strategy of every sample, once")
 def _check_parallel_image(c):
-    folder = _variant(c, "reference_parts", _with_reference_parts(_student(c)))
+    folder = _variant(c, "reference_parts", _with_reference_parts(c, _student(c)))
     image = c.technique(BdptParallelConnect, folder=folder).render(16, 16, 4, seed=c.seed(3)).image()
     expected = c.technique(BdptNaiveConnect, student=False).render(16, 16, 4, seed=c.seed(3)).image()
     same_image(image, expected, "bdpt_naive_connect's", rtol=1e-4, atol=1e-6)
