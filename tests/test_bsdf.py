@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from toolkit.verify.bsdf_check import BsdfChecker, chi2_test, direction, integrate
-from toolkit.measure.stats import sidak
+from toolkit.core.stats import sidak
 
 DIFFUSE = {"type": "diffuse", "reflectance": [0.8, 0.8, 0.8]}
 GLOSSY_ALPHAS = (0.1, 0.3, 0.7)

@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 
 import toolkit.api
-from toolkit.verify import cpu_references as cpu_references_module, gpucheck
+from toolkit.verify import cpu_references as cpu_references_module
 
 from toolkit.verify import same_image
+import toolkit.cli.gpucheck_run as gpucheck
 from toolkit.cli import main
 from toolkit.opencl.device import get_queue
 from toolkit.opencl.device_model import device_warp_width

@@ -11,17 +11,19 @@ ROOT = Path(__file__).resolve().parent.parent
 PACKAGE = ROOT / "toolkit"
 
 # Each package and the packages it may import. The product is core <- opencl <- techniques <- api;
-# on top of api, measurement comes first (errors against references, bench, the study), then the
-# peers that are compared with its figures, then the checks that use both; grading uses the
-# measurements and the checks' known targets (verify/mlt_toy.py for the MLT assignment); cli, __main__ and the package's face (toolkit/__init__.py) may import everything.
+# on top of api stand measurement (errors against references, bench, the study), the peers and the
+# checks side by side (DESIGN.md): neither peers nor verify imports measure, and what they share
+# (the statistics) lives in core (core/stats.py). verify's cross-check uses a peer (Embree); grading
+# uses the measurements and the checks' known targets (verify/mlt_toy.py for the MLT assignment);
+# cli, __main__ and the package's face (toolkit/__init__.py) may import everything.
 BELOW = {
     "core": set(),
     "opencl": {"core"},
     "techniques": {"core", "opencl"},
     "api": {"core", "opencl", "techniques"},
     "measure": {"core", "opencl", "techniques", "api"},
-    "peers": {"core", "opencl", "techniques", "api", "measure"},
-    "verify": {"core", "opencl", "techniques", "api", "measure", "peers"},
+    "peers": {"core", "opencl", "techniques", "api"},
+    "verify": {"core", "opencl", "techniques", "api", "peers"},
     "grading": {"core", "opencl", "techniques", "api", "measure", "verify"},
     # the live demo (toolkit/demo/): renders through the techniques, measures against references
     "demo": {"core", "opencl", "techniques", "api", "measure"},
@@ -131,6 +133,18 @@ def test_the_rule_catches_an_upward_import(tmp_path):
         with pytest.raises(AssertionError, match="may import only"):
             test_imports_run_down_the_floors(fake)
         fake.write_text("from toolkit import render\n")     # through the package's face
+        with pytest.raises(AssertionError, match="may import only"):
+            test_imports_run_down_the_floors(fake)
+    finally:
+        fake.unlink()
+
+
+@pytest.mark.parametrize("sibling", ["peers", "verify"])
+def test_the_rule_keeps_measure_beside_peers_and_verify(sibling):
+    """measure, peers and verify are siblings: an import of measure from either is reported."""
+    fake = PACKAGE / sibling / "__rule_probe__.py"
+    try:
+        fake.write_text("from toolkit.measure.reference import reference_at\n")
         with pytest.raises(AssertionError, match="may import only"):
             test_imports_run_down_the_floors(fake)
     finally:

@@ -1,10 +1,10 @@
-"""The host-side statistics in toolkit/measure/stats.py, which the BSDF chi-square test and the render
+"""The host-side statistics in toolkit/core/stats.py, which the BSDF chi-square test and the render
 z-test share, against closed forms and known values (the tails themselves are scipy.special's)."""
 import math
 
 import pytest
 
-from toolkit.measure.stats import bonferroni, chi2_sf, normal_two_sided_p, pearson, sidak, student_t_two_sided_p
+from toolkit.core.stats import bonferroni, chi2_sf, normal_two_sided_p, pearson, sidak, student_t_two_sided_p
 
 
 def test_normal_p_values_match_known_values():

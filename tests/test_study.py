@@ -22,7 +22,7 @@ import pytest
 
 from toolkit.cli import build_parser, main
 from toolkit.core.images import write_atomically
-from toolkit.measure.stats import bonferroni, normal_two_sided_p, student_t_two_sided_p
+from toolkit.core.stats import bonferroni, normal_two_sided_p, student_t_two_sided_p
 from toolkit.measure.study import against_samples, calibration, error_figures, fit_slope, study, time_to_target
 
 ALPHA = 0.01     # chance that a correct study fails a statistical test below (with Bonferroni)

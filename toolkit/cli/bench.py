@@ -10,6 +10,7 @@ from toolkit.cli.options import (BVH, DEVICE, GENERAL, LANES_BOTH, SCENE, TECHNI
 from toolkit.core.validate import finite_number, whole_number
 from toolkit.measure import specialization
 from toolkit.measure.bench import DEFAULT, bench, format_bench
+from toolkit.measure.reference import reference_at
 from toolkit.measure.study import equal_time, format_equal_time
 from toolkit.opencl.device import get_queue
 from toolkit.peers import mitsuba as peers
@@ -94,7 +95,8 @@ def cmd_bench_peer(args):
             return 2
         techniques = technique_list(args.techniques or ",".join(peers.PEER_DEFAULT))
         report = peers.mitsuba_bench(scene, tuple(techniques), spp=args.spp, repeats=args.repeats,
-                                     resolution=args.resolution, device=args.device, bvh=args.bvh)
+                                     resolution=args.resolution, device=args.device, bvh=args.bvh,
+                                     reference_at=reference_at)
         print(peers.format_mitsuba(report))
     if args.json:
         print(json.dumps(report))

@@ -1,9 +1,10 @@
 """`python -m toolkit gpucheck`: the toolkit checked and measured on one device, one report."""
 from pathlib import Path
 
+import toolkit.cli.gpucheck_run as gpucheck   # its run and report (a module, so a test can replace its run)
 from toolkit.cli.options import DEVICE
 from toolkit.core.validate import InputError
-from toolkit.verify import cpu_references, gpucheck, offline_build, offline_report
+from toolkit.verify import cpu_references, offline_build, offline_report
 
 
 def add_command(sub):

@@ -4,13 +4,13 @@ The reference (256x256 Mitsuba render with its per-pixel standard error) is aver
 k x k blocks to match a reduced-resolution render of the same camera: a 64x64 pixel covers
 exactly a 4x4 block of reference pixels, and the box filter makes its expected value the block
 mean. The z-test combines both standard errors and corrects for the number of pixels tested
-(the two-sided tails and the correction are in `toolkit/measure/stats.py`).
+(the two-sided tails and the correction are in `toolkit/core/stats.py`).
 """
 from dataclasses import dataclass
 
 import numpy as np
 
-from toolkit.measure.stats import bonferroni, normal_two_sided_p, student_t_two_sided_p
+from toolkit.core.stats import bonferroni, normal_two_sided_p, rmse, student_t_two_sided_p  # noqa: F401 (rmse: here with the other errors)
 
 
 def downsample(image, width, height):
@@ -109,10 +109,6 @@ def z_test(image, stderr, expected, expected_stderr, alpha=0.01, min_stderr=1e-1
     return ZTest(bool(p.min() > threshold and not exact_mismatch.any()), alpha, n, float(p.min()),
                  threshold, tuple(int(i) for i in worst), float(np.abs(z).max()),
                  float(np.abs(z[tested]).mean()) if n else 0.0)
-
-
-def rmse(image, expected):
-    return float(np.sqrt(np.mean((np.asarray(image) - np.asarray(expected)) ** 2)))
 
 
 def relative_mean_error(image, expected):

@@ -23,7 +23,7 @@ import numpy as np
 
 from toolkit.api import as_scene, render
 from toolkit.core.validate import camera_size
-from toolkit.measure.reference import reference_at, rmse
+from toolkit.core.stats import rmse
 from toolkit.opencl.device import get_queue
 from toolkit.opencl.device_scene import DeviceScene
 from toolkit.opencl.raycast import DeviceRaycaster
@@ -234,15 +234,17 @@ class MitsubaRenderer:
 
 
 def mitsuba_bench(scene, techniques=PEER_DEFAULT, spp=16,
-                  repeats=4, resolution=None, device=None, bvh="wide", seed=0):
+                  repeats=4, resolution=None, device=None, bvh="wide", seed=0, reference_at=None):
     """Mitsuba `path` and the toolkit's techniques on one scene, repetitions interleaved.
     Per renderer: spp/s (median), variance per sample (mean over pixels and channels of the
     variance between repetitions, times their spp), time to 5% RMSE (relative to the reference's
     mean: (variance per sample / (0.05 mean)^2) samples per pixel at the measured spp/s), and the
-    RMSE of the repetitions' mean image against the reference."""
+    RMSE of the repetitions' mean image against the reference. `reference_at(scene, width, height)`
+    gives the reference image (or None) and its standard error: toolkit.measure.reference's, which
+    `bench --peer mitsuba` passes (peers and measure are siblings); None: no reference, no RMSE."""
     scene = as_scene(scene)
     width, height = resolution or (scene.camera.width, scene.camera.height)
-    ref, _ = reference_at(scene, width, height)
+    ref = reference_at(scene, width, height)[0] if reference_at else None
     peer = MitsubaRenderer(scene, width, height)
     runners = {f"mitsuba {peer.variant} path": ("mitsuba", spp)}
     for name in techniques:

@@ -17,7 +17,7 @@ directions against the pdf that `bsdf_eval` reports, after Mitsuba's `chi2.py` (
 - the statistic sum (O - E)^2 / E has (cells - 1) degrees of freedom; its p-value is the
   chi-square distribution's tail, the regularized upper incomplete gamma function
   Q(dof / 2, chi2 / 2) (from scipy). The statistic with its pooling, the tail and the Sidak
-  correction are in `toolkit/measure/stats.py`, shared with the render z-test.
+  correction are in `toolkit/core/stats.py`, shared with the render z-test.
 """
 import math
 from dataclasses import dataclass, field
@@ -29,7 +29,7 @@ import pyopencl.cltypes as cltypes
 from toolkit.opencl import program
 from toolkit.opencl.device import get_queue
 from toolkit.core.layout import MATERIAL, MATERIAL_TYPES
-from toolkit.measure.stats import chi2_sf, pearson
+from toolkit.core.stats import chi2_sf, pearson
 
 SOURCE = "bsdf_test.cl"
 

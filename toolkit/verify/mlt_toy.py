@@ -6,7 +6,7 @@ with a chi-square test; tutorials/05_metropolis.ipynb plots it.
 import numpy as np
 import pyopencl as cl
 
-from toolkit.measure.stats import chi2_sf, pearson
+from toolkit.core.stats import chi2_sf, pearson
 from toolkit.opencl import program
 from toolkit.core.layout import MLT_CHAIN, MLT_ITERATION, MltMode
 from toolkit.techniques.mlt import SMALL_STEP, step_defines

@@ -81,3 +81,8 @@ def pearson(observed, expected, pool_threshold=5.0):
         statistic += (pooled_obs - pooled_exp) ** 2 / pooled_exp
         cells += 1
     return statistic, cells - 1, cells, pooled, ""
+
+
+def rmse(image, expected):
+    """The root-mean-square error of `image` against `expected` (every pixel and channel)."""
+    return float(np.sqrt(np.mean((np.asarray(image) - np.asarray(expected)) ** 2)))

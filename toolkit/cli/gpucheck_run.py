@@ -1,5 +1,7 @@
-"""`python -m toolkit gpucheck`: one run that checks and measures the toolkit on a device (a GPU
-when there is one; it runs the same on a CPU) and writes one report, text and JSON:
+"""`python -m toolkit gpucheck` (the command: gpucheck.py): one run that checks and measures the
+toolkit on a device (a GPU when there is one; it runs the same on a CPU) and writes one report,
+text and JSON. It uses both measure/ and verify/, which are siblings, so it lives on the floor
+above them:
 
 1. the device, its warp width W and the stream and pool sizes chosen for it (toolkit/opencl/device.py,
    toolkit/opencl/work_sizes.py);
