@@ -66,7 +66,7 @@ def toolkit_imports(path):
 
 def imported_package(name):
     """The package of an imported toolkit module; bare `toolkit` is the package's face, which
-    imports api and the study: a file below them that imports it climbs the floors too."""
+    imports api: a file below it that imports it climbs the floors too."""
     parts = name.split(".")
     return parts[1] if len(parts) > 1 else "__init__"
 
@@ -119,8 +119,8 @@ def test_no_import_circle_among_the_modules():
         if node not in state:
             visit(node, [node])
     # toolkit/__init__.py is the package's face: Python runs it before any submodule, and it
-    # imports api and the study for `toolkit.render` and `toolkit.study`. Circles through it are
-    # the face, not the architecture; every other circle fails.
+    # imports api for `toolkit.render`. Circles through it are the face, not the architecture;
+    # every other circle fails.
     circles = [c for c in circles if "toolkit" not in c]
     assert not circles, "import circles: " + "; ".join(" -> ".join(c) for c in circles)
 

@@ -171,3 +171,21 @@ def test_oclgrind_is_not_a_gpu(monkeypatch):
     assert not device.has_gpu()
     monkeypatch.setattr(device, "list_devices", lambda: [(0, 0, None, _fake(cl.device_type.GPU, "NVIDIA CUDA"))])
     assert device.has_gpu()
+
+
+def test_importing_the_toolkit_registers_nothing_until_a_device_is_asked_for():
+    """`import toolkit` leaves the loader's environment alone (issue 41); the first device asked
+    for registers pip's runtime, before the loader's first look, and finds it."""
+    if runtimes.pip_icd_lines() is None:
+        pytest.skip("no pip-installed Intel CPU runtime: nothing is registered anyway")
+    script = ("import os, sys, toolkit\n"
+              "print('after import:', os.environ.get('OCL_ICD_VENDORS'), 'pyopencl' in sys.modules)\n"
+              "from toolkit.opencl.device import list_devices\n"
+              "names = {platform.name for _, _, platform, _ in list_devices()}\n"
+              "print('after list_devices:', bool(os.environ.get('OCL_ICD_VENDORS')), 'Intel(R) OpenCL' in names)\n")
+    environment = {k: v for k, v in os.environ.items() if k not in ("OCL_ICD_VENDORS", "TOOLKIT_NO_PIP_RUNTIMES")}
+    result = subprocess.run([sys.executable, "-c", script], cwd=ROOT, capture_output=True, text=True,
+                            env=environment, timeout=300)
+    assert result.returncode == 0, result.stderr
+    assert "after import: None True" in result.stdout      # pyopencl imported, nothing registered
+    assert "after list_devices: True True" in result.stdout

@@ -1,10 +1,14 @@
 """A PyOpenCL teaching toolkit for SIMD-efficient Monte Carlo light transport
 (after van Antwerpen, HPG 2011). Start with `toolkit.render(...)` or `python -m toolkit`."""
-from toolkit.opencl import runtimes  # first: registers pip's OpenCL runtimes before any OpenCL call
-from toolkit.opencl import kernel_cache  # before pyopencl's import: how it caches (kernel_cache.py)
-from toolkit.api import RenderResult, render
-from toolkit.core.scene import Scene, SceneError, load_scene
-from toolkit.measure.study import study
+from toolkit.opencl.runtimes import before_pyopencl_import
 
-__all__ = ["render", "RenderResult", "load_scene", "Scene", "SceneError", "study"]
+# The one step that must come before pyopencl's import, which reads PYOPENCL_NO_CACHE then
+# (toolkit/opencl/runtimes.py): it registers nothing; the OpenCL runtimes are registered when a
+# device is first asked for. Python runs this file before any module of the package.
+before_pyopencl_import()
+
+from toolkit.api import RenderResult, render  # noqa: E402  (after the step above: it imports pyopencl)
+from toolkit.core.scene import Scene, SceneError, load_scene  # noqa: E402
+
+__all__ = ["render", "RenderResult", "load_scene", "Scene", "SceneError"]
 __version__ = "0.1.0"

@@ -1,9 +1,9 @@
 """`python -m toolkit devices`: the OpenCL platforms and devices, what each one is and which one
 the toolkit picks."""
-import os
 
 import pyopencl as cl
 
+from toolkit.core.config import config
 from toolkit.core.validate import InputError
 from toolkit.opencl import lanes, program, runtimes
 from toolkit.opencl.device import (RANKING, NoOpenCLError, candidates, choose, describe, get_queue, has_gpu,
@@ -34,7 +34,7 @@ def devices_report():
         lines += _device_lines(c)
     lines.append("Ranking of usable devices: " + " > ".join(RANKING))
     try:
-        chosen, why = choose(found) if not os.environ.get("PYOPENCL_CTX") else _selected(found)
+        chosen, why = choose(found) if not config().pyopencl_ctx else _selected(found)
         lines.append(f"The toolkit would pick: {describe(chosen.device)}")
         lines.append(f"  why: {why}")
     except NoOpenCLError as error:
@@ -46,7 +46,7 @@ def _selected(found):
     """(the device PYOPENCL_CTX selects, why)."""
     _, device = pick_device()
     chosen = next(c for c in found if c.device.int_ptr == device.int_ptr)
-    return chosen, f"PYOPENCL_CTX={os.environ['PYOPENCL_CTX']} selects it"
+    return chosen, f"PYOPENCL_CTX={config().pyopencl_ctx} selects it"
 
 
 def _device_lines(c):
@@ -94,19 +94,20 @@ def _lanes_lines(c):
 
 def _environment_lines():
     """The environment variables and registered runtimes that change what the list shows."""
-    lines = []
-    for variable in ("PYOPENCL_CTX", "TOOLKIT_HIDE_PLATFORMS"):
-        if os.environ.get(variable):
-            lines.append(f"({variable}={os.environ[variable]} is set)")
-    if runtimes.registered_vendors:
+    lines, settings, prepared = [], config(), runtimes.prepare()
+    if settings.pyopencl_ctx:
+        lines.append(f"(PYOPENCL_CTX={settings.pyopencl_ctx} is set)")
+    if settings.hide_platforms:
+        lines.append(f"(TOOLKIT_HIDE_PLATFORMS={','.join(settings.hide_platforms)} is set)")
+    if prepared.registered:
         lines.append(f"Intel's CPU runtime from pip is registered beside the system's drivers "
-                     f"({runtimes.registration_variable()}={runtimes.registered_vendors})"
-                     + "".join(f"; passed over: {why}" for why in runtimes.vendors_refused) + ".")
-    elif runtimes.vendors_refused:
+                     f"({runtimes.registration_variable()}={prepared.registered})"
+                     + "".join(f"; passed over: {why}" for why in prepared.refused) + ".")
+    elif prepared.refused:
         lines.append("Intel's CPU runtime from pip is NOT registered: no vendors folder that only this user can "
-                     "write (" + "; ".join(runtimes.vendors_refused) + ").")
-    elif os.environ.get("OCL_ICD_VENDORS"):
-        lines.append(f"(OCL_ICD_VENDORS={os.environ['OCL_ICD_VENDORS']} is set: the toolkit registers no runtime)")
+                     "write (" + "; ".join(prepared.refused) + ").")
+    elif prepared.users_vendors:
+        lines.append(f"(OCL_ICD_VENDORS={prepared.users_vendors} is set: the toolkit registers no runtime)")
     if not has_gpu():
         lines.append("No GPU found: kernels run on the CPU, where idle SIMD lanes cost less than "
                      "on a GPU; the SIMD-efficiency counters still model a GPU warp (of 32).")

@@ -11,6 +11,8 @@ import os
 import stat
 from pathlib import Path
 
+from toolkit.core.config import config
+
 
 class UnsafeFolder(OSError):
     """A folder another user could have written: its contents are not used."""
@@ -26,7 +28,7 @@ def user_id():
 def user_tag():
     """A part of a folder name that differs between the users of one machine."""
     uid = user_id()
-    return str(uid) if uid is not None else os.environ.get("USERNAME", "user")
+    return str(uid) if uid is not None else (config().user_name or "user")
 
 
 def unsafe_reason(path):

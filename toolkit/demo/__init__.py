@@ -18,14 +18,15 @@ talk's figures, the lanes of a few warps step by step, and Metropolis's startup 
 
 The view needs Panel (`pip install ".[demo]"`); the rest needs only the toolkit.
 """
-import os
+
+from toolkit.core.config import config
 
 __all__ = ["live_view", "require_panel", "DemoUnavailable"]
 
 INSTALL = 'pip install ".[demo]"'
 # Where no one watches the notebook (the docs build, the test suite) live_view renders a few
-# frames and shows a still, instead of a live widget that needs a browser and a kernel.
-HEADLESS = "TOOLKIT_NOTEBOOK_HEADLESS"
+# frames and shows a still, instead of a live widget that needs a browser and a kernel
+# (TOOLKIT_NOTEBOOK_HEADLESS=1: toolkit/core/config.py).
 HEADLESS_FRAMES = 3
 
 
@@ -58,7 +59,7 @@ def live_view(scene=None, techniques=None, resolution=(128, 128), device=None, l
     scenes = SceneChoices(None if scene is None else str(scene))
     settings = Settings(techniques=tuple(techniques or DEFAULT_TECHNIQUES), scene=scenes.first,
                         resolution=tuple(resolution), lanes=lanes, seed=seed).changed()
-    if frames is None and os.environ.get(HEADLESS) == "1":
+    if frames is None and config().notebook_headless:
         frames = HEADLESS_FRAMES
     if frames is not None:
         view = DemoView(scenes, settings, device)

@@ -19,6 +19,8 @@ import threading
 from contextlib import contextmanager
 from dataclasses import dataclass
 
+from toolkit.core.config import environment_copy
+
 try:
     import resource
 except ImportError:      # Windows: no setrlimit, so no grading there (require_limits says so)
@@ -60,7 +62,7 @@ _KEPT_PREFIXES = ("POCL_", "PYOPENCL_", "OCL_", "OPENCL_", "OCLGRIND_", "CL_CONF
 def worker_environment(folder, python_path):
     """The worker's environment: the kept variables, `python_path` first on PYTHONPATH, and
     `folder` as its temporary folder."""
-    env = {k: v for k, v in os.environ.items() if k in _KEPT or k.startswith(_KEPT_PREFIXES)}
+    env = {k: v for k, v in environment_copy().items() if k in _KEPT or k.startswith(_KEPT_PREFIXES)}
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(python_path), env.get("PYTHONPATH")) if p)
     env["TMPDIR"] = str(folder)
     env["OCLGRIND_DATA_RACES"] = env.get("OCLGRIND_DATA_RACES", "1")   # the compaction `races` check

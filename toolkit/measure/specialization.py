@@ -9,21 +9,19 @@ and technique, what each costs on this device:
 - samples/s: the median of `repeats` renders, interleaved (specialized, general, specialized,
   ...) so that a slow moment of the machine favours neither; build and warm-up excluded;
 - build seconds, uncached: pyopencl keeps built binaries on disk and PoCL its compiled kernels,
-  keyed by the source and the options. Each build here gets a define no source reads
-  (-DUNCACHED_BUILD=<nonce>), which changes both keys and nothing else, into a temporary
-  pyopencl cache folder that is deleted afterwards (so the user's cache is not filled);
+  keyed by the source and the options. Each build here is made past pyopencl's binary cache
+  (the technique's `binary_cache=False`: neither looked up nor stored, so the user's cache is not
+  filled) and gets a define no source reads (-DUNCACHED_BUILD=<nonce>), which changes PoCL's key
+  and nothing else;
 - warm-up seconds: the first render after the build, of the timed size. PoCL compiles each
   kernel's work-group function at its first launch, so on a CPU part of the compile cost lands
   here (and the first render of a size allocates its buffers);
 - binary bytes: the program binary's size (CL_PROGRAM_BINARY_SIZES): LLVM bitcode on PoCL,
   device code on most GPU drivers.
 """
-import os
 import statistics
-import tempfile
 import time
 import uuid
-from contextlib import contextmanager
 from pathlib import Path
 
 import pyopencl as cl
@@ -44,27 +42,11 @@ def bundled_scenes():
     return sorted(p for p in root.iterdir() if (p / "scene.json").is_file())
 
 
-@contextmanager
-def _uncached_builds():
-    """Builds inside go to an empty, temporary pyopencl cache (program.build's TOOLKIT_CACHE_DIR)."""
-    before = os.environ.get("TOOLKIT_CACHE_DIR")
-    with tempfile.TemporaryDirectory(prefix="toolkit-uncached-") as folder:
-        os.environ["TOOLKIT_CACHE_DIR"] = folder
-        try:
-            yield
-        finally:
-            if before is None:
-                del os.environ["TOOLKIT_CACHE_DIR"]
-            else:
-                os.environ["TOOLKIT_CACHE_DIR"] = before
-
-
 def _build(queue, device_scene, technique, general):
     """The technique built uncached (see the module's docstring), and its build's figures."""
     cls, options = get_technique(technique)
-    with _uncached_builds():
-        tech = cls(queue, device_scene, count_simd=False, general=general,
-                   extra_defines={"UNCACHED_BUILD": uuid.uuid4().int % 10**12}, **options)
+    tech = cls(queue, device_scene, count_simd=False, general=general, binary_cache=False,
+               extra_defines={"UNCACHED_BUILD": uuid.uuid4().int % 10**12}, **options)
     sizes = tech.program.get_info(cl.program_info.BINARY_SIZES)
     return tech, {"build_seconds": tech.build_seconds, "binary_bytes": int(sum(sizes))}
 

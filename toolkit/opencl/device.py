@@ -25,7 +25,6 @@ choice; `TOOLKIT_HIDE_PLATFORMS` (comma-separated parts of platform names) makes
 count as unusable, e.g. to run on Intel's runtime where PoCL also works.
 `python -m toolkit devices` prints every device, usable or why not, and the ranking.
 """
-import os
 import platform as host_platform
 import re
 from dataclasses import dataclass
@@ -35,8 +34,8 @@ from pathlib import Path
 import numpy as np
 import pyopencl as cl
 
-from toolkit.opencl import runtimes  # noqa: F401  (registers pip's OpenCL runtimes before the first OpenCL call)
-from toolkit.opencl import lanes
+from toolkit.core.config import config
+from toolkit.opencl import lanes, runtimes
 from toolkit.opencl.device_model import is_gpu
 from toolkit.opencl.install_advice import fixes_when_nothing_builds, how_to_get_opencl
 from toolkit.opencl.probe_cache import read_verdict, verdict_file, write_verdict
@@ -106,6 +105,7 @@ class Candidate:
 
 def list_devices():
     """All (platform_index, device_index, platform, device) tuples; [] if there is no platform."""
+    runtimes.prepare()   # pip's runtimes registered before the loader's first look (once per process)
     try:
         platforms = cl.get_platforms()
     except cl.Error:
@@ -122,8 +122,7 @@ def list_devices():
 
 
 def _hidden(platform):
-    parts = [p.strip().lower() for p in os.environ.get("TOOLKIT_HIDE_PLATFORMS", "").split(",") if p.strip()]
-    return any(p in platform.name.lower() for p in parts)
+    return any(part in platform.name.lower() for part in config().hide_platforms)
 
 
 def candidates(probe_all=True):
@@ -245,7 +244,7 @@ def pick_device(selector=None):
     found = candidates()
     if not found:
         raise NoOpenCLError(how_to_get_opencl())
-    selector = selector or os.environ.get("PYOPENCL_CTX") or None
+    selector = selector or config().pyopencl_ctx
     if selector:
         chosen = _parse_selector(selector, found)
         if not chosen.usable:
@@ -297,8 +296,8 @@ def explain_no_usable_device(found):
                      f"({_cpu_name()}), so it cannot compile for it.")
     lines.append("Fixes:")
     lines += [f"  - {fix}" for fix in fixes_when_nothing_builds(intel_cpu_library() is not None)]
-    if os.environ.get("TOOLKIT_HIDE_PLATFORMS"):
-        lines.append(f"  - TOOLKIT_HIDE_PLATFORMS={os.environ['TOOLKIT_HIDE_PLATFORMS']} hides some platforms; unset it")
+    if config().hide_platforms:
+        lines.append(f"  - TOOLKIT_HIDE_PLATFORMS={','.join(config().hide_platforms)} hides some platforms; unset it")
     return "\n".join(lines)
 
 
@@ -329,7 +328,7 @@ def _queue_for_device(device):
 def get_queue(selector=None, lanes_setting=None):
     """One shared context and in-order queue per device and lanes setting (builds are cached per
     context). `lanes_setting`: "on", "off" or None (TOOLKIT_LANES, else the device's default)."""
-    _, device = pick_device(selector or os.environ.get("PYOPENCL_CTX") or None)
+    _, device = pick_device(selector or config().pyopencl_ctx)
     return _context_and_queue(device, lanes.setting_for(device, lanes_setting))[1]
 
 

@@ -11,21 +11,20 @@ folder once before the first build, and when the cache cannot be used builds wit
 says so once (a KernelCacheWarning; the command line shows it as one `warning:` line).
 
 pyopencl also keeps the code that launches each kernel in pytools' cache folder, and fails to
-make any kernel when that folder cannot be written. pyopencl reads PYOPENCL_NO_CACHE (no cache
-at all) when it is imported, so this module runs before that: toolkit/__init__.py imports it
-right after runtimes.py, and it does not import pyopencl itself.
+make any kernel when that folder cannot be written: then pyopencl is told to cache nothing
+(PYOPENCL_NO_CACHE, before its import). What the environment tells pyopencl and PoCL is set in
+toolkit/opencl/runtimes.py; this module decides, per build, which folder pyopencl's cache is in.
 """
-import os
 import sys
-import tempfile
 import time
 import warnings
 from pathlib import Path
 
 import platformdirs
 
-from toolkit.core.package_data import APP_NAME
-from toolkit.core.private_folder import private_folder, user_tag
+from toolkit.core.config import config
+from toolkit.opencl import runtimes
+from toolkit.opencl.runtimes import unwritable
 
 # pyopencl holds its lock only while it reads or writes one cache entry, for milliseconds; a lock
 # this old was left by a process that no longer runs (pyopencl itself gives up after 60 s).
@@ -44,17 +43,6 @@ def default_folder():
     so that the toolkit shares the builds of any other pyopencl program."""
     version = ".".join(str(i) for i in sys.version_info)
     return Path(platformdirs.user_cache_dir("pyopencl", "pyopencl")) / f"pyopencl-compiler-cache-v2-py{version}"
-
-
-def unwritable(folder):
-    """Why `folder` cannot be made or written (tried with a file removed at once), or None."""
-    try:
-        Path(folder).mkdir(parents=True, exist_ok=True)
-        with tempfile.NamedTemporaryFile(dir=folder, prefix=".toolkit-", suffix=".probe"):
-            pass
-    except OSError as error:
-        return f"cannot write to {folder}: {error.strerror or error}"
-    return None
 
 
 def cache_problem(folder, now=None):
@@ -79,52 +67,18 @@ def cache_problem(folder, now=None):
 
 _checked = {}     # folder: its problem or None, looked at once per process
 _said = set()     # the problems already reported
-_no_cache = None  # why pyopencl was told to cache nothing (PYOPENCL_NO_CACHE), or None
-_pocl_moved = None   # why PoCL's cache was moved to a private temporary folder, or None
-
-
-def prepare_environment():
-    """Before pyopencl is imported (and loads PoCL): make pyopencl's cache failures non-fatal,
-    turn its caches off where pytools' cache folder cannot be written, and give PoCL a cache
-    folder it can write (see the module's docstring)."""
-    global _no_cache, _pocl_moved
-    os.environ.setdefault("PYOPENCL_CACHE_FAILURE_FATAL", "")
-    if "pyopencl" in sys.modules:
-        return      # imported before the toolkit: too late to change how it caches
-    if not os.environ.get("PYOPENCL_NO_CACHE"):
-        _no_cache = unwritable(platformdirs.user_cache_dir("pytools", "pytools"))
-        if _no_cache:
-            os.environ["PYOPENCL_NO_CACHE"] = "1"
-    if not os.environ.get("POCL_CACHE_DIR"):
-        _pocl_moved = _private_pocl_cache()
-
-
-def _private_pocl_cache():
-    """PoCL's default cache folder ($XDG_CACHE_HOME/pocl, else ~/.cache/pocl): where it cannot
-    be written, PoCL offers no device at all. Then POCL_CACHE_DIR names a folder of this user's
-    own in the temporary folder, made 0700: PoCL loads the compiled kernels it finds there, so
-    nobody else may write to it. Returns what was done, or None."""
-    home = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
-    problem = unwritable(os.path.join(home, "pocl"))
-    if not problem:
-        return None
-    root = Path(tempfile.gettempdir()) / f"{APP_NAME}-{user_tag()}"
-    try:
-        os.environ["POCL_CACHE_DIR"] = str(private_folder(private_folder(root) / "pocl-cache"))
-    except OSError as error:     # UnsafeFolder among them: then PoCL keeps its default
-        return f"PoCL's kernel cache: {problem}, and the temporary folder is not usable either ({error})"
-    return f"PoCL's kernel cache is in {os.environ['POCL_CACHE_DIR']}: {problem}"
 
 
 def build_cache_dir():
     """What `build` passes as Program.build's cache_dir: TOOLKIT_CACHE_DIR or pyopencl's default
     folder, or False (build without the cache) when that folder cannot be used (said once)."""
-    if _pocl_moved:
-        cache_failed(_pocl_moved, "")
-    if _no_cache:
-        cache_failed(_no_cache)
+    prepared = runtimes.prepare()
+    if prepared.pocl_cache_moved:
+        cache_failed(prepared.pocl_cache_moved, "")
+    if prepared.no_pyopencl_cache:
+        cache_failed(prepared.no_pyopencl_cache)
         return False
-    folder = os.environ.get("TOOLKIT_CACHE_DIR") or str(default_folder())
+    folder = config().cache_dir or str(default_folder())
     if folder not in _checked:
         _checked[folder] = cache_problem(folder)
     if _checked[folder] is None:
@@ -140,8 +94,9 @@ def cache_failed(problem, what="pyopencl's kernel cache is not used, kernels are
         warnings.warn(KernelCacheWarning(what + problem), stacklevel=3)
 
 
-def build_with_cache(program, options, compiler_warning):
-    """program.build(options) through pyopencl's cache where it can be used, else without it.
+def build_with_cache(program, options, compiler_warning, binary_cache=True):
+    """program.build(options) through pyopencl's cache where it can be used (and `binary_cache`:
+    False builds from source, uncached), else without it.
 
     pyopencl reports a cache that fails during the build (a lock it waited a minute for, an
     entry it cannot write) as a warning with a traceback, and then builds without the cache:
@@ -152,7 +107,7 @@ def build_with_cache(program, options, compiler_warning):
     # A binary loses its parameters' names: Intel's CPU runtime answers get_arg_info of a program
     # made from a cached binary with KERNEL_ARG_INFO_NOT_AVAILABLE, though it was built with
     # -cl-kernel-arg-info. Such a build (tests/test_kernel_args.py) is made from source every time.
-    cache_dir = False if ARG_INFO_OPTION in options else build_cache_dir()
+    cache_dir = False if ARG_INFO_OPTION in options or not binary_cache else build_cache_dir()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         program = program.build(options=options, cache_dir=cache_dir)
@@ -175,6 +130,3 @@ def _exception_line(text):
     """The exception's own line of pyopencl's "[begin exception] ... [end exception]" warning."""
     lines = [line.strip() for line in text.split("[end exception]")[0].splitlines() if line.strip()]
     return lines[-1] if lines else "pyopencl could not use it"
-
-
-prepare_environment()

@@ -33,14 +33,13 @@ followed by the two counts); CL_CONFIG_DUMP_ASM=True writes the generated code t
 AVX2 has gathers but no scatters: a store whose address differs between lanes becomes a test,
 a branch and a store per lane (why cl/bvh.h pushes its stack without branches).
 """
-import os
 import re
 
+from toolkit.core.config import config
 from toolkit.core.validate import InputError
 from toolkit.opencl.device_model import is_gpu
 
 SETTINGS = ("on", "off")
-ENVIRONMENT = "TOOLKIT_LANES"
 INTEL_DEFAULT = "off"     # measured slower with lanes on (see the module docstring)
 HARDWARE = "hardware"     # a GPU: its warps, not the toolkit's choice
 
@@ -66,8 +65,8 @@ def checked(value, what="lanes"):
 
 
 def preferred():
-    """The TOOLKIT_LANES environment setting, or None."""
-    return checked(os.environ.get(ENVIRONMENT) or None, ENVIRONMENT)
+    """The TOOLKIT_LANES environment setting, or None (toolkit/core/config.py)."""
+    return config().lanes
 
 
 def can_choose(device):
@@ -78,10 +77,10 @@ def can_choose(device):
 def fixed_by_environment():
     """("on"/"off", the variable) where the user's environment fixes Intel's vectorizer for the
     process, else (None, None)."""
-    mode = os.environ.get("CL_CONFIG_CPU_VECTORIZER_MODE")
+    mode = config().intel_vectorizer_mode
     if mode:
         return ("off" if mode.strip() == "1" else "on"), f"CL_CONFIG_CPU_VECTORIZER_MODE={mode}"
-    use = os.environ.get("CL_CONFIG_USE_VECTORIZER")
+    use = config().intel_use_vectorizer
     if use is not None and use.strip().lower() in ("false", "0", "no", "off"):
         return "off", f"CL_CONFIG_USE_VECTORIZER={use}"
     return None, None

@@ -8,7 +8,6 @@ and PoCL's kernel cache keep compiled code on disk.
 """
 import hashlib
 import importlib
-import os
 import re
 import sys
 import time
@@ -20,7 +19,8 @@ import pyopencl as cl
 
 from toolkit.core.layout import c_header
 from toolkit.core.package_data import data_dir
-from toolkit.opencl import kernel_times, lanes
+from toolkit.core.config import config
+from toolkit.opencl import kernel_times, lanes, runtimes
 from toolkit.opencl.kernel_cache import ARG_INFO_OPTION, build_with_cache
 
 # The default work-group size. A program is built for one local size (the LOCAL_SIZE define: the
@@ -77,9 +77,10 @@ class KernelBuildWarning(UserWarning):
     """A compiler warning in one of our kernels (the log's `warning:` lines)."""
 
 
-# Set by `--verbose`: print every build log in full (Intel's compiler reports its progress and
-# vectorization there; pyopencl would show any non-empty log as a CompilerWarning).
-verbose = os.environ.get("TOOLKIT_VERBOSE") == "1"
+# Set by `--verbose` (as TOOLKIT_VERBOSE=1 is: toolkit/core/config.py): print every build log in
+# full (Intel's compiler reports its progress and vectorization there; pyopencl would show any
+# non-empty log as a CompilerWarning).
+verbose = False
 
 # Warnings a compiler writes about its own doing, not about our source: NVIDIA's OpenCL compiler
 # (driver 580, H200, results/gpu.md) says this of every kernel it builds.
@@ -214,7 +215,7 @@ _memo = {}
 build_log = []  # (name, seconds, cached_in_process) for reports and tests
 
 
-def build(context, name, defines=None, directory=None, arg_info=False):
+def build(context, name, defines=None, directory=None, arg_info=False, binary_cache=True):
     """The built program for cl/<name> (or <directory>/<name>) under `defines`, memoised per device.
 
     With `directory`, `name` and its quoted includes are read from there first, then from cl/,
@@ -222,6 +223,7 @@ def build(context, name, defines=None, directory=None, arg_info=False):
     LOCAL_SIZE) is the work-group size the program must be launched with (launch's local_size).
     `arg_info`: keep the kernels' parameter names (-cl-kernel-arg-info), for
     kernel.get_arg_info (tests/test_kernel_args.py compares them with the names the host passes).
+    `binary_cache=False`: compiled from source, past pyopencl's binary cache (and not stored there).
     The context's SIMD-lanes setting (toolkit/opencl/lanes.py) is applied to every kernel;
     vector_widths(program) says what the compiler did with it."""
     device = context.devices[0]
@@ -234,9 +236,9 @@ def build(context, name, defines=None, directory=None, arg_info=False):
         lanes_log.append((name, setting, _widths[_memo[(key, context.int_ptr)].int_ptr]))
         return _memo[(key, context.int_ptr)]
     start = time.perf_counter()
-    program, retrieved = _compile(cl.Program(context, source), name, source, options)
+    program, retrieved = _compile(cl.Program(context, source), name, source, options, binary_cache)
     log = relocate(_build_log_text(program), source)
-    if verbose and log.strip():
+    if (verbose or config().verbose) and log.strip():
         print(f"--- build log of {name} on {device.name.strip()} ---\n{log}", file=sys.stderr)
     real = warning_lines(log)
     if real and "-Werror" in options:  # for compilers that ignore the option (Oclgrind)
@@ -266,28 +268,23 @@ def build_inputs(context, name, defines=None, directory=None, arg_info=False):
     options = define_options(defines)
     if arg_info:
         options.append(ARG_INFO_OPTION)
-    if os.environ.get("TOOLKIT_WERROR") == "1":
+    if config().werror:
         options.append("-Werror")  # the test suite: any compiler warning fails the build
     if "Intel" in device.platform.name:
-        # Intel's vectorizer setting (toolkit/opencl/runtimes.py) changes the code built from the same
+        # Intel's vectorizer setting (toolkit/opencl/lanes.py) changes the code built from the same
         # options: name it in them, so that pyopencl's binary cache keeps the two apart.
-        options.append(f"-DINTEL_VECTORIZER_{os.environ.get('CL_CONFIG_USE_VECTORIZER', 'True')}")
+        use = config().intel_use_vectorizer
+        options.append(f"-DINTEL_VECTORIZER_{'True' if use is None else use}")
     return source, options
 
 
-def _compile(program, name, source, options):
+def _compile(program, name, source, options, binary_cache):
     """(the built program, the build log pyopencl kept with a cached binary or "")."""
-    saved = os.environ.get("PYOPENCL_COMPILER_OUTPUT")
-    os.environ["PYOPENCL_COMPILER_OUTPUT"] = "1"   # pyopencl then warns with the stored log itself
     try:
-        return build_with_cache(program, options, cl.CompilerWarning)
+        with runtimes.compiler_output_shown():   # pyopencl then warns with the stored log itself
+            return build_with_cache(program, options, cl.CompilerWarning, binary_cache)
     except cl.RuntimeError as error:
         raise KernelBuildError(_format_build_error(name, relocate(str(error), source), options)) from None
-    finally:
-        if saved is None:
-            del os.environ["PYOPENCL_COMPILER_OUTPUT"]
-        else:
-            os.environ["PYOPENCL_COMPILER_OUTPUT"] = saved
 
 
 _widths = {}      # {program.int_ptr: {kernel: vector width}} (lanes.vector_widths)

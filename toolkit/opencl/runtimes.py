@@ -1,4 +1,19 @@
-"""Make the OpenCL implementations that pip installed visible, beside the system's drivers.
+"""Make the OpenCL implementations that pip installed visible, beside the system's drivers, and
+put in the environment what pyopencl and PoCL read from it: the only module, with
+windows_runtime.py, that writes the process's environment (the toolkit's settings are read in
+toolkit/core/config.py).
+
+When. `prepare()` does it once per process, when a device is first asked for: list_devices
+(toolkit/opencl/device.py) calls it before pyopencl's first platform query. Importing the
+toolkit registers nothing. That is early enough because the ICD loader reads OCL_ICD_VENDORS at
+the first clGetPlatformIDs, not when pyopencl is imported (measured with pyopencl 2026.1.4's
+bundled loader: set after `import pyopencl` and before the first get_platforms, Intel's runtime is
+found; set after that first query, it is not), and PoCL reads POCL_CACHE_DIR then too (with an
+unwritable cache folder, POCL_CACHE_DIR set after the import and before that query gives PoCL's
+device back). One variable must come before pyopencl's import: PYOPENCL_NO_CACHE, which pyopencl
+reads when it is imported and which decides whether the import opens pytools' cache folder at
+all (before_pyopencl_import(), which toolkit/__init__.py calls before it imports anything that
+imports pyopencl).
 
 Only where pip installed one (setup.cfg): on Linux x86-64 and on x86-64 Windows. On macOS
 pyopencl's wheel uses Apple's OpenCL (its CPU and GPU devices), and a GPU driver registers itself
@@ -10,8 +25,7 @@ pyopencl's bundled ICD loader finds PoCL (`pocl-binary-distribution`) by itself,
 system's drivers through /etc/OpenCL/vendors. Intel's CPU runtime (`intel-opencl-rt`) ships an
 `.icd` file that names a placeholder path, so no loader finds it. This module writes a vendors
 folder that lists the system's `.icd` files plus one for Intel's library, and points the loader
-at it (`OCL_ICD_VENDORS`). It must run before the first OpenCL call of the process, which is
-why `toolkit/__init__.py` imports it first.
+at it (`OCL_ICD_VENDORS`).
 
 Why Intel's runtime at all: PoCL 3.0 (the newest on the package index) compiles with LLVM 14,
 which does not know the newest CPUs (AMD Zen 5) and then builds no kernel. Intel's runtime
@@ -38,12 +52,19 @@ import os
 import platform
 import shutil
 import stat
+import sys
 import tempfile
+from contextlib import contextmanager
+from dataclasses import dataclass, field
+from functools import cache
 from importlib import metadata
 from pathlib import Path
 
+import platformdirs
+
+from toolkit.core.config import config
 from toolkit.core.package_data import APP_NAME, user_cache_folder
-from toolkit.core.private_folder import UnsafeFolder, private_folder, unsafe_reason
+from toolkit.core.private_folder import UnsafeFolder, private_folder, unsafe_reason, user_tag
 from toolkit.opencl import windows_runtime
 
 SYSTEM_VENDORS = Path("/etc/OpenCL/vendors")
@@ -148,14 +169,15 @@ def pip_icd_lines():
     return icd_lines
 
 
-def register_pip_runtimes():
+def register_pip_runtimes(refused=None):
     """Make pip's Intel CPU runtime visible to the loader, on the systems where pip installs it.
 
     Returns what was registered (on Linux the vendors folder, on Windows the OCL_ICD_FILENAMES
     setting), or None when nothing was: no Intel runtime (macOS, ARM Linux: none from pip), the
     user's own `OCL_ICD_VENDORS` / `OCL_ICD_FILENAMES`, `TOOLKIT_NO_PIP_RUNTIMES=1`, or (Linux) no
-    folder that only this user can write: `vendors_refused` then says why."""
-    if os.environ.get("TOOLKIT_NO_PIP_RUNTIMES") == "1":
+    folder that only this user can write: why is then appended to the list `refused`."""
+    refused = [] if refused is None else refused
+    if config().no_pip_runtimes:
         return None
     if platform.system() == "Windows":
         library = intel_cpu_library()
@@ -165,7 +187,7 @@ def register_pip_runtimes():
     icd_lines = pip_icd_lines()
     if icd_lines is None:
         return None
-    folder = vendors_folder(icd_lines, vendor_roots(), vendors_refused)
+    folder = vendors_folder(icd_lines, vendor_roots(), refused)
     if folder is not None:
         os.environ["OCL_ICD_VENDORS"] = str(folder)
     return folder
@@ -176,5 +198,91 @@ def registration_variable():
     return "OCL_ICD_FILENAMES" if platform.system() == "Windows" else "OCL_ICD_VENDORS"
 
 
-vendors_refused = []   # why a vendors folder was passed over (`python -m toolkit devices` shows it)
-registered_vendors = register_pip_runtimes()
+def users_own_vendors():
+    """The user's own OCL_ICD_VENDORS, which the toolkit keeps (then it registers nothing), or None."""
+    return os.environ.get("OCL_ICD_VENDORS") or None
+
+
+# ---- the kernel caches: what pyopencl and PoCL are told ---------------------------------------
+
+@cache   # once per process: pyopencl reads the variable once, when it is imported
+def before_pyopencl_import():
+    """Where pytools' cache folder cannot be written, pyopencl's import fails to open its cache of
+    launch code, and it makes no kernel: then PYOPENCL_NO_CACHE=1 (no pyopencl cache at all).
+    Returns why, or None. Too late once pyopencl is imported: nothing is changed then."""
+    if "pyopencl" in sys.modules or os.environ.get("PYOPENCL_NO_CACHE"):
+        return None
+    problem = unwritable(platformdirs.user_cache_dir("pytools", "pytools"))
+    if problem:
+        os.environ["PYOPENCL_NO_CACHE"] = "1"
+    return problem
+
+
+def unwritable(folder):
+    """Why `folder` cannot be made or written (tried with a file removed at once), or None."""
+    try:
+        Path(folder).mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=folder, prefix=".toolkit-", suffix=".probe"):
+            pass
+    except OSError as error:
+        return f"cannot write to {folder}: {error.strerror or error}"
+    return None
+
+
+def _private_pocl_cache():
+    """PoCL's default cache folder ($XDG_CACHE_HOME/pocl, else ~/.cache/pocl): where it cannot
+    be written, PoCL offers no device at all. Then POCL_CACHE_DIR names a folder of this user's
+    own in the temporary folder, made 0700: PoCL loads the compiled kernels it finds there, so
+    nobody else may write to it. Returns what was done, or None."""
+    if os.environ.get("POCL_CACHE_DIR"):
+        return None
+    home = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    problem = unwritable(os.path.join(home, "pocl"))
+    if not problem:
+        return None
+    root = Path(tempfile.gettempdir()) / f"{APP_NAME}-{user_tag()}"
+    try:
+        os.environ["POCL_CACHE_DIR"] = str(private_folder(private_folder(root) / "pocl-cache"))
+    except OSError as error:     # UnsafeFolder among them: then PoCL keeps its default
+        return f"PoCL's kernel cache: {problem}, and the temporary folder is not usable either ({error})"
+    return f"PoCL's kernel cache is in {os.environ['POCL_CACHE_DIR']}: {problem}"
+
+
+@contextmanager
+def compiler_output_shown():
+    """Within: pyopencl hands a build's log over as a CompilerWarning with the log itself (the
+    only way it hands over the log it stored with a cached binary), instead of a hint to set
+    PYOPENCL_COMPILER_OUTPUT=1. toolkit/opencl/program.py builds within it."""
+    saved = os.environ.get("PYOPENCL_COMPILER_OUTPUT")
+    os.environ["PYOPENCL_COMPILER_OUTPUT"] = "1"
+    try:
+        yield
+    finally:
+        if saved is None:
+            del os.environ["PYOPENCL_COMPILER_OUTPUT"]
+        else:
+            os.environ["PYOPENCL_COMPILER_OUTPUT"] = saved
+
+
+# ---- once per process, before the first platform query -----------------------------------------
+
+@dataclass
+class Preparation:
+    """What prepare() did: `python -m toolkit devices` and the kernel cache's warnings say it."""
+    registered: object = None          # the vendors folder (Linux) or library (Windows) registered, or None
+    refused: list = field(default_factory=list)   # why a vendors folder was passed over
+    users_vendors: str = None          # the user's own OCL_ICD_VENDORS, kept
+    no_pyopencl_cache: str = None      # why pyopencl caches nothing (PYOPENCL_NO_CACHE), or None
+    pocl_cache_moved: str = None       # why PoCL's cache was moved to a private temporary folder, or None
+
+
+@cache   # once per process: the loader reads the environment once, at the first platform query
+def prepare():
+    """Register pip's runtimes and give PoCL a cache folder it can write; pyopencl's cache
+    failures made non-fatal (pyopencl reads PYOPENCL_CACHE_FAILURE_FATAL when its cache fails,
+    and an unset one is a KeyError there). Returns the Preparation."""
+    os.environ.setdefault("PYOPENCL_CACHE_FAILURE_FATAL", "")
+    done = Preparation(users_vendors=users_own_vendors(), no_pyopencl_cache=before_pyopencl_import(),
+                       pocl_cache_moved=_private_pocl_cache())
+    done.registered = register_pip_runtimes(done.refused)
+    return done

@@ -35,7 +35,7 @@ class Technique:
     film_reduction = None   # the FilmReduction of collect, made at its first pass
 
     def __init__(self, queue, device_scene, warp_width=None, count_simd=True, extra_defines=None,
-                 local_size=program.LOCAL_SIZE, general=False, pass_spp=None, sources=None):
+                 local_size=program.LOCAL_SIZE, general=False, pass_spp=None, sources=None, binary_cache=True):
         """`warp_width`: W of the SIMD counters; None: the device's (toolkit.opencl.device_model.device_warp_width).
         `general`: build the general kernel (every material and feature compiled in, Scene.features)
         instead of the one specialized to the scene; both compute the same image.
@@ -43,7 +43,9 @@ class Technique:
         fills `target_batch`; a cost knob of the speed-accuracy study (toolkit/measure/study/).
         `sources` (an option of every technique): where `source` and its includes are found, a
         folder whose files replace cl/'s of the same name, or a program.Sources (the autograder
-        passes one that holds a student's file, toolkit/grading/context.py); None: cl/."""
+        passes one that holds a student's file, toolkit/grading/context.py); None: cl/.
+        `binary_cache=False`: the technique's program is compiled from source, past pyopencl's binary
+        cache (`bench --specialization` times builds so: toolkit/measure/specialization.py)."""
         self.pass_spp = None if pass_spp is None else whole_number("technique.pass_spp", pass_spp, "pass_spp")
         # Firefly clamping (scene integrator.clamp): applied where samples reach the film.
         self.clamp = device_scene.scene.clamp
@@ -66,7 +68,8 @@ class Technique:
         self.defines = defines
         self.sources = sources if isinstance(sources, program.Sources) else program.default_sources(sources)
         start = time.perf_counter()
-        self.program = program.build(queue.context, self.source, defines, directory=self.sources)
+        self.program = program.build(queue.context, self.source, defines, directory=self.sources,
+                                     binary_cache=binary_cache)
         self.build_seconds = time.perf_counter() - start
         self.simd = PhaseCounter(warp_width)
         self.traversal = PhaseCounter(warp_width)
