@@ -32,7 +32,7 @@ def announce(name):
 
 def control(queue):
     """The racy kernel, which Oclgrind must report: proof that the detector is on."""
-    built = program.build(queue.context, "racy.cl", directory=ROOT / "tests" / "fixtures" / "races")
+    built = program.build(queue, "racy.cl", directory=ROOT / "tests" / "fixtures" / "races")
     word = cl.Buffer(queue.context, cl.mem_flags.READ_WRITE, 4 * (program.LOCAL_SIZE + 1))
     program.launch(queue, program.kernel(built, "racy"), program.LOCAL_SIZE, word)
     queue.finish()

@@ -46,7 +46,7 @@ def split_weights(queue, tech, scene, paths, resolution=(64, 64)):
     """For each path (light -> eye order), the MIS weight of every split s = 0 .. n - 1
     (s light vertices), from the device's connect_strategy() (cl/bdpt_test.cl)."""
     ds = tech.scene
-    built = program.build(queue.context, "bdpt_test.cl", dict(tech.scene.features(), MAX_VERTICES=tech.max_vertices))
+    built = program.build(queue, "bdpt_test.cl", dict(tech.scene.features(), MAX_VERTICES=tech.max_vertices))
     kernel = program.kernel(built, "bdpt_test_mis_splits")
     camera = ds.camera(*resolution)
     mf = cl.mem_flags

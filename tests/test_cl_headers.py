@@ -21,7 +21,7 @@ __kernel void mis_alone(__global const BdptVertex* eye, __global const BdptVerte
 @pytest.mark.parametrize("power, weight", [(False, 0.5), (True, 2.0 / 3.0)])
 def test_mis_h_compiles_alone_and_weighs_the_other_two_strategies(queue, tmp_path, power, weight):
     (tmp_path / "mis_alone.cl").write_text(MIS_ALONE)
-    built = program.build(queue.context, "mis_alone.cl", {"MIS_POWER": power}, directory=tmp_path)
+    built = program.build(queue, "mis_alone.cl", {"MIS_POWER": power}, directory=tmp_path)
     eye, light = BDPT_VERTEX.zeros(2), BDPT_VERTEX.zeros(1)
     eye["flags"][0] = VertexFlag.CAMERA
     eye["pdf_fwd"] = [1.0, 4.0]      # ratio of strategy (2, 1): pt_rev / pdf_fwd(z_1) = 2 / 4

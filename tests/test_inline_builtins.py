@@ -44,7 +44,7 @@ def test_written_out_builtins_match_the_compilers_own(queue, tmp_path):
     b[16:32, 1] = 0.0                                  # a.x / 0: isfinite sees infinities
     outputs = []
     for ours in (True, False):
-        built = program.build(queue.context, "builtins.cl", {"BUILTINS_ARE_CALLS": ours}, directory=tmp_path)
+        built = program.build(queue, "builtins.cl", {"BUILTINS_ARE_CALLS": ours}, directory=tmp_path)
         mf = cl.mem_flags
         bufs = [cl.Buffer(queue.context, mf.READ_ONLY | mf.COPY_HOST_PTR, hostbuf=x) for x in (a, b)]
         out = np.empty((n, len(EXPRESSIONS)), np.float32)

@@ -47,7 +47,7 @@ def kernel_kind(type_name):
 
 def kernel_parameters(tech):
     """{kernel name: [(parameter name, kind), ...]} of the technique's program, as compiled."""
-    built = program.build(tech.queue.context, tech.source, tech.defines, directory=tech.sources, arg_info=True)
+    built = program.build(tech.queue, tech.source, tech.defines, directory=tech.sources, arg_info=True)
     return {k.function_name: [(k.get_arg_info(i, cl.kernel_arg_info.NAME),
                                kernel_kind(k.get_arg_info(i, cl.kernel_arg_info.TYPE_NAME)))
                               for i in range(k.num_args)]

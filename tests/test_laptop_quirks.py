@@ -32,7 +32,8 @@ def test_a_kernel_limited_below_the_local_size_is_named_with_its_limit():
 def test_a_device_whose_kernels_take_smaller_work_groups_fails_the_probe_saying_so(monkeypatch, queue):
     """Apple's CPU device gives some kernels (barriers, local memory) fewer work-items than the
     device's maximum: the probe asks the kernel, and the device is skipped with that reason."""
-    monkeypatch.setattr(program, "_bound", {})            # launch checks a kernel when it first binds it
+    # launch checks a kernel when it first binds it: the probe's queue starts with none bound
+    monkeypatch.setattr(device.queue_for_device(queue.device).builds, "launched", {})
     monkeypatch.setattr(program, "_work_group_limit", lambda kernel, d: 16)
     usable, reason, lasting = device._run_probe(queue.device)
     assert not usable and lasting
@@ -62,7 +63,7 @@ def test_kernel_sources_with_windows_line_endings_build_the_same_program(tmp_pat
         (tmp_path / folder / "twice.h").write_bytes(HEADER.replace("\n", newline).encode())
     lf, crlf = (program.expand_includes("twice.cl", tmp_path / f) for f in ("lf", "crlf"))
     assert crlf == lf and "\r" not in crlf
-    built = program.build(queue.context, "twice.cl", directory=tmp_path / "crlf")
+    built = program.build(queue, "twice.cl", directory=tmp_path / "crlf")
     values = np.arange(4, dtype=np.float32)
     buffer = cl.Buffer(queue.context, cl.mem_flags.READ_WRITE | cl.mem_flags.COPY_HOST_PTR, hostbuf=values)
     program.launch(queue, program.kernel(built, "twice_all"), 4, buffer, np.int32(4))

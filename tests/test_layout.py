@@ -10,7 +10,7 @@ from toolkit.techniques import TECHNIQUES
 
 
 def test_every_generated_struct_has_numpys_sizeof_and_offsetof_on_the_device(queue):
-    built = program.build(queue.context, "layout_check.cl")
+    built = program.build(queue, "layout_check.cl")
     checks = layout.layout_checks()
     out = np.full(len(checks), -1, np.int32)
     buffer = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, out.nbytes)
@@ -40,7 +40,7 @@ def test_named_w_lanes_are_the_fourth_float_of_their_field_on_both_sides(queue, 
                                        '    Subpath p = {.origin = (float4)(0.0f), .beta = (float4)(0.0f)};\n'
                                        '    SUBPATH_PDF_DIR(&p) = 2.5f;\n    SUBPATH_RR_NORMALISER(&p) = 7.0f;\n'
                                        '    out[0] = p;\n}\n')
-    built = program.build(queue.context, "lanes.cl", directory=tmp_path)
+    built = program.build(queue, "lanes.cl", directory=tmp_path)
     out = np.zeros(1, lane_dtype(layout.SUBPATH, layout.SUBPATH_LANES))
     assert out.dtype.itemsize == layout.SUBPATH.dtype.itemsize
     buffer = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, out.nbytes)
@@ -78,7 +78,7 @@ __kernel void roundtrip(__global void* stream, const int capacity, __global floa
     out[4] = back.dir.x; out[5] = back.contribution.x; out[6] = (float)back.slot;
 }
 """)
-    built = program.build(queue.context, "roundtrip.cl", directory=tmp_path)
+    built = program.build(queue, "roundtrip.cl", directory=tmp_path)
     capacity = 4
     stream = layout.SHADOW_RAY.soa_buffer(queue.context, capacity)
     out = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, 7 * 4)
@@ -111,7 +111,7 @@ __kernel void hit_roundtrip(__global void* stream, const int capacity, __global 
     out[0] = back.t; out[1] = (float)back.tri;
 }
 """)
-    built = program.build(queue.context, "hit.cl", directory=tmp_path)
+    built = program.build(queue, "hit.cl", directory=tmp_path)
     capacity = 4
     stream = hit.soa_buffer(queue.context, capacity)
     out = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, 2 * 4)

@@ -44,9 +44,9 @@ __kernel void use_broken(__global int* out) {
 IMPLEMENTATIONS = [c for c in candidates() if c.usable]
 
 
-def context_of(implementation):
-    from toolkit.opencl.device import _queue_for_device
-    return _queue_for_device(implementation.device).context
+def queue_of(implementation):
+    from toolkit.opencl.device import queue_for_device
+    return queue_for_device(implementation.device)
 
 
 @pytest.mark.parametrize("implementation", IMPLEMENTATIONS, ids=lambda c: c.implementation)
@@ -56,7 +56,7 @@ def test_error_in_included_header_names_its_file_and_line(implementation, tmp_pa
     write(tmp_path, "broken.h", BROKEN_H)
     write(tmp_path, "broken.cl", BROKEN_CL)
     with pytest.raises(KernelBuildError) as info:
-        program.build(context_of(implementation), "broken.cl", {}, directory=tmp_path)
+        program.build(queue_of(implementation), "broken.cl", {}, directory=tmp_path)
     message = str(info.value)
     assert "OpenCL build of broken.cl failed" in message
     assert "broken.h:3" in message, message
@@ -76,7 +76,7 @@ __kernel void k(__global int* out) {
 }
 """)
     with pytest.raises(KernelBuildError) as info:
-        program.build(queue.context, "broken_main.cl", {}, directory=tmp_path)
+        program.build(queue, "broken_main.cl", {}, directory=tmp_path)
     message = str(info.value)
     assert "broken_main.cl:5" in message, message
     assert "fine.h" not in message.split("Full compiler log:")[0]
@@ -85,9 +85,9 @@ __kernel void k(__global int* out) {
 def test_missing_source_is_a_build_error(queue, tmp_path):
     write(tmp_path, "includes_missing.cl", '#include "no_such_header.h"\n__kernel void k() {}\n')
     with pytest.raises(KernelBuildError, match="no_such_header.h"):
-        program.build(queue.context, "includes_missing.cl", {}, directory=tmp_path)
+        program.build(queue, "includes_missing.cl", {}, directory=tmp_path)
     with pytest.raises(KernelBuildError, match="not found"):
-        program.build(queue.context, "no_such_kernel.cl", {}, directory=tmp_path)
+        program.build(queue, "no_such_kernel.cl", {}, directory=tmp_path)
 
 
 def test_expand_includes_inlines_each_header_once_with_line_markers():
@@ -117,14 +117,15 @@ TINY = """__kernel void tiny(__global int* out) {
 def test_builds_are_memoised(queue, tmp_path):
     write(tmp_path, "tiny.cl", TINY)
     defines = {"TINY_VALUE": 7, "NONCE": nonce()}
-    first = program.build(queue.context, "tiny.cl", defines, directory=tmp_path)
-    assert program.build_log[-1][0] == "tiny.cl" and program.build_log[-1][2] is False
-    second = program.build(queue.context, "tiny.cl", dict(defines), directory=tmp_path)
+    log = queue.builds.log
+    first = program.build(queue, "tiny.cl", defines, directory=tmp_path)
+    assert log[-1][0] == "tiny.cl" and log[-1][2] is False
+    second = program.build(queue, "tiny.cl", dict(defines), directory=tmp_path)
     assert second is first
-    assert program.build_log[-1] == ("tiny.cl", 0.0, True)
-    other = program.build(queue.context, "tiny.cl", dict(defines, TINY_VALUE=8), directory=tmp_path)
+    assert log[-1] == ("tiny.cl", 0.0, True)
+    other = program.build(queue, "tiny.cl", dict(defines, TINY_VALUE=8), directory=tmp_path)
     assert other is not first
-    assert program.build_log[-1][2] is False
+    assert log[-1][2] is False
     # The defines really reach the compiler.
     out = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, 4)
     values = []
@@ -137,12 +138,29 @@ def test_builds_are_memoised(queue, tmp_path):
     assert program.kernel(first, "tiny") is program.kernel(first, "tiny")
 
 
+def test_each_context_has_builds_of_its_own(queue, tmp_path):
+    """What is built is kept by the context's Builds, which its queues carry (builds.py), not by
+    a module: the profiling queue of a context shares it, a new context starts with nothing."""
+    from toolkit.opencl.builds import Builds, Queue
+    from toolkit.opencl.kernel_times import profiling_queue
+    write(tmp_path, "tiny.cl", TINY)
+    defines = {"TINY_VALUE": 3, "NONCE": nonce()}
+    first = program.build(queue, "tiny.cl", defines, directory=tmp_path)
+    timed = profiling_queue(queue)
+    assert timed is not queue and timed.builds is queue.builds and profiling_queue(queue) is timed
+    assert program.build(timed, "tiny.cl", defines, directory=tmp_path) is first
+    fresh = Queue(cl.Context([queue.device]), Builds(queue.builds.lanes))
+    again = program.build(fresh, "tiny.cl", defines, directory=tmp_path)
+    assert again is not first and fresh.builds.log == [("tiny.cl", fresh.builds.log[0][1], False)]
+    assert fresh.builds.programs and not set(fresh.builds.programs.values()) & set(queue.builds.programs.values())
+
+
 def test_changed_source_is_rebuilt(queue, tmp_path):
     write(tmp_path, "tiny.cl", TINY)
     defines = {"TINY_VALUE": 1, "NONCE": nonce()}
-    first = program.build(queue.context, "tiny.cl", defines, directory=tmp_path)
+    first = program.build(queue, "tiny.cl", defines, directory=tmp_path)
     write(tmp_path, "tiny.cl", TINY + "/* edited */\n")
-    assert program.build(queue.context, "tiny.cl", defines, directory=tmp_path) is not first
+    assert program.build(queue, "tiny.cl", defines, directory=tmp_path) is not first
 
 
 # -- (c) scene-specialised builds -------------------------------------------------------------
@@ -186,10 +204,10 @@ def test_absent_materials_are_compiled_out(queue, tmp_path, cornell_box, source,
     name = write(tmp_path, f"uses_{symbol}.cl", source)
     defines = cornell_box.features()
     with pytest.raises(KernelBuildError) as info:
-        program.build(queue.context, name, defines, directory=tmp_path)
+        program.build(queue, name, defines, directory=tmp_path)
     assert symbol in str(info.value)
     assert f"{name}:" in str(info.value)
-    program.build(queue.context, name, dict(defines, **{feature: True}), directory=tmp_path)
+    program.build(queue, name, dict(defines, **{feature: True}), directory=tmp_path)
 
 
 IS_SPECULAR = """#include "materials.h"
@@ -208,7 +226,7 @@ def test_specular_branches_follow_the_scene(queue, tmp_path, cornell_box, cornel
     out = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, 12)
     results = {}
     for scene in (cornell_box, cornell_spheres):
-        built = program.build(queue.context, name, scene.features(), directory=tmp_path)
+        built = program.build(queue, name, scene.features(), directory=tmp_path)
         program.kernel(built, "specular_types")(queue, (1,), None, out)
         values = np.zeros(3, np.int32)
         cl.enqueue_copy(queue, values, out)
@@ -217,8 +235,8 @@ def test_specular_branches_follow_the_scene(queue, tmp_path, cornell_box, cornel
 
 
 def test_each_scene_gets_its_own_pt_naive_build(queue, cornell_box, cornell_spheres):
-    box = program.build(queue.context, "pt_naive.cl", cornell_box.features())
-    spheres = program.build(queue.context, "pt_naive.cl", cornell_spheres.features())
+    box = program.build(queue, "pt_naive.cl", cornell_box.features())
+    spheres = program.build(queue, "pt_naive.cl", cornell_spheres.features())
     assert box is not spheres
     assert program.kernel(box, "pt_naive_render") is not None
 
@@ -249,7 +267,7 @@ def test_padded_rounds_up_to_a_multiple_of_the_local_size():
 @pytest.mark.parametrize("n", [1, 64, 65, 1000])
 def test_launch_uses_fixed_local_size_and_padded_global_size(queue, tmp_path, n):
     name = write(tmp_path, "fill.cl", FILL)
-    built = program.build(queue.context, name, {}, directory=tmp_path)
+    built = program.build(queue, name, {}, directory=tmp_path)
     out = cl.Buffer(queue.context, cl.mem_flags.READ_WRITE, 4 * (n + 1))
     cl.enqueue_fill_buffer(queue, out, np.int32(-1), 0, 4 * (n + 1))
     sizes = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, 8)
@@ -274,16 +292,16 @@ def test_compiler_warnings_are_shown_and_fail_the_suite(implementation, tmp_path
     import warnings
     # A source never built before: a cached binary comes without its build log (and warnings).
     write(tmp_path, "warns.cl", WARNING_CL + f"/* {tmp_path} {time.time()} */\n")
-    context = context_of(implementation)
+    queue = queue_of(implementation)
     monkeypatch.delenv("TOOLKIT_WERROR")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        program.build(context, "warns.cl", {}, directory=tmp_path)
+        program.build(queue, "warns.cl", {}, directory=tmp_path)
     assert [w.category for w in caught] == [program.KernelBuildWarning], [str(w.message) for w in caught]
     assert "warns.cl:1:" in str(caught[0].message)
     monkeypatch.setenv("TOOLKIT_WERROR", "1")
     with pytest.raises(KernelBuildError, match="warns.cl:1:"):
-        program.build(context, "warns.cl", {}, directory=tmp_path)
+        program.build(queue, "warns.cl", {}, directory=tmp_path)
 
 
 def test_a_compilers_notice_about_itself_is_no_warning():

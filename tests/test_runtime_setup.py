@@ -100,8 +100,8 @@ def test_a_stale_lock_builds_without_the_cache_and_says_so(tmp_path, monkeypatch
     monkeypatch.setenv("TOOLKIT_CACHE_DIR", str(cache))
     (tmp_path / "tiny.cl").write_text("__kernel void tiny(__global int *out) { out[0] = 24; }\n")
     with pytest.warns(kernel_cache.KernelCacheWarning, match="lock file .* s old") as said:
-        program = build(queue.context, "tiny.cl", directory=tmp_path)
-        build(queue.context, "tiny.cl", defines={"AGAIN": 1}, directory=tmp_path)
+        program = build(queue, "tiny.cl", directory=tmp_path)
+        build(queue, "tiny.cl", defines={"AGAIN": 1}, directory=tmp_path)
     assert len(said) == 1                                                 # once, not per build
     assert program.tiny.function_name == "tiny"
     assert sorted(p.name for p in cache.iterdir()) == ["lock"]            # nothing cached, lock left alone

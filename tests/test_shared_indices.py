@@ -42,7 +42,7 @@ __kernel void shared_indices(const int n, __global const int* in_a, __global con
 
 def test_host_and_kernel_compute_the_same_indices(queue, tmp_path):
     (tmp_path / "shared_indices.cl").write_text('#include "common.h"\n' + KERNEL)
-    built = program.build(queue.context, "shared_indices.cl", directory=tmp_path)
+    built = program.build(queue, "shared_indices.cl", directory=tmp_path)
     a, b, c = (np.array(x, np.int32) for x in zip(*itertools.product(range(0, 40), range(1, 40), range(0, 12))))
     n = len(a)
     mf = cl.mem_flags

@@ -17,7 +17,7 @@ __kernel void circle(__global const float* u, __global float2* out, const int n)
 
 def test_unit_circle_matches_cos_and_sin_to_float_rounding(queue, tmp_path):
     (tmp_path / "circle.cl").write_text(KERNEL)
-    built = program.build(queue.context, "circle.cl", directory=tmp_path)
+    built = program.build(queue, "circle.cl", directory=tmp_path)
     # every quadrant boundary and its neighbours, and 2^20 evenly spaced values
     u = np.concatenate([np.linspace(0, 1, 1 << 20, endpoint=False), [0.25, 0.5, 0.75],
                         np.nextafter(np.float32([0.25, 0.5, 0.75, 1.0]), np.float32(0)),

@@ -96,7 +96,7 @@ def test_the_largest_indices_of_the_chosen_sizes_fit_an_int():
 def test_vertex_word_offsets_are_formed_in_64_bits(queue):
     """vertex_word(index, w) (cl/vertex_memory.h) at vertex indices whose word offsets pass
     2^31 and 2^32 (pools of 1.4M samples and more), computed by the device."""
-    built = program.build(queue.context, "index_test.cl", {"MAX_VERTICES": 64})
+    built = program.build(queue, "index_test.cl", {"MAX_VERTICES": 64})
     index = np.array([0, 1, 2**31 // 24 - 1, 2**31 // 24 + 1, 200_000_000, INT_MAX], np.int32)
     word = np.array([0, 23, 23, 0, 7, 23], np.int32)
     mf = cl.mem_flags

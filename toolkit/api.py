@@ -12,7 +12,7 @@ import numpy as np
 from toolkit.opencl import program
 from toolkit.opencl.kernel_times import KernelTimes, profiling_queue
 from toolkit.opencl.device import describe, get_queue
-from toolkit.opencl.lanes import checked as checked_lanes, describe as describe_lanes, of_context as lanes_of_context
+from toolkit.opencl.lanes import checked as checked_lanes, describe as describe_lanes
 from toolkit.opencl.lanes import width as lane_width
 from toolkit.opencl.device_scene import DeviceScene
 from toolkit.core.layout import BVH_KINDS
@@ -129,7 +129,7 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     queue = get_queue(device, lanes)
     if time_phases:
         queue = profiling_queue(queue)
-    builds = len(program.lanes_log)   # the programs this render builds (or finds built) follow
+    builds = len(queue.builds.lanes_log)   # the programs this render builds (or finds built) follow
     device_scene = DeviceScene(queue, scene, bvh=bvh)
     tech = cls(queue, device_scene, warp_width=warp_width, count_simd=count_simd, local_size=local_size,
                general=bool(general), **options,
@@ -141,7 +141,7 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
     stats = {"scene": scene.name, "technique": technique, "spp": spp, "resolution": [width, height],
              **_stats(tech, film, image, seconds), "bvh": device_scene.bvh_stats(),
              "triangles": int(len(scene.triangles)), "degrees_of_freedom": film.degrees_of_freedom,
-             **_lanes_stats(queue, program.vector_widths_since(builds)), **tech.extra_stats(),
+             **_lanes_stats(queue, queue.builds.vector_widths_since(builds)), **tech.extra_stats(),
              **(_phase_stats(tech, times) if times else {})}
     if film.nonfinite_samples:
         # A non-finite sample is a bug to fix where it comes from; never only inside the stats.
@@ -171,7 +171,7 @@ def _checked(technique, options, strategy_images, resolution, bvh, device):
 
 def _lanes_stats(queue, widths):
     """Whether the render ran work-items as SIMD lanes, and how wide, as its compiler said."""
-    setting = lanes_of_context(queue.context)
+    setting = queue.builds.lanes
     return {"lanes": setting, "vector_width": lane_width(widths), "vector_widths": widths,
             "lanes_summary": describe_lanes(setting, widths)}
 

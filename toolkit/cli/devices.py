@@ -83,10 +83,10 @@ def _lanes_lines(c):
         return [f"       SIMD lanes: {error}"]
     fixed, variable = lanes.fixed_by_environment()
     if fixed:
-        widths = program.vector_widths(program.build(get_queue(c.selector).context, "probe.cl"))
+        widths = program.vector_widths(program.build(get_queue(c.selector), "probe.cl"))
         return [f"       SIMD lanes: {fixed}, for the whole process ({variable} is set): its compiler runs probe.cl "
                 f"{lanes.width(widths) or '?'} work-item(s) to a vector (its build log)"]
-    widths = program.vector_widths(program.build(get_queue(c.selector, "on").context, "probe.cl"))
+    widths = program.vector_widths(program.build(get_queue(c.selector, "on"), "probe.cl"))
     return [f"       SIMD lanes: {setting} (--lanes on|off or TOOLKIT_LANES; default {lanes.INTEL_DEFAULT}); "
             f"with lanes on its compiler runs probe.cl {lanes.width(widths) or '?'} work-items to a vector "
             "(its build log)"]

@@ -54,7 +54,7 @@ class Context:
         return cls(self.queue, self.scene(scene)[1], sources=sources, **options)
 
     def build(self, name, defines=None):
-        return program.build(self.queue.context, name, defines, directory=self.sources())
+        return program.build(self.queue, name, defines, directory=self.sources())
 
     def sources(self, folder=None):
         """Where a build of the submission (in `folder`, by default the submission's) finds its files."""

@@ -40,7 +40,7 @@ class Compactor:
     def __init__(self, queue, local_size=program.LOCAL_SIZE, sources=None):
         self.queue = queue
         self.local_size = checked_local_size(local_size)
-        self.program = program.build(queue.context, "compact.cl", {"LOCAL_SIZE": self.local_size}, directory=sources)
+        self.program = program.build(queue, "compact.cl", {"LOCAL_SIZE": self.local_size}, directory=sources)
         # One kernel object each (every `program.name` access would create a new one).
         self._kernels = {name: cl.Kernel(self.program, name) for name in
                          ("scan_blocks", "scan_add_block_offsets", "compact_scatter", "compact_immediate")}

@@ -36,6 +36,7 @@ import pyopencl as cl
 
 from toolkit.core.config import config
 from toolkit.opencl import lanes, runtimes
+from toolkit.opencl.builds import Builds, Queue
 from toolkit.opencl.device_model import is_gpu
 from toolkit.opencl.install_advice import fixes_when_nothing_builds, how_to_get_opencl
 from toolkit.opencl.probe_cache import read_verdict, verdict_file, write_verdict
@@ -181,8 +182,8 @@ def probe_note(device):
 def _run_probe(device):
     """(usable, reason, lasting): `lasting` when the verdict holds for later runs (see probe_cache.py)."""
     try:
-        queue = _queue_for_device(device)
-        program = build(queue.context, "probe.cl")
+        queue = queue_for_device(device)
+        program = build(queue, "probe.cl")
         lengths = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, PROBE_ITEMS * 4)
         groups = PROBE_ITEMS // LOCAL_SIZE
         sums = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, groups * 4)
@@ -313,21 +314,20 @@ def _cpu_name():
 
 @lru_cache(maxsize=None)
 def _context_and_queue(device, setting=None):
-    # Keep the Context object alive beside its queue: Intel's runtime invalidates a context whose
-    # last Python reference is gone although a queue still holds it (queue.context then fails).
-    # One context per SIMD-lanes setting (toolkit/opencl/lanes.py): its builds follow it.
+    # One context per SIMD-lanes setting (toolkit/opencl/lanes.py): its Builds follow it. The
+    # queue keeps its Context object alive (builds.Queue: Intel's runtime needs that).
     context = cl.Context([device])
-    lanes.register(context, setting)
-    return context, cl.CommandQueue(context)
+    return context, Queue(context, Builds(setting))
 
 
-def _queue_for_device(device):
+def queue_for_device(device):
+    """The shared queue (builds.Queue) of `device`, with its default lanes setting."""
     return _context_and_queue(device, lanes.setting_for(device))[1]
 
 
 def get_queue(selector=None, lanes_setting=None):
-    """One shared context and in-order queue per device and lanes setting (builds are cached per
-    context). `lanes_setting`: "on", "off" or None (TOOLKIT_LANES, else the device's default)."""
+    """One shared context and in-order queue per device and lanes setting: a builds.Queue, which
+    carries the context's Builds (what is built there, kept for the process). `lanes_setting`: "on", "off" or None (TOOLKIT_LANES, else the device's default)."""
     _, device = pick_device(selector or config().pyopencl_ctx)
     return _context_and_queue(device, lanes.setting_for(device, lanes_setting))[1]
 

@@ -11,25 +11,24 @@ from toolkit.core.bvh import build_bvh, collapse_wide
 from toolkit.core.layout import BVH_KINDS, BVH_STACK_SIZE, CAMERA, LIGHT, LUMINANCE_WEIGHTS, MATERIAL, MATERIAL_TYPES, SCENE_ARGS, TRIANGLE, WIDE_NODES
 from toolkit.opencl import lanes
 
-_bvh_cache = {}
-
-
-def _bvh_for(scene, tri_vertices):
+def _bvh_for(queue, scene, tri_vertices):
+    """The host BVH of this geometry, built once per context (its Builds keeps it: builds.py)."""
+    bvhs = queue.builds.bvhs
     key = (scene.name, tri_vertices.shape, hash(tri_vertices.tobytes()))
-    if key not in _bvh_cache:
-        _bvh_cache[key] = build_bvh(tri_vertices)
-    return _bvh_cache[key]
+    if key not in bvhs:
+        bvhs[key] = build_bvh(tri_vertices)
+    return bvhs[key]
 
 
-def node_width(context):
-    """Children per wide-BVH node for kernels built in `context`: 8 where each work-item is a
+def node_width(queue):
+    """Children per wide-BVH node for kernels built with `queue`: 8 where each work-item is a
     thread of its own, 4 where work-items run as SIMD lanes (a GPU, Intel's runtime with lanes on).
     A thread tests a node's boxes with vector operations, and eight float32s fill one AVX
     register, so an 8-wide node costs about what a 4-wide one does and the tree is shallower
     (surface rays on cornell_spheres: 9.5 inner nodes per ray instead of 14.3, 0.85x Embree's
     rays/s to 1.0x). Where work-items are lanes, each float8 operation is eight operations
     across the lanes: there 8 children made pt_naive a quarter slower (cornell_spheres 64x64)."""
-    return 4 if lanes.of_context(context) in ("on", lanes.HARDWARE) else 8
+    return 4 if queue.builds.lanes in ("on", lanes.HARDWARE) else 8
 
 
 class DeviceScene:
@@ -39,7 +38,7 @@ class DeviceScene:
 
     def __init__(self, queue, scene, bvh="wide", wide_width=None):
         """`bvh`: "wide" (4 or 8 children per node, tested together with vector operations;
-        `wide_width`, by default node_width(queue.context)) or "binary" (two per node); the
+        `wide_width`, by default node_width(queue)) or "binary" (two per node); the
         kernels are built for it (features())."""
         if bvh not in BVH_KINDS:
             raise ValueError(f"bvh must be one of {', '.join(BVH_KINDS)}, got {bvh!r}")
@@ -54,7 +53,7 @@ class DeviceScene:
         self.epsilon = np.float32(self.EPSILON_RELATIVE * self.extent)
         local = scene.vertices - self.center                    # float64 rebasing
         tri_vertices = local[scene.triangles]
-        self.bvh = _bvh_for(scene, tri_vertices)
+        self.bvh = _bvh_for(queue, scene, tri_vertices)
         if self.bvh.max_depth >= BVH_STACK_SIZE - 1:
             raise ValueError(f"{scene.name}: BVH depth {self.bvh.max_depth} exceeds the device stack ({BVH_STACK_SIZE})")
         order = self.bvh.order
@@ -69,7 +68,7 @@ class DeviceScene:
         nodes = self.bvh.nodes
         self.wide = None
         if bvh == "wide":
-            self.wide = collapse_wide(self.bvh, tv, wide_width or node_width(queue.context))
+            self.wide = collapse_wide(self.bvh, tv, wide_width or node_width(queue))
             if self.wide.stack_needed > BVH_STACK_SIZE and wide_width is None and self.wide.node_width == 8:
                 # Eight children a level fill the stack faster: a tree too deep for it gets four.
                 self.wide = collapse_wide(self.bvh, tv, 4)

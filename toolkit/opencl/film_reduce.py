@@ -20,7 +20,7 @@ class FilmReduction:
         """`sources`: where the build finds cl/'s files (program.Sources; None: cl/)."""
         self.queue = queue
         self.local_size = local_size
-        built = program.build(queue.context, "film_reduce.cl", {"LOCAL_SIZE": local_size}, directory=sources)
+        built = program.build(queue, "film_reduce.cl", {"LOCAL_SIZE": local_size}, directory=sources)
         self.kernel = program.kernel(built, "film_reduce")
         self._sums = {}    # pixels -> the FilmPixel buffer, made once per image size
 

@@ -5,35 +5,31 @@ program.launch, which hands its event to `note`; a `KernelTimes` recording on th
 it. The technique's host loop has no timing code, and a render that records nothing pays nothing.
 
 Profiling needs a queue made with PROFILING_ENABLE: `profiling_queue(queue)` is one on the same
-context (so the builds, the scene's buffers and the lanes setting are shared). Its events say
+context (so the builds, the scene's buffers and the lanes setting are shared: builds.py). Its events say
 when the device started and ended each launch (CL_PROFILING_COMMAND_START / _END, in ns of the
 device's clock); on an in-order queue launches never overlap, so their times add up to at most
 the wall time of the render that made them.
 """
-from functools import lru_cache
-
 import pyopencl as cl
 
-_recording = {}   # {queue.int_ptr: KernelTimes} while a recording is active on that queue
-
-
-@lru_cache(maxsize=None)
-def _profiling_queue(context):
-    return cl.CommandQueue(context, properties=cl.command_queue_properties.PROFILING_ENABLE)
+from toolkit.opencl.builds import Queue
 
 
 def profiling_queue(queue):
-    """An in-order queue with profiling on the context of `queue` (the same one each time)."""
+    """An in-order queue with profiling on the context of `queue` (the same one each time: its
+    Builds keeps it), sharing that context's Builds."""
     if queue.properties & cl.command_queue_properties.PROFILING_ENABLE:
         return queue
-    return _profiling_queue(queue.context)
+    builds = queue.builds
+    if builds.profiling is None:
+        builds.profiling = Queue(queue.context, builds, properties=cl.command_queue_properties.PROFILING_ENABLE)
+    return builds.profiling
 
 
 def note(queue, kernel_name, event):
     """program.launch's hook: keep `event` if a recording is active on `queue`."""
-    times = _recording.get(queue.int_ptr)
-    if times is not None:
-        times.events.append((kernel_name, event))
+    if queue.recording is not None:
+        queue.recording.events.append((kernel_name, event))
 
 
 class KernelTimes:
@@ -48,13 +44,13 @@ class KernelTimes:
         self._per_kernel = None
 
     def __enter__(self):
-        if self.queue.int_ptr in _recording:
+        if self.queue.recording is not None:
             raise RuntimeError("a KernelTimes recording is already active on this queue")
-        _recording[self.queue.int_ptr] = self
+        self.queue.recording = self
         return self
 
     def __exit__(self, *exc):
-        del _recording[self.queue.int_ptr]
+        self.queue.recording = None
         self.queue.finish()   # every event has its end time
         return False
 

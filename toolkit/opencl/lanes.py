@@ -123,23 +123,6 @@ def source_prefix(setting, width=None):
     return ""
 
 
-# The setting of each context that get_queue made (kept for the process, like the contexts):
-# every program built in one gets its setting. A context made elsewhere gets its device's default.
-_of_context = {}
-
-
-def register(context, setting):
-    _of_context[context.int_ptr] = (context, setting)
-
-
-def of_context(context):
-    """The setting that builds in `context` get."""
-    known = _of_context.get(context.int_ptr)
-    if known is not None and known[0] == context:
-        return known[1]
-    return setting_for(context.devices[0])
-
-
 def vector_widths(log):
     """{kernel: how many work-items per vector} from Intel's build log (1: not vectorized); {}
     when the log names none (other compilers)."""

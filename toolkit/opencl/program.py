@@ -2,9 +2,10 @@
 
 It inlines `#include "file.h"` from cl/ (with #line markers so compiler messages name our
 files and lines), adds `-D` defines that describe the scene (absent features are not
-compiled), and memoises builds per (source text with includes, defines, device). Across
-processes pyopencl's binary cache (kernel_cache.py: built without it where it cannot be used)
-and PoCL's kernel cache keep compiled code on disk.
+compiled), and memoises builds per (source text with includes, defines, device) in the
+context's Builds, which the queue carries (builds.py). Across processes pyopencl's binary cache
+(kernel_cache.py: built without it where it cannot be used) and PoCL's kernel cache keep compiled
+code on disk.
 """
 import hashlib
 import importlib
@@ -21,6 +22,7 @@ from toolkit.core.layout import c_header
 from toolkit.core.package_data import data_dir
 from toolkit.core.config import config
 from toolkit.opencl import kernel_times, lanes, runtimes
+from toolkit.opencl.builds import BuiltProgram
 from toolkit.opencl.kernel_cache import ARG_INFO_OPTION, build_with_cache
 
 # The default work-group size. A program is built for one local size (the LOCAL_SIZE define: the
@@ -211,12 +213,9 @@ def builtins_are_calls(device):
     return "Portable Computing Language" in device.platform.name
 
 
-_memo = {}
-build_log = []  # (name, seconds, cached_in_process) for reports and tests
-
-
-def build(context, name, defines=None, directory=None, arg_info=False, binary_cache=True):
-    """The built program for cl/<name> (or <directory>/<name>) under `defines`, memoised per device.
+def build(queue, name, defines=None, directory=None, arg_info=False, binary_cache=True):
+    """The built program for cl/<name> (or <directory>/<name>) under `defines`, memoised in the
+    Builds of `queue`'s context (a builds.Queue: device.get_queue makes them).
 
     With `directory`, `name` and its quoted includes are read from there first, then from cl/,
     so a kernel of your own can include the toolkit's headers. `defines["LOCAL_SIZE"]` (default
@@ -226,17 +225,17 @@ def build(context, name, defines=None, directory=None, arg_info=False, binary_ca
     `binary_cache=False`: compiled from source, past pyopencl's binary cache (and not stored there).
     The context's SIMD-lanes setting (toolkit/opencl/lanes.py) is applied to every kernel;
     vector_widths(program) says what the compiler did with it."""
-    device = context.devices[0]
-    setting = lanes.of_context(context)
-    source, options = build_inputs(context, name, defines, directory, arg_info)
+    builds, device = queue.builds, queue.device
+    source, options = build_inputs(queue, name, defines, directory, arg_info)
     key = hashlib.sha256("\0".join([source, " ".join(options), device.name, device.platform.name,
                                     device.driver_version, cl.VERSION_TEXT]).encode()).hexdigest()
-    if (key, context.int_ptr) in _memo:
-        build_log.append((name, 0.0, True))
-        lanes_log.append((name, setting, _widths[_memo[(key, context.int_ptr)].int_ptr]))
-        return _memo[(key, context.int_ptr)]
+    if key in builds.programs:
+        found = builds.programs[key]
+        builds.log.append((name, 0.0, True))
+        builds.lanes_log.append((name, builds.lanes, found.vector_widths))
+        return found
     start = time.perf_counter()
-    program, retrieved = _compile(cl.Program(context, source), name, source, options, binary_cache)
+    program, retrieved = _compile(BuiltProgram(queue.context, source), name, source, options, binary_cache)
     log = relocate(_build_log_text(program), source)
     if (verbose or config().verbose) and log.strip():
         print(f"--- build log of {name} on {device.name.strip()} ---\n{log}", file=sys.stderr)
@@ -245,26 +244,25 @@ def build(context, name, defines=None, directory=None, arg_info=False, binary_ca
         raise KernelBuildError(_format_build_error(name, log, options))
     if real:
         warnings.warn(KernelBuildWarning(f"{name}: " + "\n".join(real)), stacklevel=2)
-    build_log.append((name, time.perf_counter() - start, False))
+    builds.log.append((name, time.perf_counter() - start, False))
     # A program from pyopencl's binary cache has no log of its own: pyopencl hands over the one
     # it stored with the binary (`retrieved`), which is where the widths then come from.
-    _widths[program.int_ptr] = lanes.vector_widths(log + "\n" + retrieved)
-    lanes_log.append((name, setting, _widths[program.int_ptr]))
-    _memo[(key, context.int_ptr)] = program
+    program.vector_widths = lanes.vector_widths(log + "\n" + retrieved)
+    builds.lanes_log.append((name, builds.lanes, program.vector_widths))
+    builds.programs[key] = program
     return program
 
 
-def build_inputs(context, name, defines=None, directory=None, arg_info=False):
-    """(source, options): what build() hands the compiler of `context`'s device for cl/<name>
+def build_inputs(queue, name, defines=None, directory=None, arg_info=False):
+    """(source, options): what build() hands the compiler of `queue`'s device for cl/<name>
     under `defines` (build's arguments). The offline GPU build (toolkit/verify/offline_build.py)
     hands the same to clang, so that it compiles what the host would build on a GPU."""
     defines = dict(defines or {})
     defines.setdefault("LOCAL_SIZE", LOCAL_SIZE)
-    device = context.devices[0]
+    device = queue.device
     if builtins_are_calls(device):
         defines.setdefault("BUILTINS_ARE_CALLS", True)   # cl/inline_builtins.h writes them out
-    setting = lanes.of_context(context)
-    source = lanes.source_prefix(setting, device.native_vector_width_float) + expand_includes(name, directory)
+    source = lanes.source_prefix(queue.builds.lanes, device.native_vector_width_float) + expand_includes(name, directory)
     options = define_options(defines)
     if arg_info:
         options.append(ARG_INFO_OPTION)
@@ -287,21 +285,9 @@ def _compile(program, name, source, options, binary_cache):
         raise KernelBuildError(_format_build_error(name, relocate(str(error), source), options)) from None
 
 
-_widths = {}      # {program.int_ptr: {kernel: vector width}} (lanes.vector_widths)
-lanes_log = []    # (name, lanes setting, {kernel: width}) per build() call, like build_log
-
-
 def vector_widths(built):
     """{kernel: work-items per vector} that the compiler reported for a program build() made."""
-    return dict(_widths.get(built.int_ptr, {}))
-
-
-def vector_widths_since(mark):
-    """{kernel: width} of every build() call since len(lanes_log) was `mark` (a render's programs)."""
-    merged = {}
-    for _, _, widths in lanes_log[mark:]:
-        merged.update(widths)
-    return merged
+    return dict(built.vector_widths)
 
 
 def _build_log_text(program):
@@ -350,15 +336,11 @@ def _format_build_error(name, log, options):
             + f"Full compiler log:\n{log}")
 
 
-_kernels = {}
-
-
 def kernel(built, name):
-    """The kernel `name` of a built program, retrieved once (each retrieval makes a new cl.Kernel)."""
-    key = (built.int_ptr, name)
-    if key not in _kernels:
-        _kernels[key] = getattr(built, name)
-    return _kernels[key]
+    """The kernel `name` of a program build() made, retrieved once (each retrieval makes a new cl.Kernel)."""
+    if name not in built.kernels_by_name:
+        built.kernels_by_name[name] = getattr(built, name)
+    return built.kernels_by_name[name]
 
 
 def padded(n, local_size=LOCAL_SIZE):
@@ -369,11 +351,10 @@ def padded(n, local_size=LOCAL_SIZE):
 # Kernel arguments set once, not per launch. Setting the arguments is most of a launch's cost on
 # PoCL (~165 us for 33 arguments: a BDPT walk step launches two kernels of 16), and most of them
 # (the scene, the pass's records and buffers) do not change between the launches of a pass.
-# `launch` keeps, per kernel, a cl.Kernel of its own with the values last set, and sets only the
-# arguments that changed (cl.Kernel.set_arg; OpenCL keeps the others) before
-# enqueue_nd_range_kernel. Its own cl.Kernel, because a kernel called directly (kernel(queue, ...))
-# sets all its arguments and would leave the record of values stale.
-_bound = {}
+# `launch` keeps, per kernel, a cl.Kernel of its own with the values last set (in the context's
+# Builds: builds.py), and sets only the arguments that changed (cl.Kernel.set_arg; OpenCL keeps
+# the others) before enqueue_nd_range_kernel. Its own cl.Kernel, because a kernel called directly
+# (kernel(queue, ...)) sets all its arguments and would leave the record of values stale.
 
 
 def _fingerprint(value):
@@ -405,14 +386,14 @@ def launch(queue, kernel, n, *args, local_size=LOCAL_SIZE):
     """Run `kernel` over n work-items in work-groups of `local_size` (the LOCAL_SIZE its program
     was built with) and a padded global size, setting only the arguments that differ from its
     previous launch."""
-    key = (kernel.int_ptr, kernel.function_name)
-    if key not in _bound or _bound[key][0] is not kernel:
+    launched, key = queue.builds.launched, (kernel.int_ptr, kernel.function_name)
+    if key not in launched or launched[key][0] is not kernel:
         # Keyed by the handle, checked by identity: a freed kernel's handle can be reused by
         # another kernel, which must not inherit this one's arguments (or program).
         check_work_group(kernel.function_name, local_size, _work_group_limit(kernel, queue.device),
                          queue.device.name.strip())
-        _bound[key] = (kernel, cl.Kernel(kernel.program, kernel.function_name), [_UNSET] * kernel.num_args)
-    _, own, last = _bound[key]
+        launched[key] = (kernel, cl.Kernel(kernel.program, kernel.function_name), [_UNSET] * kernel.num_args)
+    _, own, last = launched[key]
     if len(args) != len(last):
         raise TypeError(f"{kernel.function_name} takes {len(last)} arguments, {len(args)} given")
     for i, value in enumerate(args):

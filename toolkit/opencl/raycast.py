@@ -23,7 +23,7 @@ class DeviceRaycaster:
     def __init__(self, queue, device_scene):
         self.queue = queue
         self.device_scene = device_scene
-        self.program = program.build(queue.context, "raycast.cl", device_scene.features())
+        self.program = program.build(queue, "raycast.cl", device_scene.features())
         self._closest = cl.Kernel(self.program, "raycast_closest")
         self._any = cl.Kernel(self.program, "raycast_any")
 

@@ -68,7 +68,7 @@ class Technique:
         self.defines = defines
         self.sources = sources if isinstance(sources, program.Sources) else program.default_sources(sources)
         start = time.perf_counter()
-        self.program = program.build(queue.context, self.source, defines, directory=self.sources,
+        self.program = program.build(queue, self.source, defines, directory=self.sources,
                                      binary_cache=binary_cache)
         self.build_seconds = time.perf_counter() - start
         self.simd = PhaseCounter(warp_width)

@@ -78,7 +78,7 @@ class BsdfChecker:
 
     def __init__(self, queue=None):
         self.queue = queue if queue is not None else get_queue()
-        self.program = program.build(queue.context, SOURCE, defines())
+        self.program = program.build(queue, SOURCE, defines())
         self._sample = program.kernel(self.program, "bsdf_test_sample")
         self._eval = program.kernel(self.program, "bsdf_test_eval")
 

@@ -18,7 +18,8 @@ import pyopencl as cl
 
 from toolkit.api import as_scene
 from toolkit.core.scene import bundled_scene_dir, bundled_scene_names
-from toolkit.opencl import program
+from toolkit.opencl import lanes, program
+from toolkit.opencl.builds import Builds
 from toolkit.opencl.device_model import AMD_VENDOR_ID, NVIDIA_VENDOR_ID
 from toolkit.opencl.device_scene import DeviceScene
 from toolkit.opencl.film_reduce import FilmReduction
@@ -78,12 +79,14 @@ def _recording(device, builds):
     """Within: program.build records (into `builds`, by name, source and options) and compiles
     nothing. The constructors also upload the scene (cl.Buffer) and look up kernels (cl.Kernel):
     with no OpenCL device those get stand-ins. Any other pyopencl call fails, naming itself."""
-    def record(context, name, defines=None, directory=None, arg_info=False):
-        source, options = program.build_inputs(context, name, defines, directory, arg_info)
+    def record(queue, name, defines=None, directory=None, arg_info=False, binary_cache=True):
+        source, options = program.build_inputs(queue, name, defines, directory, arg_info)
         local_size = dict(defines or {}).get("LOCAL_SIZE", program.LOCAL_SIZE)
         build = builds.setdefault((name, source, tuple(options)), HostBuild(name, source, options, local_size))
         build.uses.append(current_use[0])
-        return _StandIn()
+        built = _StandIn()
+        built.kernels_by_name, built.vector_widths = {}, {}   # what program.kernel reads of a built program
+        return built
 
     current_use = [""]
     saved = program.build, cl.Buffer, cl.Kernel
@@ -101,7 +104,7 @@ def host_builds(vendor, scenes=None, techniques=None, counters=COUNT_SIMD):
     first built."""
     device = stand_in_device(vendor)
     context = SimpleNamespace(devices=[device], int_ptr=0)
-    queue = SimpleNamespace(device=device, context=context)
+    queue = SimpleNamespace(device=device, context=context, builds=Builds(lanes.setting_for(device)))
     builds = {}
     with _recording(device, builds) as current_use:
         for scene_name in scenes or bundled_scene_names():

