@@ -42,8 +42,9 @@ class Technique:
         `pass_spp` (an option of every technique): samples per pixel in one pass instead of what
         fills `target_batch`; a cost knob of the speed-accuracy study (toolkit/measure/study/).
         `sources` (an option of every technique): where `source` and its includes are found, a
-        folder whose files replace cl/'s of the same name, or a program.Sources (the autograder
-        passes one that holds a student's file, toolkit/grading/context.py); None: cl/.
+        folder whose files replace cl/'s of the same name, or a program.Sources, which decides
+        where each file comes from and may check what it reads; None: cl/ (program.default_sources).
+        The technique's shared parts (compactor, film reduction) follow the same Sources on cl/.
         `binary_cache=False`: the technique's program is compiled from source, past pyopencl's binary
         cache (`bench --specialization` times builds so: toolkit/measure/specialization.py)."""
         self.pass_spp = None if pass_spp is None else whole_number("technique.pass_spp", pass_spp, "pass_spp")
@@ -77,8 +78,8 @@ class Technique:
     def in_flight(self, option, given, max_vertices=64):
         """The work a stream technique keeps in flight (option "stream_size" or "pool_size"):
         `given` (checked: the device must hold its buffers, toolkit.opencl.work_sizes.check_fits), else
-        the device's choice
-        (toolkit.opencl.work_sizes.choose_work_sizes: a GPU's resident work-items, a CPU's own sizes).
+        the device's choice (toolkit.opencl.work_sizes.choose_work_sizes: a GPU's resident
+        work-items, a CPU's own sizes).
         The pass grows with it (target_batch), so every slot still runs several samples a pass."""
         if given is not None:
             size, why = check_fits(self.queue.device, option, given, max_vertices), "given"
