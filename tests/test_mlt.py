@@ -205,7 +205,6 @@ def test_storage_layout_and_connect_schedule_do_not_change_the_image(queue, corn
     # A record off by k float32 ulps moves a pixel, a sum of records, by at most k ulps relative;
     # a few built-ins at OpenCL's 4-ulp bound in one record: k = 16, 16 * 2^-23 = 1.9e-6. A
     # flipped accept decision moves a pixel by a whole record's share, ~1e-2, and still fails.
-    from toolkit.opencl import lanes
     rtol = 16 * 2.0 ** -23 if queue.builds.lanes == "on" else 1e-12
     worst = float(np.max(np.abs(images[2] - images[0]) / np.maximum(np.abs(images[0]), 1e-300)))
     assert np.allclose(images[0], images[2], rtol=rtol, atol=0), f"schedules differ by {worst:.2g} relative"

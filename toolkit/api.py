@@ -9,7 +9,6 @@ from pathlib import Path
 
 import numpy as np
 
-from toolkit.opencl import program
 from toolkit.opencl.kernel_times import KernelTimes, profiling_queue
 from toolkit.opencl.device import describe, get_queue
 from toolkit.opencl.lanes import checked as checked_lanes, describe as describe_lanes
