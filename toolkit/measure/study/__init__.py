@@ -57,8 +57,7 @@ The package, one module a step: knobs.py (the runs and their knob values), worke
 the renders run: here or on a Dask cluster), calibration.py (a time budget becomes a sample
 count), figures.py (the figures above), report.py (the report and its table), plots.py, runs.py
 (study() itself, its steps in order) and at_equal_time.py (equal_time: the study with one
-budget). `toolkit.study` is study(); import the rest from here
-(`from toolkit.measure.study import format_study`).
+budget). Import them from here (`from toolkit.measure.study import study, format_study`).
 """
 from toolkit.measure.study.calibration import CALIBRATION_SECONDS, calibrate, fit_cost, plan
 from toolkit.measure.study.at_equal_time import equal_time, format_equal_time
