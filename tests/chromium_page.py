@@ -72,7 +72,15 @@ class ChromiumPage:
                 self.process.kill()
                 self.process.wait()
         self.process.stderr.close()
-        self.profile.cleanup()
+        # chromium's helper processes (crashpad, utility) may still write to the profile for a
+        # moment after the browser has exited: the profile is removed once they are done.
+        for _ in range(20):
+            try:
+                self.profile.cleanup()
+                return
+            except OSError:
+                time.sleep(0.25)
+        shutil.rmtree(self.profile.name, ignore_errors=True)
 
     def call(self, method, **params):
         """One protocol command; returns its result (events that arrive meanwhile are read)."""
