@@ -14,7 +14,7 @@
 #include "philox.h"
 
 #ifndef MLT_MAX_DIMS
-#define MLT_MAX_DIMS 128   /* set by the host: 8 + 8 * 15, subpaths of up to 16 vertices */
+#error "MLT_MAX_DIMS (stored dimensions per chain) comes from the host: toolkit/techniques/mlt.py (option max_dims)"
 #endif
 #define MLT_MUTATION_KEY 0x6d757461u
 #define MLT_FRESH (-1.0f)

@@ -9,7 +9,10 @@
 #include "common.h"
 
 #ifndef MAX_VERTICES
-#define MAX_VERTICES 64  /* per subpath; set by the host (toolkit/techniques/bdpt_evaluator.py) */
+#error "MAX_VERTICES (vertices per subpath) comes from the host: toolkit/techniques/bdpt_evaluator.py walk_defines"
+#endif
+#if MAX_VERTICES < 2 || MAX_VERTICES > LONGEST_SUBPATH
+#error "MAX_VERTICES must be 2 .. LONGEST_SUBPATH (toolkit/core/layout.py)"
 #endif
 
 #define VERTEX_WORDS ((int)(sizeof(BdptVertex) / sizeof(uint)))

@@ -18,6 +18,7 @@ from toolkit.core.layout import BVH_KINDS
 from toolkit.core.scene import Scene, bundled_scene_dir, check_scene, load_scene
 from toolkit.techniques import get_technique
 from toolkit.techniques.strategy_images import StrategyImages
+from toolkit.opencl.program import LOCAL_SIZE
 from toolkit.core.validate import InputError, local_size as checked_local_size, render_args, whole_number
 
 
@@ -88,7 +89,7 @@ def _strategy_images(cls, technique, max_edges):
 
 
 def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, device=None,
-           warp_width=None, count_simd=True, progress=False, options=None, bvh="wide", local_size=64,
+           warp_width=None, count_simd=True, progress=False, options=None, bvh="wide", local_size=LOCAL_SIZE,
            general=False, strategy_images=None, lanes=None, time_phases=False):
     """Render a scene (a Scene, a folder, a scene.json or None for the bundled Cornell box).
 

@@ -298,6 +298,9 @@ NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERT
 
 # ---- single constants --------------------------------------------------------------------
 
+# The most vertices a BDPT subpath stores (MAX_VERTICES of a scene with unbounded depth): the
+# scene's largest max_depth, the vertex memory's size and mlt's largest max_dims derive from it.
+LONGEST_SUBPATH = 64
 BVH_STACK_SIZE = 64                         # entries of a traversal stack (cl/bvh.h); deeper BVHs are refused
 BVH_WIDTH = 4                               # triangles of a TriGroup (float4 lanes)
 BVH_KINDS = ("binary", "wide")              # --bvh: the traversal compiled in (BVH_WIDE for "wide")
@@ -337,6 +340,7 @@ def c_constants():
         lines.append(f"/* {group.__doc__} */")
         lines += [f"#define {prefix}{m.name} {_c_literal(int(m))}" for m in group]
     lines.append(f"#define BVH_STACK_SIZE {BVH_STACK_SIZE}")
+    lines.append(f"#define LONGEST_SUBPATH {LONGEST_SUBPATH}")
     lines.append(f"#define BVH_WIDTH {BVH_WIDTH}")
     lines.append("#ifdef BVH_WIDE\n#define BVH_WORD float4\n#else\n#define BVH_WORD BvhNode\n#endif")
     lines += [f"#define LUMINANCE_{c} {_c_literal(w)}" for c, w in zip("RGB", LUMINANCE_WEIGHTS)]

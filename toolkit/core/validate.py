@@ -12,6 +12,9 @@ import stat
 import tempfile
 from pathlib import Path
 
+from toolkit.core.layout import LONGEST_SUBPATH
+from toolkit.core.sample_dims import used_dims
+
 
 class InputError(ValueError):
     """A bad argument of the command line or of toolkit.render, with the problem named."""
@@ -27,7 +30,8 @@ LIMITS = {
     "material.alpha": (1e-4, 1.0, "GGX roughness; smoother: use a mirror"),
     "shape.emission": (1e-10, 1e10, "each non-zero component; 0 means no light. Products with "
                                     "areas and densities must stay inside float32"),
-    "integrator.max_depth": (-1, 63, "-1: unbounded. BDPT stores at most 64 vertices per subpath"),
+    "integrator.max_depth": (-1, LONGEST_SUBPATH - 1,
+                             f"-1: unbounded. BDPT stores at most {LONGEST_SUBPATH} vertices per subpath"),
     "integrator.rr_depth": (-1, 63, "-1: no Russian roulette (then max_depth must be set)"),
     "integrator.clamp": (1e-6, 1e10, "largest RGB component of one sample's contribution; absent or null: no "
                                      "clamping (unbiased)"),
@@ -69,7 +73,9 @@ LIMITS = {
     "mlt.large_step": (1e-3, 1.0, "probability of a large step; b comes from the large steps"),
     "mlt.candidates": (1, 1024, "large steps per chain for start = resample"),
     "mlt.time_limit": (1e-3, 1e6, "seconds after which an mlt render stops (it keeps the mutations made so far)"),
-    "mlt.max_dims": (8, 512, "stored primary-sample dimensions per chain (8 + 8 per vertex: 512 holds 64 vertices)"),
+    "mlt.max_dims": (8, int(used_dims(LONGEST_SUBPATH, LONGEST_SUBPATH)),
+                     f"stored primary-sample dimensions per chain (8 + 8 per vertex after the first: the most holds "
+                     f"{LONGEST_SUBPATH} vertices)"),
     "mlt.small_step": (1e-3, 0.5, "largest size of a small step (Kelemen's s2; the smallest, s1, is a sixteenth of it)"),
 }
 

@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import pyopencl as cl
 
-from toolkit.core.layout import BDPT_SLOT, BDPT_VERTEX, LANE_COUNTS, PATH_STATE, SHADOW_RAY, SUBPATH
+from toolkit.core.layout import BDPT_SLOT, BDPT_VERTEX, LANE_COUNTS, LONGEST_SUBPATH, PATH_STATE, SHADOW_RAY, SUBPATH
 from toolkit.core.validate import LIMITS, InputError, whole_number
 from toolkit.opencl.device_model import device_warp_width, vendor_of
 from toolkit.opencl.device_model import is_gpu as device_is_gpu
@@ -97,7 +97,7 @@ def resident_per_unit(vendor="", vendor_id=None, warp_width=32, compute_capabili
     return OTHER_RESIDENT, f"a GPU of another vendor: {OTHER_RESIDENT} per compute unit assumed"
 
 
-def choose_work_sizes(is_gpu, compute_units=1, max_alloc=None, global_memory=None, max_vertices=64,
+def choose_work_sizes(is_gpu, compute_units=1, max_alloc=None, global_memory=None, max_vertices=LONGEST_SUBPATH,
                       **vendor):
     """WorkSizes for a device described by these properties (device_work_sizes reads them):
     - a CPU: CPU_STREAM_SIZE and CPU_POOL_SIZE (module docstring), and mlt_chains;
@@ -147,7 +147,7 @@ def device_properties(device):
     return props
 
 
-def device_work_sizes(device, max_vertices=64):
+def device_work_sizes(device, max_vertices=LONGEST_SUBPATH):
     """WorkSizes for a pyopencl device: see choose_work_sizes."""
     return choose_work_sizes(max_vertices=max_vertices, **device_properties(device))
 
@@ -162,7 +162,7 @@ def _record_bytes():
             "vertex": BDPT_VERTEX.dtype.itemsize, "slot": BDPT_SLOT.dtype.itemsize, "lanes": LANE_COUNTS.dtype.itemsize}
 
 
-def buffer_plan(stream_size=0, pool_size=0, max_vertices=64):
+def buffer_plan(stream_size=0, pool_size=0, max_vertices=LONGEST_SUBPATH):
     """[(buffer, bytes, largest element index a kernel forms in it)] for a PT stream of
     `stream_size` and a BDPT pool of `pool_size` (0: not used). The indices are those of the
     kernels' 32-bit int arithmetic: a vertex is vertex_index(slot, k) = slot * MAX_VERTICES + k
@@ -206,7 +206,7 @@ def checked_size(option, size):
     return size if size is None else whole_number(f"technique.{option}", size, option)
 
 
-def check_fits(device, option, size, max_vertices=64):
+def check_fits(device, option, size, max_vertices=LONGEST_SUBPATH):
     """`size` for option "stream_size" or "pool_size", checked: a whole number in its LIMITS range
     whose buffers the device can allocate and whose indices fit an int; else an InputError."""
     size = whole_number(f"technique.{option}", size, option)

@@ -10,7 +10,7 @@ from toolkit.opencl.device_model import resolve_warp_width
 from toolkit.opencl.work_sizes import CPU_POOL_SIZE, CPU_STREAM_SIZE, check_fits, device_work_sizes
 from toolkit.core.film import Film
 from toolkit.opencl.film_reduce import FilmReduction
-from toolkit.core.layout import LANE_COUNTS, SCENE_PARAM_NAMES
+from toolkit.core.layout import LANE_COUNTS, LONGEST_SUBPATH, SCENE_PARAM_NAMES
 from toolkit.core.simd import PhaseCounter
 from toolkit.core.validate import InputError, local_size as checked_local_size, whole_number
 
@@ -75,7 +75,7 @@ class Technique:
         self.simd = PhaseCounter(warp_width)
         self.traversal = PhaseCounter(warp_width)
 
-    def in_flight(self, option, given, max_vertices=64):
+    def in_flight(self, option, given, max_vertices=LONGEST_SUBPATH):
         """The work a stream technique keeps in flight (option "stream_size" or "pool_size"):
         `given` (checked: the device must hold its buffers, toolkit.opencl.work_sizes.check_fits), else
         the device's choice (toolkit.opencl.work_sizes.choose_work_sizes: a GPU's resident

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.layout import (BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, CONNECT_ARGS, SUBPATH,
+from toolkit.core.layout import (LONGEST_SUBPATH, BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, CONNECT_ARGS, SUBPATH,
                                  WalkCounter)
 from toolkit.core.scene import NO_LIMIT
 from toolkit.core.simd import PhaseCounter
@@ -110,7 +110,7 @@ class BdptPoolTechnique(Technique):
     for the scene, sizes the pool for the device and makes its compactor; the subclass makes its
     evaluator with the connect phase it wants (self.bdpt)."""
     target_batch = 1 << 14      # samples per pass: many passes give the standard error
-    max_vertices = 64           # per subpath when the depth is unbounded; paths this long carry ~1e-10 of the energy at albedo 0.7
+    max_vertices = LONGEST_SUBPATH   # per subpath when the depth is unbounded; paths this long carry ~1e-10 of the energy at albedo 0.7
 
     def __init__(self, queue, device_scene, defines, pool_size=None, coalesced_scatter=True, **kwargs):
         """`defines`: the subclass's own, added to the walk's (and to `extra_defines`, if given)."""

@@ -73,7 +73,7 @@ Options (keyword arguments of toolkit.render(..., options=...)):
 | `small_step` | 1/16 | the largest size of a small step, Kelemen's s2 (the smallest, s1, is s2 / 16); see SMALL_STEP |
 | `start` | `naive` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of its own `candidates` large steps, chosen in proportion to f, and weighted. `pool`: at one of all chains' candidates, chosen in proportion to f, weight 1. At equal time (30 s, 32x32, two-core CPU) pool's RMSE was 0.0064 against naive's 0.0066 on covered_lamp and 0.0091 against 0.019 on cornell_spheres, where naive chains are still biased; on cornell_box, where they are not, naive was ahead (0.0060 against 0.0072). At 10 s (3 repetitions, results/issue10_mlt.md) pool removes naive's detected bias on covered_lamp and cornell_spheres but adds variance (chains that start at the same bright candidate): RMSE 0.113 against 0.108 (covered_lamp), 0.072 against 0.128 (cornell_spheres). `naive` stays the default, as in the talk: its start is one iteration |
 | `candidates` | 16 | large steps per chain for `start = resample` or `pool` (`mlt.candidates`) |
-| `max_dims` | 128 | primary-sample dimensions a chain stores: 8 + 8 per vertex of the longer subpath, so 128 holds subpaths of 16 vertices (`mlt.max_dims`). A path that reads more gets fresh random numbers for the extra dimensions at every iteration (cl/mlt_proposals.h): still correct, and counted (`overflow_proposals`) |
+| `max_dims` | 128 | primary-sample dimensions a chain stores: 8 + 8 per vertex of the longer subpath after the first, so 128 holds subpaths of 16 vertices (DEFAULT_MAX_DIMS) (`mlt.max_dims`). A path that reads more gets fresh random numbers for the extra dimensions at every iteration (cl/mlt_proposals.h): still correct, and counted (`overflow_proposals`) |
 | `combine` | true | Kelemen's combination: the large steps also splat as BDPT samples, joined with the Metropolis states by the balance heuristic (above) |
 | `time_limit` | none | seconds: stop after the iteration that passes it (the image holds the mutations made so far) |
 | BDPT options | | `pool_size` (the device's, as for bdpt_parallel_connect: with the default chains an iteration is one pool-full; a pool of a quarter of the chains, which regenerates like a BDPT pass, measured no faster on covered_lamp 64x64), `regenerate_fraction` (default 1 where the pool holds every chain: one connect phase per iteration; else 0.6 as for BDPT), `coalesced_scatter` as for bdpt_parallel_connect |
@@ -89,6 +89,7 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.core.film import Film
+from toolkit.core.sample_dims import used_dims
 from toolkit.core.layout import MLT_CHAIN, MLT_ITERATION, MltMode
 from toolkit.core.validate import InputError, finite_number, whole_number
 from toolkit.opencl.work_sizes import device_work_sizes
@@ -100,6 +101,10 @@ from toolkit.techniques.mlt_chains import (ChainRecords, Chains, ProposalSink, r
 
 STARTS = ("naive", "resample", "pool")
 
+
+# Subpaths whose every dimension a chain stores by default: 16 vertices, 128 dimensions
+# (toolkit/core/sample_dims.py used_dims); longer paths read fresh numbers past them.
+DEFAULT_MAX_DIMS = int(used_dims(16, 16))
 
 SMALL_STEP = 1 / 16
 # The largest small step, Kelemen's s2 (his paper: 1/64, with s1 = 1/1024). On covered_lamp,
@@ -121,7 +126,7 @@ class Mlt(BdptPoolTechnique):
     family = "mlt"
 
     def __init__(self, queue, device_scene, chains=None, large_step=0.3, start="naive", candidates=16,
-                 max_dims=128, combine=True, time_limit=None, small_step=SMALL_STEP, pool_size=None,
+                 max_dims=DEFAULT_MAX_DIMS, combine=True, time_limit=None, small_step=SMALL_STEP, pool_size=None,
                  regenerate_fraction=None, coalesced_scatter=True, **kwargs):
         self.check_options(device_scene.scene, chains, large_step, start, candidates, max_dims, combine,
                            time_limit, small_step, kwargs)
