@@ -40,10 +40,10 @@ class ProgressiveRender:
         self.film = Film(width, height)
         self.seconds = 0.0          # time spent rendering (this technique's passes only)
         self.spp = 0                # samples per pixel so far
-        # The passes of a plain render (Technique.passes: about 2^18 samples, several streams' worth for the
+        # The passes of a plain render (Technique.spp_per_pass: about 2^18 samples, several streams' worth for the
         # stream techniques, so their steady state shows and their drains cost as little as there); halved
         # only where one takes far longer than pass_seconds (a slow device, a large image).
-        self.pass_spp = self.tech.passes(width * height, 1 << 30)
+        self.pass_spp = self.tech.spp_per_pass(width * height, 1 << 30)
 
     def advance(self):
         """Render one pass (pass_spp samples per pixel, same seeds as a plain render would use)."""

@@ -75,7 +75,7 @@ class Technique:
         self.simd = PhaseCounter(warp_width)
         self.traversal = PhaseCounter(warp_width)
 
-    def in_flight(self, option, given, max_vertices=LONGEST_SUBPATH):
+    def size_in_flight(self, option, given, max_vertices=LONGEST_SUBPATH):
         """The work a stream technique keeps in flight (option "stream_size" or "pool_size"):
         `given` (checked: the device must hold its buffers, toolkit.opencl.work_sizes.check_fits), else
         the device's choice (toolkit.opencl.work_sizes.choose_work_sizes: a GPU's resident
@@ -123,7 +123,7 @@ class Technique:
         film = Film(width, height)
         self._collecting = None   # a render stopped by an error leaves no pass for this one
         camera = self.scene.camera(width, height)
-        per_pass = self.passes(pixel_count(camera), spp)
+        per_pass = self.spp_per_pass(pixel_count(camera), spp)
         start = 0
         while start < spp:
             count = min(per_pass, spp - start)
@@ -135,7 +135,7 @@ class Technique:
         self.queue.finish()
         return film
 
-    def passes(self, pixels, spp):
+    def spp_per_pass(self, pixels, spp):
         """Samples per pixel in one pass (one launch batch) of an image of `pixels` pixels."""
         if self.pass_spp is not None:
             return min(spp, self.pass_spp)

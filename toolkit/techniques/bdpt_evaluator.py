@@ -120,7 +120,7 @@ class BdptPoolTechnique(Technique):
         checked_size("pool_size", pool_size)         # its range now, before the build; the device's memory after
         super().__init__(queue, device_scene, extra_defines=walk, **kwargs)
         # samples in flight (each stores MAX_VERTICES eye + light vertices); None: the device's
-        self.pool_size = self.in_flight("pool_size", pool_size, self.max_vertices)
+        self.pool_size = self.size_in_flight("pool_size", pool_size, self.max_vertices)
         self.compactor = Compactor(queue, local_size=self.local_size, sources=self.sources.toolkit_only())
         self.bdpt = None            # the subclass's BdptEvaluator
 

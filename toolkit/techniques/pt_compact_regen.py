@@ -51,7 +51,7 @@ class PtCompactRegen(Technique):
     def __init__(self, *args, compaction="immediate", stream_size=None, **kwargs):
         checked_size("stream_size", stream_size)     # its range now, before the build; the device's memory after
         super().__init__(*args, **kwargs)
-        self.stream_size = self.in_flight("stream_size", stream_size)   # paths in the stream; None: the device's
+        self.stream_size = self.size_in_flight("stream_size", stream_size)   # paths in the stream; None: the device's
         if compaction not in ("immediate", "multipass"):
             raise ValueError(f"compaction must be 'immediate' or 'multipass', not {compaction!r}")
         self.compaction = compaction
@@ -71,8 +71,8 @@ class PtCompactRegen(Technique):
     def run_pass(self, film, camera, seed, sample_base, spp):
         budget = pixel_count(camera) * spp
         size = min(self.stream_size, budget)
-        b = self.reused(("streams", size), lambda: self.stream_buffers(size))
-        b.radiance = self.output_buffer(budget)
+        mem = self.reused(("streams", size), lambda: self.stream_buffers(size))
+        mem.radiance = self.output_buffer(budget)
         pass_args = PT_PASS.record(seed=seed, sample_base=sample_base, budget=budget,
                                    capacity=self.stream_capacity(size))
         length, next_id = 0, 0
@@ -81,24 +81,24 @@ class PtCompactRegen(Technique):
             count = min(size - length, budget - next_id)
             if count > 0:
                 self.launch(self.kernel("pt_compact_regen_generate"), count, cam=camera, pass_args=pass_args,
-                            r=PT_REGENERATION.record(count=count, first_id=next_id, base=length), stream=b.stream)
+                            r=PT_REGENERATION.record(count=count, first_id=next_id, base=length), stream=mem.stream)
                 length += count
                 next_id += count
                 self.count_generate(count, size, draining=next_id == budget)
             if length == 0:
                 break   # budget spent and the stream has drained
             # Extend every path by one vertex (trace, then shade), then compact the survivors into next_stream.
-            survivors, queued = self.extend_and_compact(pass_args, length, b)
-            self.count_extend_and_compact(b.lane_counts, length, size, draining=next_id == budget)
+            survivors, queued = self.extend_and_compact(pass_args, length, mem)
+            self.count_extend_and_compact(mem.lane_counts, length, size, draining=next_id == budget)
             # Trace the queued shadow rays: a packed stream of its own.
             if queued:
                 self.launch(self.kernel("pt_compact_regen_shadow"), queued, **self.scene_args(),
-                            pass_args=pass_args, queued=np.int32(queued), shadow_rays=b.shadow_rays,
-                            radiance=b.radiance, shadow_steps=b.shadow_steps)
-                self.count_shadow(b.shadow_steps, queued)
-            b.swap()
+                            pass_args=pass_args, queued=np.int32(queued), shadow_rays=mem.shadow_rays,
+                            radiance=mem.radiance, shadow_steps=mem.shadow_steps)
+                self.count_shadow(mem.shadow_steps, queued)
+            mem.swap()
             length = survivors
-        self.collect(film, b.radiance, budget)
+        self.collect(film, mem.radiance, budget)
 
     def compacted_indices(self, size):
         """Multi-pass compaction's output (the survivors' indices) and the compactor's scratch
@@ -108,25 +108,25 @@ class PtCompactRegen(Technique):
         self.compactor.reserve(size)
         return self.int_buffer(size)
 
-    def extend_and_compact(self, pass_args, length, b):
-        """Extend the `length` paths of b.stream; returns (the survivors, now packed at the start
-        of b.next_stream; the queued shadow rays)."""
+    def extend_and_compact(self, pass_args, length, mem):
+        """Extend the `length` paths of mem.stream; returns (the survivors, now packed at the start
+        of mem.next_stream; the queued shadow rays)."""
         if self.compaction == "immediate":
             self.launch(self.kernel("pt_compact_regen_trace"), length, **self.scene_args(), pass_args=pass_args,
-                        stream_length=np.int32(length), stream=b.stream, hits=b.hits, lane_counts=b.lane_counts)
-            cl.enqueue_fill_buffer(self.queue, b.counters, np.int32(0), 0, 4 * len(StreamCounter))
+                        stream_length=np.int32(length), stream=mem.stream, hits=mem.hits, lane_counts=mem.lane_counts)
+            cl.enqueue_fill_buffer(self.queue, mem.counters, np.int32(0), 0, 4 * len(StreamCounter))
             self.launch(self.kernel("pt_compact_regen_shade"), length, **self.scene_args(), pass_args=pass_args,
-                        stream_length=np.int32(length), stream=b.stream, hits=b.hits, next_stream=b.next_stream,
-                        shadow_rays=b.shadow_rays, counters=b.counters, radiance=b.radiance,
-                        lane_counts=b.lane_counts)
-            lengths = self.read_ints(b.counters, len(StreamCounter))
+                        stream_length=np.int32(length), stream=mem.stream, hits=mem.hits, next_stream=mem.next_stream,
+                        shadow_rays=mem.shadow_rays, counters=mem.counters, radiance=mem.radiance,
+                        lane_counts=mem.lane_counts)
+            lengths = self.read_ints(mem.counters, len(StreamCounter))
             return int(lengths[StreamCounter.PATHS]), int(lengths[StreamCounter.SHADOW_RAYS])
-        cl.enqueue_fill_buffer(self.queue, b.alive, np.int32(1), 0, 4 * length)   # every path in the stream is live
-        self.extend_in_place(pass_args, length, b.stream, b.alive, b.hits, b.radiance, b.lane_counts)
-        indices, survivors = self.compactor.compact_indices(b.alive, length, method="multipass", out=b.indices)
+        cl.enqueue_fill_buffer(self.queue, mem.alive, np.int32(1), 0, 4 * length)   # every path in the stream is live
+        self.extend_in_place(pass_args, length, mem.stream, mem.alive, mem.hits, mem.radiance, mem.lane_counts)
+        indices, survivors = self.compactor.compact_indices(mem.alive, length, method="multipass", out=mem.indices)
         if survivors:
             self.launch(self.kernel("pt_compact_regen_gather"), survivors, pass_args=pass_args,
-                        count=np.int32(survivors), indices=indices, stream=b.stream, next_stream=b.next_stream)
+                        count=np.int32(survivors), indices=indices, stream=mem.stream, next_stream=mem.next_stream)
         return survivors, 0
 
     # --- SIMD counting: one hook per stage, no-ops unless count_simd ----------------------

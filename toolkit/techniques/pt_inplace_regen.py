@@ -42,7 +42,7 @@ class PtInplaceRegen(Technique):
         checked_size("stream_size", stream_size)     # its range now, before the build; the device's memory after
         super().__init__(*args, **kwargs)
         # slots (work-items) that stay resident; None: the device's (toolkit/opencl/work_sizes.py)
-        self.stream_size = self.in_flight("stream_size", stream_size)
+        self.stream_size = self.size_in_flight("stream_size", stream_size)
 
     def slot_buffers(self, slots):
         """The device memory of `slots` slots (run_pass makes it once per stream size)."""
