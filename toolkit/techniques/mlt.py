@@ -96,7 +96,7 @@ from toolkit.opencl.work_sizes import device_work_sizes
 from toolkit.techniques.base import pixel_count
 from toolkit.techniques.bdpt_evaluator import BdptEvaluator, BdptPoolTechnique, per_pixel_sums
 from toolkit.techniques.bdpt_parallel_connect import ParallelConnect
-from toolkit.techniques.mlt_chains import (ChainRecords, Chains, ProposalSink, records_of_picks,
+from toolkit.techniques.mlt_chains import (Chains, ProposalSink, records_of_picks,
                                            systematic_picks)
 
 STARTS = ("naive", "resample", "pool")
@@ -199,13 +199,8 @@ class Mlt(BdptPoolTechnique):
         c = Chains(count, seed, camera, cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
                    cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
                    cl.Buffer(ctx, cl.mem_flags.READ_WRITE, MLT_CHAIN.dtype.itemsize * n),
-                   cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n), self.int_buffer(count))
+                   cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n), self.int_buffer(count), pixel_count(camera))
         cl.enqueue_fill_buffer(self.queue, c.records, np.int32(0), 0, MLT_CHAIN.dtype.itemsize * n)
-        c.f_current = np.zeros(count)
-        c.candidate_sum, c.weight = np.zeros(count), np.ones(count)
-        c.current_records = ChainRecords.empty()
-        c.splats = np.zeros((pixel_count(camera), 3))
-        c.large_splats = np.zeros_like(c.splats)
         self.last_chains = c
         if self.start == "naive":
             self.iterate(c, count, MltMode.START)

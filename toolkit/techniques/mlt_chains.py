@@ -1,7 +1,7 @@
 """The host's side of mlt's chains (toolkit/techniques/mlt.py): their device memory and current
 states, the records that belong to chains, one iteration's evaluated proposals, and the sink
 that keeps BDPT's connection records with their chains."""
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import pyopencl as cl
@@ -78,7 +78,9 @@ class ProposalSink:
 
 @dataclass
 class Chains:
-    """The chains' device memory and the host's view of their current states."""
+    """The chains' device memory and the host's view of their current states: whole once made
+    (the host's arrays for `count` chains and `pixels` pixels start empty), then changed only by
+    the iterations."""
     count: int
     seed: np.uint32          # the render's seed
     camera: np.void          # Camera record
@@ -87,19 +89,26 @@ class Chains:
     records: cl.Buffer       # MltChain[count]
     f_proposal: cl.Buffer    # float[count], written by the host
     dims_proposal: cl.Buffer  # int[count], written by the host
+    pixels: int              # of the image the chains splat into
     iteration: int = 0
-    f_current: np.ndarray = None        # float64 f of each current state
-    current_records: ChainRecords = None  # the current states' connection records
-    splats: np.ndarray = None           # (pixels, 3) float64 sum of the Metropolis splats (times b at the end)
-    large_splats: np.ndarray = None     # (pixels, 3) float64 sum of the large steps' own splats (combine)
-    candidate_sum: np.ndarray = None    # start = resample: sum of f over each chain's candidates
-    weight: np.ndarray = None           # each chain's splat weight: 1, or w_c / mean(w) (resample)
+    f_current: np.ndarray = field(init=False)          # float64 f of each current state
+    current_records: ChainRecords = field(init=False)  # the current states' connection records
+    splats: np.ndarray = field(init=False)         # (pixels, 3) float64 sum of the Metropolis splats (times b at the end)
+    large_splats: np.ndarray = field(init=False)   # (pixels, 3) float64 sum of the large steps' own splats (combine)
+    candidate_sum: np.ndarray = field(init=False)  # start = resample: sum of f over each chain's candidates
+    weight: np.ndarray = field(init=False)         # each chain's splat weight: 1, or w_c / mean(w) (resample)
     large_sum: float = 0.0              # sum of f over the large steps (for b)
     large_count: int = 0
     accepted: int = 0
     mutations: int = 0
     overflow: int = 0                   # proposals that read more than max_dims dimensions
     nonfinite: int = 0
+
+    def __post_init__(self):
+        self.f_current = np.zeros(self.count)
+        self.current_records = ChainRecords.empty()
+        self.splats, self.large_splats = np.zeros((self.pixels, 3)), np.zeros((self.pixels, 3))
+        self.candidate_sum, self.weight = np.zeros(self.count), np.ones(self.count)
 
     @property
     def b(self):
