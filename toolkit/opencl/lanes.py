@@ -35,11 +35,11 @@ a branch and a store per lane (why cl/bvh.h pushes its stack without branches).
 """
 import re
 
-from toolkit.core.config import config
+from toolkit.core.config import LANES, config
 from toolkit.core.validate import InputError
 from toolkit.opencl.device_model import is_gpu
 
-SETTINGS = ("on", "off")
+SETTINGS = LANES          # "on", "off": the values TOOLKIT_LANES and every lanes option take
 INTEL_DEFAULT = "off"     # measured slower with lanes on (see the module docstring)
 HARDWARE = "hardware"     # a GPU: its warps, not the toolkit's choice
 
