@@ -17,18 +17,22 @@ sys.path.insert(0, str(ROOT))
 import toolkit  # noqa: E402
 
 TECHNIQUES = ["pt_naive", "pt_inplace_regen", "pt_compact_regen", "bdpt_naive_connect",
-              "bdpt_parallel_connect"]
+              "bdpt_parallel_connect", "mlt"]
 SCENES = ["cornell_box", "cornell_spheres"]
-SPP = {"pt": 8, "bdpt": 2}
+SPP = {"pt": 8, "bdpt": 2, "mlt": 4}
+# 100 chains: 1,024 mutations are 11 iterations, the last with 24 chains active, and a pass of
+# 256 mutations (one per pixel) ends inside an iteration.
+OPTIONS = {"mlt": {"chains": 100}}
 
 
 def renders(only=""):
     for scene in SCENES:
         for technique in (t for t in TECHNIQUES if t.startswith(only)):
-            spp = SPP[technique.split("_")[0]]
+            family = technique.split("_")[0]
+            spp, options = SPP[family], OPTIONS.get(family)
             for count_simd in (True, False):
                 result = toolkit.render(ROOT / "scenes" / scene, technique=technique, spp=spp, seed=7,
-                                        resolution=(16, 16), count_simd=count_simd)
+                                        resolution=(16, 16), count_simd=count_simd, options=options)
                 yield f"{scene}_{technique}_{'counted' if count_simd else 'plain'}", result
 
 

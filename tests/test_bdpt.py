@@ -184,7 +184,8 @@ def test_the_evaluator_hands_every_connect_phase_to_the_callers_sink(queue, corn
     from toolkit.techniques.bdpt_evaluator import BdptEvaluator, per_pixel_sums
     from toolkit.techniques.bdpt_parallel_connect import ParallelConnect
     tech = BdptParallelConnect(queue, DeviceScene(queue, cornell_box), count_simd=False, pool_size=64)
-    evaluator = BdptEvaluator(tech, ParallelConnect(tech, read_slots=True), tech.pool_size, 0.6, tech.max_vertices)
+    ctx = tech.bdpt_context
+    evaluator = BdptEvaluator(ctx, ParallelConnect(ctx, read_slots=True), tech.pool_size, 0.6, tech.max_vertices)
     camera, pixels, spp = tech.scene.camera(8, 8), 64, 4
     budget = pixels * spp
     kept = KeepConnections()

@@ -1,5 +1,5 @@
 """Kernel launches read by name (issue 23): the host passes a kernel's arguments under the
-kernel's own parameter names, in its order (Technique.launch(kernel, n, **named)), and the
+kernel's own parameter names, in its order (Kernels.launch(kernel, n, **named)), and the
 compiler keeps those names when asked (-cl-kernel-arg-info: program.build(arg_info=True)), so
 this test renders a small image with each technique and checks every launch before it runs.
 (A parameter named like an OpenCL builtin, `length` or `step`, comes back renamed on PoCL, `_cl_length`:
@@ -16,7 +16,7 @@ from toolkit.core.layout import RECORDS
 from toolkit.opencl import program
 from toolkit.opencl.device_scene import DeviceScene
 from toolkit.techniques import get_technique
-from toolkit.techniques.base import Technique
+from toolkit.techniques.kernels import Kernels
 
 # Each technique's program (its cl/ file) and the variants that, together, launch every kernel in it.
 PROGRAMS = {
@@ -71,16 +71,17 @@ def checked_render(monkeypatch, tech, parameters):
     each launch checked against `parameters` before it runs (a wrong argument may crash the
     render or make it run on and on); returns the names of the kernels launched."""
     launched = set()
-    real = Technique.launch
+    real = Kernels.launch
 
     def checked(self, kernel, n, /, *args, **named):
+        kernel = self.kernel(kernel) if isinstance(kernel, str) else kernel
         call = [(None, host_kind(v)) for v in args] + [(name, host_kind(v)) for name, v in named.items()]
         check_call(kernel.function_name, call, parameters[kernel.function_name])
         launched.add(kernel.function_name)
         return real(self, kernel, n, *args, **named)
 
     with monkeypatch.context() as patch:
-        patch.setattr(Technique, "launch", checked)
+        patch.setattr(Kernels, "launch", checked)
         tech.render(8, 8, 2, seed=1)
     return launched
 

@@ -30,7 +30,7 @@ def test_float4_fields_are_16_byte_aligned_like_c():
 def test_no_kernel_takes_more_than_16_arguments(queue, cornell_spheres, name):
     from toolkit.opencl.device_scene import DeviceScene
     tech = TECHNIQUES[name](queue, DeviceScene(queue, cornell_spheres))
-    counts = {k.function_name: k.num_args for k in tech.program.all_kernels()}
+    counts = {k.function_name: k.num_args for k in tech.kernels.program.all_kernels()}
     assert counts and max(counts.values()) <= 16, counts
 
 

@@ -52,7 +52,7 @@ def test_the_work_group_size_does_not_change_the_image(cornell_box, technique):
         from toolkit.opencl.device_scene import DeviceScene
         queue = get_queue()
         tech = TECHNIQUES[technique](queue, DeviceScene(queue, as_scene(cornell_box)), local_size=32)
-        kernel = program.kernel(tech.program, "pt_compact_regen_shade")
+        kernel = program.kernel(tech.kernels.program, "pt_compact_regen_shade")
         info = kernel.get_work_group_info(cl.kernel_work_group_info.COMPILE_WORK_GROUP_SIZE, queue.device)
         assert list(info) == [32, 1, 1]
 

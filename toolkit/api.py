@@ -147,7 +147,7 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
         # A non-finite sample is a bug to fix where it comes from; never only inside the stats.
         warnings.warn(f"{technique} on {scene.name}: {film.nonfinite_samples} non-finite sample(s) "
                       "were dropped from the image", DroppedSamplesWarning, stacklevel=2)
-    return RenderResult(image, stderr, stats, tech.simd.per_iteration if count_simd else [],
+    return RenderResult(image, stderr, stats, tech.recorder.simd.per_iteration if count_simd else [],
                         tech.strategy_images if strategy_max_edges else None)
 
 
@@ -188,8 +188,8 @@ def _phase_stats(tech, times):
     per_kernel = times.per_kernel()
     return {"kernel_times": {name: {"launches": n, "seconds": s} for name, (n, s) in per_kernel.items()},
             "kernel_span_seconds": times.span_seconds,
-            "simd_lane_steps": lane_steps(tech.simd) if tech.count_simd else {},
-            "traversal_lane_steps": lane_steps(tech.traversal) if tech.count_simd else {}}
+            "simd_lane_steps": lane_steps(tech.recorder.simd) if tech.count_simd else {},
+            "traversal_lane_steps": lane_steps(tech.recorder.traversal) if tech.count_simd else {}}
 
 
 def _run(tech, what, width, height, spp, seed, progress):
@@ -221,9 +221,9 @@ def _stats(tech, film, image, seconds):
         "warp_width": tech.warp_width,
         "warp_width_source": tech.warp_width_source,
         "simd_efficiency": tech.simd_efficiency(),
-        "traversal_efficiency": tech.traversal.efficiency() if count_simd else {},
+        "traversal_efficiency": tech.recorder.traversal.efficiency() if count_simd else {},
         # BVH nodes (and wide leaves) visited per sample, closest-hit and shadow rays: --bvh wide cuts them.
-        "traversal_steps_per_sample": ({phase: steps / film.samples for phase, steps in tech.traversal.active.items()}
+        "traversal_steps_per_sample": ({phase: steps / film.samples for phase, steps in tech.recorder.traversal.active.items()}
                                        if count_simd and film.samples else {}),
         "build_seconds": tech.build_seconds,
         "kernels": "general" if tech.general else "specialized",

@@ -316,7 +316,7 @@ RAY_OFFSET_ULPS = 64.0
 SCENE_ARGS = [("nodes", "__global const BVH_WORD*"), ("tris", "__global const Triangle*"),
               ("materials", "__global const Material*"), ("lights", "__global const LightTri*"),
               ("light_count", "const int"), ("epsilon", "const float")]
-# Their names as kernel parameters, by which the host passes them (Technique.scene_args).
+# Their names as kernel parameters, by which the host passes them (Kernels.scene_args).
 SCENE_PARAM_NAMES = [f"scene_{name}" for name, _ in SCENE_ARGS]
 
 # What both BDPT connect kernels (cl/bdpt_naive_connect.cl, cl/bdpt_parallel_connect.cl) read and

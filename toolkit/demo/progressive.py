@@ -32,7 +32,7 @@ class ProgressiveRender:
         self.name = technique
         self.tech = cls(queue, device_scene, count_simd=True, **options)
         # The same counters, and beside them the lanes of the first few warps of every step.
-        self.tech.simd = WarpSampler(self.tech.warp_width)
+        self.tech.recorder.simd = WarpSampler(self.tech.warp_width)
         self.width, self.height = width, height
         self.seed = np.uint32(seed)
         self.camera = device_scene.camera(width, height)
@@ -66,7 +66,7 @@ class ProgressiveRender:
 
     def efficiency(self):
         """SIMD efficiency per phase so far (toolkit/core/simd.py): active lanes / lanes issued."""
-        return self.tech.simd.efficiency()
+        return self.tech.recorder.simd.efficiency()
 
 
 class ProgressiveMetropolis(ProgressiveRender):

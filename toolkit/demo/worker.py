@@ -175,7 +175,7 @@ class RenderWorker:
         means.append((r.seconds, mean))
         if len(means) > KEPT_MEANS:
             del means[1::2]                      # thin the old points: the plot keeps its whole time span
-        sampler = r.tech.simd
+        sampler = r.tech.recorder.simd
         frame = Frame(technique=r.name, rgba=to_rgba(image), spp=r.spp,
                       samples_per_second=r.samples / r.seconds if r.seconds else 0.0, seconds=r.seconds,
                       rmse=None if self._reference is None else rmse(image, self._reference), mean=mean,

@@ -47,7 +47,7 @@ def _build(queue, device_scene, technique, general):
     cls, options = get_technique(technique)
     tech = cls(queue, device_scene, count_simd=False, general=general, binary_cache=False,
                extra_defines={"UNCACHED_BUILD": uuid.uuid4().int % 10**12}, **options)
-    sizes = tech.program.get_info(cl.program_info.BINARY_SIZES)
+    sizes = tech.kernels.program.get_info(cl.program_info.BINARY_SIZES)
     return tech, {"build_seconds": tech.build_seconds, "binary_bytes": int(sum(sizes))}
 
 

@@ -3,15 +3,16 @@ that splits the sample budget into passes and feeds the film."""
 import time
 
 import numpy as np
-import pyopencl as cl
 
 from toolkit.opencl import program
 from toolkit.opencl.device_model import resolve_warp_width
 from toolkit.opencl.work_sizes import CPU_POOL_SIZE, CPU_STREAM_SIZE, check_fits, device_work_sizes
 from toolkit.core.film import Film
 from toolkit.opencl.film_reduce import FilmReduction
-from toolkit.core.layout import LANE_COUNTS, LONGEST_SUBPATH, SCENE_PARAM_NAMES
-from toolkit.core.simd import PhaseCounter
+from toolkit.core.layout import LONGEST_SUBPATH
+from toolkit.techniques.device_memory import DeviceMemory
+from toolkit.techniques.kernels import Kernels
+from toolkit.techniques.simd_recorder import SimdRecorder
 from toolkit.core.validate import InputError, local_size as checked_local_size, whole_number
 
 
@@ -22,7 +23,10 @@ def pixel_count(camera):
 
 
 class Technique:
-    """Base class. A technique sets `name`, `source` (its cl/ file) and implements `run_pass`."""
+    """Base class. A technique sets `name`, `source` (its cl/ file) and implements `run_pass`.
+    It sizes its work and runs the pass loop; its parts do the rest: `kernels` (its program and
+    launches, kernels.py), `memory` (its device memory, device_memory.py) and `recorder` (its
+    SIMD counters, simd_recorder.py)."""
     name = None
     source = None
     family = None    # "pt" (path tracing) or "bdpt" (bidirectional): what a technique's samples are
@@ -30,7 +34,6 @@ class Technique:
     target_batch = 1 << 18
     # Whether shadow rays go to a queue traced by a kernel of their own (counted there).
     shadow_queue = False
-    iterations = 0   # extension steps over all passes so far (for per-iteration plots)
     _collecting = None   # (film, host sums, read event, samples per pixel) of the pass collect queued last
     film_reduction = None   # the FilmReduction of collect, made at its first pass
 
@@ -69,11 +72,12 @@ class Technique:
         self.defines = defines
         self.sources = sources if isinstance(sources, program.Sources) else program.default_sources(sources)
         start = time.perf_counter()
-        self.program = program.build(queue, self.source, defines, directory=self.sources,
-                                     binary_cache=binary_cache)
+        built = program.build(queue, self.source, defines, directory=self.sources, binary_cache=binary_cache)
         self.build_seconds = time.perf_counter() - start
-        self.simd = PhaseCounter(warp_width)
-        self.traversal = PhaseCounter(warp_width)
+        # Its parts: launching its kernels, its device memory, its SIMD counters.
+        self.kernels = Kernels(queue, built, self.local_size, device_scene)
+        self.memory = DeviceMemory(queue, self.local_size)
+        self.recorder = SimdRecorder(warp_width, count_simd)
 
     def size_in_flight(self, option, given, max_vertices=LONGEST_SUBPATH):
         """The work a stream technique keeps in flight (option "stream_size" or "pool_size"):
@@ -91,49 +95,38 @@ class Technique:
         self.work_sizes = {option: size, "work_sizes_source": why}
         return size
 
-    def kernel(self, name):
-        """The kernel object, retrieved once (each retrieval makes a new cl.Kernel)."""
-        return program.kernel(self.program, name)
-
-    def launch(self, kernel, n, /, *args, **named):
-        """program.launch over n work-items in work-groups of this technique's local size (its
-        program's LOCAL_SIZE). Arguments given by name follow the positional ones: the names are
-        the kernel's own parameter names, in its order (tests/test_kernel_args.py checks them)."""
-        return program.launch(self.queue, kernel, n, *args, *named.values(), local_size=self.local_size)
-
     def extend_in_place(self, pass_args, length, paths, alive, hits, radiance, lane_counts):
         """The in-place extension step (cl/extend_in_place.h) over the first `length` slots of
         `paths`: trace into `hits`, then shade; pt_inplace_regen and multi-pass compaction share it."""
-        self.launch(self.kernel("extend_in_place_trace"), length, **self.scene_args(), pass_args=pass_args,
-                    stream_length=np.int32(length), paths=paths, alive=alive, hits=hits, lane_counts=lane_counts)
-        self.launch(self.kernel("extend_in_place_shade"), length, **self.scene_args(), pass_args=pass_args,
-                    stream_length=np.int32(length), paths=paths, alive=alive, hits=hits, radiance=radiance,
-                    lane_counts=lane_counts)
-
-    def scene_args(self):
-        """The scene's kernel arguments (SCENE_PARAMS) by parameter name, for launch(**...)."""
-        return dict(zip(SCENE_PARAM_NAMES, self.scene.args()))
-
-    def padded(self, n):
-        """n rounded up to a multiple of this technique's local size (a launch's global size)."""
-        return program.padded(n, self.local_size)
+        k = self.kernels
+        k.launch("extend_in_place_trace", length, **k.scene_args(), pass_args=pass_args,
+                 stream_length=np.int32(length), paths=paths, alive=alive, hits=hits, lane_counts=lane_counts)
+        k.launch("extend_in_place_shade", length, **k.scene_args(), pass_args=pass_args,
+                 stream_length=np.int32(length), paths=paths, alive=alive, hits=hits, radiance=radiance,
+                 lane_counts=lane_counts)
 
     def render(self, width, height, spp, seed=0, progress=None):
-        """Render `spp` samples per pixel; returns the film (see toolkit.api.render)."""
+        """Render `spp` samples per pixel in passes; returns the film (see toolkit.api.render)."""
         film = Film(width, height)
-        self._collecting = None   # a render stopped by an error leaves no pass for this one
         camera = self.scene.camera(width, height)
+        self.begin_render(camera, np.uint32(seed), spp)
         per_pass = self.spp_per_pass(pixel_count(camera), spp)
-        start = 0
-        while start < spp:
+        for start in range(0, spp, per_pass):
             count = min(per_pass, spp - start)
             self.run_pass(film, camera, np.uint32(seed), start, count)
-            start += count
             if progress is not None:
                 progress.update(count)
+        self.end_render(film)
+        return film
+
+    def begin_render(self, camera, seed, spp):
+        """Before the first pass of a render of `spp` samples per pixel."""
+        self._collecting = None   # a render stopped by an error leaves no pass for this one
+
+    def end_render(self, film):
+        """After the last pass: its samples reach the film."""
         self.finish_collect()
         self.queue.finish()
-        return film
 
     def spp_per_pass(self, pixels, spp):
         """Samples per pixel in one pass (one launch batch) of an image of `pixels` pixels."""
@@ -142,17 +135,8 @@ class Technique:
         return max(1, min(spp, self.target_batch // pixels))
 
     def run_pass(self, film, camera, seed, sample_base, spp):
+        """One pass: samples sample_base .. sample_base + spp - 1 of every pixel, into `film`."""
         raise NotImplementedError
-
-    # --- helpers shared by the techniques -------------------------------------------------
-
-    def output_buffer(self, n):
-        """One float4 per sample of the pass, pre-filled with .w = -1 ("not written yet"); made
-        once per pass size and refilled by every pass (the in-order queue runs collect's read of it first)."""
-        buf = self.reused(("output", n), lambda: cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
-                                                            16 * self.padded(n)))
-        cl.enqueue_fill_buffer(self.queue, buf, np.array([0, 0, 0, -1], np.float32), 0, 16 * self.padded(n))
-        return buf
 
     def collect(self, film, buffer, n):
         """Sum the pass's `n` samples per pixel on the device (toolkit/opencl/film_reduce.py) and
@@ -182,68 +166,9 @@ class Technique:
                                "(sample accounting bug)")
         film.add_pixel_sums(result["sum"][:, :3], result["sum_sq"][:, :3], samples, int(result["dropped"].sum()))
 
-    def reused(self, key, make):
-        """Device memory that keeps its size from pass to pass (streams, vertex memory) is made
-        once per technique: `key` names it with its size, `make()` allocates it."""
-        cache = self.__dict__.setdefault("_reused", {})
-        if key not in cache:
-            cache[key] = make()
-        return cache[key]
-
-    def int_buffer(self, n, fill=None):
-        buf = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * max(1, self.padded(n)))
-        if fill is not None:
-            self.fill_ints(buf, fill)
-        return buf
-
-    def fill_ints(self, buffer, value):
-        """Set every int of `buffer` to `value` (on the device, queued)."""
-        cl.enqueue_fill_buffer(self.queue, buffer, np.int32(value), 0, buffer.size)
-
-    def lane_counts_buffer(self, n):
-        """One LaneCounts record per work-item (toolkit/core/layout.py), written when COUNT_SIMD."""
-        return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
-                         LANE_COUNTS.dtype.itemsize * self.padded(max(n, 1)))
-
-    def read_lane_counts(self, buffer, n):
-        return self.read_structs(LANE_COUNTS, buffer, n)
-
-    def read_structs(self, record, buffer, n, offset=0):
-        """n records of layout `record` from `buffer` (starting `offset` bytes in)."""
-        out = record.zeros(n)
-        if n:
-            cl.enqueue_copy(self.queue, out, buffer, src_offset=offset)
-        return out
-
-    def soa_buffer(self, record, n):
-        """A stream of n records as a structure of arrays in one buffer; its capacity (what the
-        kernels take with it) is n padded to the local size: see stream_capacity()."""
-        return record.soa_buffer(self.queue.context, self.stream_capacity(n))
-
-    def stream_capacity(self, n):
-        return self.padded(n)
-
-    def read_ints(self, buffer, n, columns=1):
-        out = np.empty((n, columns) if columns > 1 else n, np.int32)
-        if n:
-            cl.enqueue_copy(self.queue, out, buffer)
-        return out
-
-    def count_stream_step(self, lanes, capacity, draining=False):
-        """SIMD counters of one extension step over a stream, from the LaneCounts of the lanes
-        that ran it; `capacity` is the stream's size (for the occupancy plot), `draining` whether
-        the pass's budget is spent (no sample left to start: the final drain)."""
-        self.simd.add_stream_step("extend", lanes["work"] > 0, iteration=self.iterations, capacity=capacity,
-                                  draining=draining)
-        self.iterations += 1
-        self.traversal.add_warp_loops("closest", lanes["closest_steps"])
-        if not self.shadow_queue:   # shadow rays traced inside the extension step
-            self.simd.add_stream_step("shadow", lanes["shadow_rays"] > 0)
-            self.traversal.add_warp_loops("shadow", lanes["shadow_steps"])
-
     def extra_stats(self):
         """Technique-specific figures added to the render stats (the work in flight, if chosen)."""
         return dict(getattr(self, "work_sizes", {}))
 
     def simd_efficiency(self):
-        return self.simd.efficiency() if self.count_simd else {}
+        return self.recorder.efficiency()

@@ -65,7 +65,8 @@ class BdptTechnique(BdptPoolTechnique):
             defines.update(STRATEGY_IMAGES=True, STRATEGY_MAX_EDGES=strategy_max_edges,
                            STRATEGY_COUNT=strategy_count(strategy_max_edges))
         super().__init__(queue, device_scene, defines, pool_size, coalesced_scatter, **kwargs)
-        self.bdpt = BdptEvaluator(self, self.connect_phase(), self.pool_size, regenerate_fraction, self.max_vertices)
+        self.bdpt = BdptEvaluator(self.bdpt_context, self.connect_phase(), self.pool_size, regenerate_fraction,
+                                  self.max_vertices)
 
     def connect_phase(self):
         """The technique's connect phase: (PassState, terminated count) -> Connections."""

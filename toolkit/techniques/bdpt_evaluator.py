@@ -27,6 +27,9 @@ from toolkit.core.simd import PhaseCounter
 from toolkit.opencl.compaction import Compactor
 from toolkit.opencl.work_sizes import checked_size
 from toolkit.techniques.base import Technique, pixel_count
+from toolkit.techniques.device_memory import DeviceMemory
+from toolkit.techniques.kernels import Kernels
+from toolkit.techniques.simd_recorder import SimdRecorder
 
 
 def walk_defines(scene, longest, coalesced_scatter):
@@ -104,6 +107,16 @@ class Connections:
         return cls(np.zeros((0, 4), np.float32), np.zeros(0, np.int32))
 
 
+@dataclass
+class BdptContext:
+    """What BDPT's evaluator and its connect phases use of a technique, and nothing more."""
+    queue: cl.CommandQueue
+    kernels: Kernels          # the technique's program (the walk's and connect phase's kernels) and its launches
+    memory: DeviceMemory      # where the pool, the streams and the records are allocated
+    recorder: SimdRecorder    # the technique's SIMD counters: the walk's steps count as its iterations
+    compactor: Compactor      # compacts the streams and scans the connect phase's record counts
+
+
 class BdptPoolTechnique(Technique):
     """A technique whose samples are BDPT samples of a pool (BdptEvaluator): the BDPT techniques,
     which add them into an image, and mlt, whose chains propose them. It builds the walk's kernels
@@ -121,7 +134,9 @@ class BdptPoolTechnique(Technique):
         super().__init__(queue, device_scene, extra_defines=walk, **kwargs)
         # samples in flight (each stores MAX_VERTICES eye + light vertices); None: the device's
         self.pool_size = self.size_in_flight("pool_size", pool_size, self.max_vertices)
-        self.compactor = Compactor(queue, local_size=self.local_size, sources=self.sources.toolkit_only())
+        compactor = Compactor(queue, local_size=self.local_size, sources=self.sources.toolkit_only())
+        # What the evaluator and the connect phase get of this technique (not the technique itself).
+        self.bdpt_context = BdptContext(queue, self.kernels, self.memory, self.recorder, compactor)
         self.bdpt = None            # the subclass's BdptEvaluator
 
     def extra_stats(self):
@@ -130,10 +145,10 @@ class BdptPoolTechnique(Technique):
 
 @dataclass
 class BdptEvaluator:
-    """The walk of `tech`'s BDPT kernels (tech builds and launches them) and a connect phase:
+    """The walk of BDPT's kernels (launched through `ctx`) and a connect phase:
     `connect(p, count)` evaluates the connections of the `count` terminated samples of pass `p`
     and returns their Connections."""
-    tech: object               # the Technique whose program holds the kernels
+    ctx: BdptContext           # the kernels, memory, SIMD recorder and compactor of the technique that built them
     connect: object            # the connect phase: (PassState, count) -> Connections
     pool_size: int             # samples in flight
     regenerate_fraction: float  # connect (and regenerate) once this share of the samples in flight has terminated
@@ -145,7 +160,7 @@ class BdptEvaluator:
         fraction = self.regenerate_fraction
         if isinstance(fraction, bool) or not isinstance(fraction, numbers.Real) or not 0.0 < fraction <= 1.0:
             raise ValueError(f"regenerate_fraction must be a number in (0, 1], got {fraction!r}")
-        self.uncompacted = PhaseCounter(self.tech.warp_width)
+        self.uncompacted = PhaseCounter(self.ctx.recorder.warp_width)
 
     def evaluate(self, p, sink):
         """Every sample of the pass's budget, through the pool; `sink.add` gets each connect phase's records."""
@@ -164,11 +179,11 @@ class BdptEvaluator:
         (nothing in flight). Kernels built with a sampler that reads stored primary-sample
         vectors (cl/mlt_proposals.h) take them as `sampler_args` (by parameter name), with their stride `vector_stride`
         (BdptPass.chains); plain BDPT has neither."""
-        tech = self.tech
+        ctx = self.ctx
         pool = self.sample_pool(min(self.pool_size, budget))
         args = BDPT_PASS.record(seed=seed, sample_base=sample_base, pool=pool.size, capacity=pool.capacity,
                                 chains=vector_stride)
-        cl.enqueue_fill_buffer(tech.queue, pool.counters, np.int32(0), 0, 4 * len(WalkCounter))
+        cl.enqueue_fill_buffer(ctx.queue, pool.counters, np.int32(0), 0, 4 * len(WalkCounter))
         pool.eye.length = pool.light.length = 0
         # every slot "terminated", nothing to connect
         self.last_pass = PassState(pool, camera, args, budget, dict(sampler_args or {}), in_flight=pool.size)
@@ -176,59 +191,59 @@ class BdptEvaluator:
 
     def sample_pool(self, size):
         """The streams, the vertex memory (tens of MB) and the per-slot arrays, made once per pool size."""
-        tech = self.tech
-        ctx, capacity = tech.queue.context, tech.stream_capacity(size)
-        tech.compactor.reserve(size)   # its scratch memory too, once: no walk step or connect allocates
+        ctx, mem = self.ctx, self.ctx.memory
+        context, capacity = ctx.queue.context, mem.stream_capacity(size)
+        ctx.compactor.reserve(size)   # its scratch memory too, once: no walk step or connect allocates
         vertex_bytes = BDPT_VERTEX.dtype.itemsize * size * self.max_vertices
 
         def stream(is_light):
-            return SubpathStream(is_light, tech.soa_buffer(SUBPATH, size), tech.soa_buffer(SUBPATH, size),
-                                 cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vertex_bytes))
-        return tech.reused(("pool", size), lambda: SamplePool(
+            return SubpathStream(is_light, mem.soa_buffer(SUBPATH, size), mem.soa_buffer(SUBPATH, size),
+                                 cl.Buffer(context, cl.mem_flags.READ_WRITE, vertex_bytes))
+        return mem.reused(("pool", size), lambda: SamplePool(
             size, capacity, stream(0), stream(1),
-            slots=cl.Buffer(ctx, cl.mem_flags.READ_WRITE, BDPT_SLOT.dtype.itemsize * tech.padded(size)),
-            terminated=tech.int_buffer(size), counters=tech.int_buffer(len(WalkCounter)),
-            lane_counts=tech.lane_counts_buffer(size),
-            all_slots=cl.Buffer(ctx, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+            slots=cl.Buffer(context, cl.mem_flags.READ_WRITE, BDPT_SLOT.dtype.itemsize * mem.padded(size)),
+            terminated=mem.int_buffer(size), counters=mem.int_buffer(len(WalkCounter)),
+            lane_counts=mem.lane_counts_buffer(size),
+            all_slots=cl.Buffer(context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                                 hostbuf=np.arange(size, dtype=np.int32))))
 
     def regenerate(self, p, slots, count):
         """bdpt_regenerate: the `count` terminated slots listed in `slots` start the next
         samples of the budget (the rest go idle); the new subpaths join the end of the streams."""
-        tech = self.tech
+        ctx = self.ctx
         fresh = min(count, p.budget - p.next_id)
         if count:
             r = BDPT_REGENERATION.record(count=count, fresh=fresh, first_id=p.next_id,
                                          eye_base=p.pool.eye.length, light_base=p.pool.light.length)
-            tech.launch(tech.kernel("bdpt_regenerate"), count, **tech.scene_args(), cam=p.camera,
+            ctx.kernels.launch("bdpt_regenerate", count, **ctx.kernels.scene_args(), cam=p.camera,
                         pass_args=p.args, r=r, slot_list=slots, eye_stream=p.pool.eye.current,
                         light_stream=p.pool.light.current, eye_vertices=p.pool.eye.vertices,
                         light_vertices=p.pool.light.vertices, slots=p.pool.slots, **p.sampler_args)
-        cl.enqueue_fill_buffer(tech.queue, p.pool.counters, np.int32(0), 4 * WalkCounter.TERMINATED_SAMPLES, 4)
+        cl.enqueue_fill_buffer(ctx.queue, p.pool.counters, np.int32(0), 4 * WalkCounter.TERMINATED_SAMPLES, 4)
         p.pool.eye.length += fresh
         p.pool.light.length += fresh
         p.next_id += fresh
         p.in_flight += fresh - count
-        if tech.count_simd and fresh:
-            tech.simd.add_stream_step("generate", fresh)
+        if ctx.recorder.on and fresh:
+            ctx.recorder.simd.add_stream_step("generate", fresh)
 
     def walk(self, p):
         """One random-walk step of both streams (bdpt_extend, compacted at once); returns the
         samples that have terminated since the last regeneration."""
-        cl.enqueue_fill_buffer(self.tech.queue, p.pool.counters, np.int32(0), 0, 4 * WalkCounter.TERMINATED_SAMPLES)
+        cl.enqueue_fill_buffer(self.ctx.queue, p.pool.counters, np.int32(0), 0, 4 * WalkCounter.TERMINATED_SAMPLES)
         for stream in (p.pool.eye, p.pool.light):
             if stream.length:
                 self.extend(p, stream)
-        counters = self.tech.read_ints(p.pool.counters, len(WalkCounter))
+        counters = self.ctx.memory.read_ints(p.pool.counters, len(WalkCounter))
         p.pool.eye.advance(counters[WalkCounter.EYE_SURVIVORS])
         p.pool.light.advance(counters[WalkCounter.LIGHT_SURVIVORS])
         return int(counters[WalkCounter.TERMINATED_SAMPLES])
 
     def extend(self, p, stream):
         """bdpt_extend: one vertex more on every subpath of `stream`, survivors into its spare."""
-        tech = self.tech
+        ctx = self.ctx
         step = BDPT_STEP.record(light_path=stream.is_light, length=stream.length)
-        tech.launch(tech.kernel("bdpt_extend"), stream.length, **tech.scene_args(), cam=p.camera,
+        ctx.kernels.launch("bdpt_extend", stream.length, **ctx.kernels.scene_args(), cam=p.camera,
                     pass_args=p.args, walk_step=step, stream=stream.current, next_stream=stream.spare,
                     counters=p.pool.counters, vertices=stream.vertices, slots=p.pool.slots,
                     lane_counts=p.pool.lane_counts, **p.sampler_args)
@@ -236,34 +251,32 @@ class BdptEvaluator:
 
     def terminated_slots(self, p):
         """bdpt_mark_terminated, then compaction: (the list of terminated slots, its length)."""
-        tech = self.tech
-        tech.launch(tech.kernel("bdpt_mark_terminated"), p.pool.size, pool=np.int32(p.pool.size),
+        ctx = self.ctx
+        ctx.kernels.launch("bdpt_mark_terminated", p.pool.size, pool=np.int32(p.pool.size),
                     slots=p.pool.slots, flags=p.pool.terminated)
-        listed = tech.reused(("terminated_list", p.pool.size), lambda: tech.int_buffer(p.pool.size))
-        return tech.compactor.compact_indices(p.pool.terminated, p.pool.size, method="immediate", out=listed)
+        listed = ctx.memory.reused(("terminated_list", p.pool.size), lambda: ctx.memory.int_buffer(p.pool.size))
+        return ctx.compactor.compact_indices(p.pool.terminated, p.pool.size, method="immediate", out=listed)
 
     # --- measuring and inspecting ------------------------------------------------------------
 
     def count_walk_step(self, p, stream):
         """SIMD counters of one walk step over `stream` (a no-op unless count_simd)."""
-        tech = self.tech
-        if not tech.count_simd:
+        ctx = self.ctx
+        if not ctx.recorder.on:
             return
-        lanes = tech.read_lane_counts(p.pool.lane_counts, stream.length)
-        tech.simd.add_stream_step("walk", stream.length, iteration=tech.iterations, capacity=p.pool.size,
-                                  draining=p.next_id == p.budget)
-        tech.iterations += 1
-        tech.simd.add_stream_step("compact", stream.length)
-        tech.traversal.add_warp_loops("closest", lanes["closest_steps"])
+        lanes = ctx.memory.read_lane_counts(p.pool.lane_counts, stream.length)
+        ctx.recorder.step("walk", stream.length, capacity=p.pool.size, draining=p.next_id == p.budget)
+        ctx.recorder.simd.add_stream_step("compact", stream.length)
+        ctx.recorder.traversal.add_warp_loops("closest", lanes["closest_steps"])
         slots = np.empty(stream.length, np.int32)
-        cl.enqueue_copy(tech.queue, slots, stream.current, src_offset=SUBPATH.soa_offset("slot", p.pool.capacity))
+        cl.enqueue_copy(ctx.queue, slots, stream.current, src_offset=SUBPATH.soa_offset("slot", p.pool.capacity))
         mask = np.zeros(p.pool.size, bool)      # without compaction each path keeps its slot's lane
         mask[slots] = True
         self.uncompacted.add_stream_step("walk", mask)
 
     def stats(self):
         """The walk's figures for the render stats."""
-        if not self.tech.count_simd:
+        if not self.ctx.recorder.on:
             return {}
         return {"walk_efficiency_without_compaction": self.uncompacted.efficiency().get("walk")}
 
@@ -271,33 +284,34 @@ class BdptEvaluator:
         """The vertex memory of the last samples of the last pass, as numpy:
         (eye vertices, eye counts, light vertices, light counts), vertices shaped (pool, MAX_VERTICES)."""
         pool = self.last_pass.pool
-        slots = self.tech.read_structs(BDPT_SLOT, pool.slots, pool.size)
+        slots = self.ctx.memory.read_structs(BDPT_SLOT, pool.slots, pool.size)
         out = []
         for stream, counts in ((pool.eye, slots["eye_vertices"]), (pool.light, slots["light_vertices"])):
             v = np.empty(pool.size * self.max_vertices, BDPT_VERTEX.dtype)
-            cl.enqueue_copy(self.tech.queue, v, stream.vertices)
+            cl.enqueue_copy(self.ctx.queue, v, stream.vertices)
             out += [v.reshape(pool.size, self.max_vertices), counts.copy()]
         return tuple(out)
 
 
-def read_records(tech, value_buffer, pixel_buffer, n):
+def read_records(ctx, value_buffer, pixel_buffer, n):
     """n connection records (values (n, 4) float32, pixels (n,) int32) from the device."""
     values = np.empty((n, 4), np.float32)
     pixels = np.empty(n, np.int32)
     if n:
-        cl.enqueue_copy(tech.queue, values, value_buffer)
-        cl.enqueue_copy(tech.queue, pixels, pixel_buffer)
+        cl.enqueue_copy(ctx.queue, values, value_buffer)
+        cl.enqueue_copy(ctx.queue, pixels, pixel_buffer)
     return values, pixels
 
 
-def scan_slot_counts(tech, p, kernel, label):
+def scan_slot_counts(ctx, p, kernel, label):
     """Launch `kernel`, which writes a count per pool slot (records a connect phase will write),
     and scan the counts: (counts, firsts, total) with firsts[k] = sum of counts[0 .. k - 1].
     The buffers are kept under `label` and reused by the next connect phases."""
     pool = p.pool.size
-    counts, firsts = tech.reused((label, pool), lambda: (tech.int_buffer(pool), tech.int_buffer(pool)))
-    tech.launch(tech.kernel(kernel), pool, pool=np.int32(pool), slots=p.pool.slots, counts=counts)
-    firsts, total = tech.compactor.exclusive_scan(counts, pool, out=firsts)
+    mem = ctx.memory
+    counts, firsts = mem.reused((label, pool), lambda: (mem.int_buffer(pool), mem.int_buffer(pool)))
+    ctx.kernels.launch(kernel, pool, pool=np.int32(pool), slots=p.pool.slots, counts=counts)
+    firsts, total = ctx.compactor.exclusive_scan(counts, pool, out=firsts)
     return counts, firsts, total
 
 
@@ -310,12 +324,12 @@ def connect_args(p, firsts, values, pixels, lane_counts):
     return {name: given[name] for name, _ in CONNECT_ARGS}
 
 
-def record_buffers(tech, n, *more):
+def record_buffers(ctx, n, *more):
     """Device memory for n records (float4 values, int pixels, and `more(capacity)` buffers);
     it grows by powers of two and is reused by the next connect phases."""
     capacity = 1 << max(12, (n - 1).bit_length())
-    return tech.reused(("records", capacity), lambda: (
-        cl.Buffer(tech.queue.context, cl.mem_flags.READ_WRITE, 16 * capacity), tech.int_buffer(capacity),
+    return ctx.memory.reused(("records", capacity), lambda: (
+        cl.Buffer(ctx.queue.context, cl.mem_flags.READ_WRITE, 16 * capacity), ctx.memory.int_buffer(capacity),
         *(make(capacity) for make in more)))
 
 

@@ -14,31 +14,31 @@ from toolkit.techniques.bdpt_base import BdptTechnique
 
 
 class NaiveConnect:
-    """The plain connect phase of `tech`'s kernels (cl/bdpt_naive_connect.cl): the light-tracing
+    """The plain connect phase of BDPT's kernels, launched through `ctx` (a BdptContext) (cl/bdpt_naive_connect.cl): the light-tracing
     (t = 1) splats of each slot, then one sum of its eye-path strategies per slot.
     `strategy_max_edges`: the kernels keep strategies apart (STRATEGY_IMAGES)."""
 
-    def __init__(self, tech, strategy_max_edges=None):
-        self.tech, self.strategy_max_edges = tech, strategy_max_edges
-        self.packed = PhaseCounter(tech.warp_width)   # the connect loops with only the terminated samples
+    def __init__(self, ctx, strategy_max_edges=None):
+        self.ctx, self.strategy_max_edges = ctx, strategy_max_edges
+        self.packed = PhaseCounter(ctx.recorder.warp_width)   # the connect loops with only the terminated samples
 
     def __call__(self, p, count):
-        tech, pool = self.tech, p.pool.size
+        ctx, pool = self.ctx, p.pool.size
         if count == 0:
             return Connections.none()
         # Where each terminated slot's light-tracing records go: a scan of their counts, so the
         # host reads back only the records written (before: MAX_VERTICES + 1 places per slot).
-        counts, firsts, splats = scan_slot_counts(tech, p, "bdpt_naive_connect_splats", "splat counts")
+        counts, firsts, splats = scan_slot_counts(ctx, p, "bdpt_naive_connect_splats", "splat counts")
         # the splats, one eye-path sum per slot, and with per-strategy images a record per eye-path strategy of the short paths
         n = naive_record_count(splats, pool, self.record_strategy_count())
-        values, pixels = record_buffers(tech, n)
-        cl.enqueue_fill_buffer(tech.queue, pixels, np.int32(-1), 0, 4 * n)   # records a slot may leave unwritten
-        tech.launch(tech.kernel("bdpt_naive_connect"), pool, **tech.scene_args(), cam=p.camera, pool=np.int32(pool),
+        values, pixels = record_buffers(ctx, n)
+        cl.enqueue_fill_buffer(ctx.queue, pixels, np.int32(-1), 0, 4 * n)   # records a slot may leave unwritten
+        ctx.kernels.launch("bdpt_naive_connect", pool, **ctx.kernels.scene_args(), cam=p.camera, pool=np.int32(pool),
                     splats=np.int32(splats), **connect_args(p, firsts, values, pixels, p.pool.lane_counts))
         self.count_connect(p)
-        connections = Connections(*read_records(tech, values, pixels, n))
+        connections = Connections(*read_records(ctx, values, pixels, n))
         if self.strategy_max_edges:
-            connections.strategy = self.record_strategies(pool, tech.read_ints(counts, pool))
+            connections.strategy = self.record_strategies(pool, ctx.memory.read_ints(counts, pool))
         return connections
 
     def record_strategy_count(self):
@@ -61,11 +61,11 @@ class NaiveConnect:
         return index
 
     def count_connect(self, p):
-        tech = self.tech
-        if not tech.count_simd:
+        ctx = self.ctx
+        if not ctx.recorder.on:
             return
-        connections = tech.read_lane_counts(p.pool.lane_counts, p.pool.size)["work"]
-        tech.simd.add_warp_loops("connect", connections)
+        connections = ctx.memory.read_lane_counts(p.pool.lane_counts, p.pool.size)["work"]
+        ctx.recorder.simd.add_warp_loops("connect", connections)
         # For comparison: the same loops with only the terminated samples, packed side by side.
         self.packed.add_warp_loops("connect", connections[connections > 0])
 
@@ -75,7 +75,7 @@ class BdptNaiveConnect(BdptTechnique):
     source = "bdpt_naive_connect.cl"
 
     def connect_phase(self):
-        return NaiveConnect(self, self.strategy_max_edges)
+        return NaiveConnect(self.bdpt_context, self.strategy_max_edges)
 
     def extra_stats(self):
         stats = super().extra_stats()

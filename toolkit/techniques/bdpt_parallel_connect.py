@@ -12,32 +12,32 @@ from toolkit.techniques.bdpt_base import BdptTechnique
 
 
 class ParallelConnect:
-    """The parallel connect phase of `tech`'s kernels (cl/bdpt_parallel_connect.cl). Its
+    """The parallel connect phase of BDPT's kernels, launched through `ctx` (a BdptContext) (cl/bdpt_parallel_connect.cl). Its
     records of one slot are consecutive, in slot order. `strategy_max_edges`: the kernels keep
     strategies apart (STRATEGY_IMAGES), and each record gets its strategy; `read_slots`: the
     Connections carry the slots and their record counts (which sample each record belongs to)."""
 
-    def __init__(self, tech, strategy_max_edges=None, read_slots=False):
-        self.tech, self.strategy_max_edges = tech, strategy_max_edges
+    def __init__(self, ctx, strategy_max_edges=None, read_slots=False):
+        self.ctx, self.strategy_max_edges = ctx, strategy_max_edges
         self.read_slots = read_slots or bool(strategy_max_edges)
 
     def __call__(self, p, count):
         """Every connection of the `count` terminated samples (slots in SLOT_TERMINATED)."""
-        tech, pool = self.tech, p.pool.size
+        ctx, pool = self.ctx, p.pool.size
         if count == 0:
             return Connections.none()
-        counts, firsts, total = scan_slot_counts(tech, p, "bdpt_parallel_connect_count", "counts")
+        counts, firsts, total = scan_slot_counts(ctx, p, "bdpt_parallel_connect_count", "counts")
         if total == 0:
             return Connections.none()
-        values, pixels, lanes = record_buffers(tech, total, tech.lane_counts_buffer)
-        tech.launch(tech.kernel("bdpt_parallel_connect"), total, **tech.scene_args(), cam=p.camera,
+        values, pixels, lanes = record_buffers(ctx, total, ctx.memory.lane_counts_buffer)
+        ctx.kernels.launch("bdpt_parallel_connect", total, **ctx.kernels.scene_args(), cam=p.camera,
                     total=np.int32(total), pool=np.int32(pool), **connect_args(p, firsts, values, pixels, lanes))
-        if tech.count_simd:
-            tech.simd.add_stream_step("connect", total)
-        connections = Connections(*read_records(tech, values, pixels, total))
+        if ctx.recorder.on:
+            ctx.recorder.simd.add_stream_step("connect", total)
+        connections = Connections(*read_records(ctx, values, pixels, total))
         if self.read_slots:
-            connections.slot_records = tech.read_ints(counts, pool)
-            connections.slots = tech.read_structs(BDPT_SLOT, p.pool.slots, pool)
+            connections.slot_records = ctx.memory.read_ints(counts, pool)
+            connections.slots = ctx.memory.read_structs(BDPT_SLOT, p.pool.slots, pool)
         if self.strategy_max_edges:
             connections.strategy = self.record_strategies(connections)
         return connections
@@ -59,4 +59,4 @@ class BdptParallelConnect(BdptTechnique):
     source = "bdpt_parallel_connect.cl"
 
     def connect_phase(self):
-        return ParallelConnect(self, self.strategy_max_edges)
+        return ParallelConnect(self.bdpt_context, self.strategy_max_edges)

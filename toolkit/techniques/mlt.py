@@ -88,7 +88,6 @@ import time
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.film import Film
 from toolkit.core.sample_dims import used_dims
 from toolkit.core.layout import MLT_CHAIN, MLT_ITERATION, MltMode
 from toolkit.core.validate import InputError, finite_number, whole_number
@@ -143,8 +142,8 @@ class Mlt(BdptPoolTechnique):
             # (8 per iteration instead of 1 on covered_lamp 64x64; 1.65 -> 1.43 BDPT samples per mutation).
             # Else BDPT's 0.6.
             regenerate_fraction = 1.0 if self.chain_count <= self.pool_size else 0.6
-        self.bdpt = BdptEvaluator(self, ParallelConnect(self, read_slots=True), self.pool_size,
-                                  regenerate_fraction, self.max_vertices)
+        self.bdpt = BdptEvaluator(self.bdpt_context, ParallelConnect(self.bdpt_context, read_slots=True),
+                                  self.pool_size, regenerate_fraction, self.max_vertices)
         self.last_chains = None   # the chains of the last render, for its stats
 
     def check_options(self, scene, chains, large_step, start, candidates, max_dims, combine, time_limit,
@@ -170,23 +169,31 @@ class Mlt(BdptPoolTechnique):
         self.small_step = finite_number("mlt.small_step", small_step, "small_step")
 
     # --- the render: start the chains, then iterate ------------------------------------------
+    # One render is one set of chains: its passes are not independent images (Technique.render
+    # adds each pass to the film) but stretches of the same chains, one mutation per pixel each.
+    # The film gets the chains' image once, at the end.
 
-    def render(self, width, height, spp, seed=0, progress=None):
-        film = Film(width, height)
-        pixels = width * height
-        total = pixels * spp
-        start = time.perf_counter()
-        c = self.begin(self.scene.camera(width, height), np.uint32(seed), min(self.chain_count, total))
-        shown = 0
-        while c.mutations < total and not self.out_of_time(start, c):
-            self.iterate(c, min(c.count, total - c.mutations), MltMode.MUTATE)
-            if progress is not None and c.mutations // pixels > shown:
-                progress.update(c.mutations // pixels - shown)
-                shown = c.mutations // pixels
+    def begin_render(self, camera, seed, spp):
+        self.total = pixel_count(camera) * spp          # mutations in all
+        self.started = time.perf_counter()
+        self.begin(camera, seed, min(self.chain_count, self.total))
+
+    def spp_per_pass(self, pixels, spp):
+        return 1    # a pass: the iterations that make one more mutation per pixel (progress, time_limit)
+
+    def run_pass(self, film, camera, seed, sample_base, spp):
+        """Iterate the chains until they have made (sample_base + spp) mutations per pixel; an
+        iteration does not stop at a pass's end (every chain is active until the last)."""
+        c, end = self.last_chains, (sample_base + spp) * pixel_count(camera)
+        while c.mutations < min(end, self.total) and not self.out_of_time(self.started, c):
+            self.iterate(c, min(c.count, self.total - c.mutations), MltMode.MUTATE)
+
+    def end_render(self, film):
+        c, pixels = self.last_chains, film.width * film.height
         # spp as made (whole samples per pixel; fewer than asked when time_limit stopped it)
-        film.add_pass(self.image(c).reshape(height, width, 3), max(1, c.mutations // pixels), nonfinite=c.nonfinite)
+        film.add_pass(self.image(c).reshape(film.height, film.width, 3), max(1, c.mutations // pixels),
+                      nonfinite=c.nonfinite)
         self.queue.finish()
-        return film
 
     def out_of_time(self, start, c):
         """time_limit: stop once it has passed (after at least one iteration of mutations)."""
@@ -194,12 +201,12 @@ class Mlt(BdptPoolTechnique):
 
     def begin(self, camera, seed, count):
         """The chains' memory and their first states (`start`)."""
-        ctx, n = self.queue.context, self.padded(count)
+        ctx, n = self.queue.context, self.memory.padded(count)
         vectors = 4 * n * self.max_dims
         c = Chains(count, seed, camera, cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
                    cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
                    cl.Buffer(ctx, cl.mem_flags.READ_WRITE, MLT_CHAIN.dtype.itemsize * n),
-                   cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n), self.int_buffer(count), pixel_count(camera))
+                   cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n), self.memory.int_buffer(count), pixel_count(camera))
         cl.enqueue_fill_buffer(self.queue, c.records, np.int32(0), 0, MLT_CHAIN.dtype.itemsize * n)
         self.last_chains = c
         if self.start == "naive":
@@ -242,9 +249,9 @@ class Mlt(BdptPoolTechnique):
         it = MLT_ITERATION.zeros(1)[0]
         it["seed"], it["chains"], it["active"] = c.seed, count, count
         upload = lambda x, dtype: cl.Buffer(ctx, flags, hostbuf=np.ascontiguousarray(x, dtype))
-        self.launch(self.kernel("mlt_start_from"), count, it=it, current=c.current, chains=c.records,
-                    src_chain=upload(src_chain, np.int32), src_iteration=upload(src_iteration, np.int32),
-                    f=upload(f[pick], np.float32), dims=upload(dims, np.int32))
+        self.kernels.launch("mlt_start_from", count, it=it, current=c.current, chains=c.records,
+                            src_chain=upload(src_chain, np.int32), src_iteration=upload(src_iteration, np.int32),
+                            f=upload(f[pick], np.float32), dims=upload(dims, np.int32))
         c.f_current = f[pick].astype(np.float64)
         c.current_records = records_of_picks(candidates, pick, count)   # the chosen candidates' records
 
@@ -252,10 +259,10 @@ class Mlt(BdptPoolTechnique):
 
     def mutate(self, c, it):
         """mlt_mutate: every active chain writes its proposal (cl/mlt.h)."""
-        self.launch(self.kernel("mlt_mutate"), int(it["active"]), it=it, current=c.current, proposal=c.proposal,
-                    chains=c.records)
+        self.kernels.launch("mlt_mutate", int(it["active"]), it=it, current=c.current, proposal=c.proposal,
+                            chains=c.records)
         if self.count_simd:
-            self.simd.add_stream_step("mutate", int(it["active"]))
+            self.recorder.simd.add_stream_step("mutate", int(it["active"]))
 
     def evaluate_proposals(self, c, active):
         """The proposals as one batch of BDPT samples (sample id = chain, random numbers from the
@@ -275,11 +282,11 @@ class Mlt(BdptPoolTechnique):
         active = int(it["active"])
         cl.enqueue_copy(self.queue, c.f_proposal, proposals.f.astype(np.float32))
         cl.enqueue_copy(self.queue, c.dims_proposal, proposals.dims.astype(np.int32))
-        self.launch(self.kernel("mlt_accept"), active, it=it, current=c.current, proposal=c.proposal, chains=c.records,
-                    f_proposal=c.f_proposal, dims_proposal=c.dims_proposal)
+        self.kernels.launch("mlt_accept", active, it=it, current=c.current, proposal=c.proposal, chains=c.records,
+                            f_proposal=c.f_proposal, dims_proposal=c.dims_proposal)
         if self.count_simd:
-            self.simd.add_stream_step("accept", active)
-        return self.read_structs(MLT_CHAIN, c.records, active)
+            self.recorder.simd.add_stream_step("accept", active)
+        return self.memory.read_structs(MLT_CHAIN, c.records, active)
 
     def splat(self, c, decisions, proposals, mode):
         """Expected-value splats (MUTATE only), the large steps' f for b, and the new current states."""

@@ -36,7 +36,7 @@ class StreamBuffers:
     shadow_steps: cl.Buffer  # int per queued shadow ray: the BVH nodes it visited (COUNT_SIMD)
     counters: cl.Buffer      # int per StreamCounter: the survivors and queued shadow rays of a step (immediate)
     indices: cl.Buffer       # int per path: the survivors' indices from the scan (multi-pass; None: immediate)
-    radiance: cl.Buffer = None   # float4 per sample of the pass (Technique.output_buffer): set by each pass
+    radiance: cl.Buffer = None   # float4 per sample of the pass (DeviceMemory.output_buffer): set by each pass
 
     def swap(self):
         """After a step: the survivors, packed into next_stream, are the stream."""
@@ -61,27 +61,29 @@ class PtCompactRegen(Technique):
 
     def stream_buffers(self, size):
         """The device memory of a stream of `size` paths (run_pass makes it once per stream size)."""
+        m = self.memory
         return StreamBuffers(
-            stream=self.soa_buffer(PATH_STATE, size), next_stream=self.soa_buffer(PATH_STATE, size),
-            hits=self.soa_buffer(HIT_RECORD, size),
-            shadow_rays=self.soa_buffer(SHADOW_RAY, size), lane_counts=self.lane_counts_buffer(size),
-            alive=self.int_buffer(size), shadow_steps=self.int_buffer(size),
-            counters=self.int_buffer(len(StreamCounter)), indices=self.compacted_indices(size))
+            stream=m.soa_buffer(PATH_STATE, size), next_stream=m.soa_buffer(PATH_STATE, size),
+            hits=m.soa_buffer(HIT_RECORD, size),
+            shadow_rays=m.soa_buffer(SHADOW_RAY, size), lane_counts=m.lane_counts_buffer(size),
+            alive=m.int_buffer(size), shadow_steps=m.int_buffer(size),
+            counters=m.int_buffer(len(StreamCounter)), indices=self.compacted_indices(size))
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         budget = pixel_count(camera) * spp
         size = min(self.stream_size, budget)
-        mem = self.reused(("streams", size), lambda: self.stream_buffers(size))
-        mem.radiance = self.output_buffer(budget)
+        mem = self.memory.reused(("streams", size), lambda: self.stream_buffers(size))
+        mem.radiance = self.memory.output_buffer(budget)
         pass_args = PT_PASS.record(seed=seed, sample_base=sample_base, budget=budget,
-                                   capacity=self.stream_capacity(size))
+                                   capacity=self.memory.stream_capacity(size))
         length, next_id = 0, 0
         while True:
             # Regenerate: fill the end of the stream with the next samples of the budget.
             count = min(size - length, budget - next_id)
             if count > 0:
-                self.launch(self.kernel("pt_compact_regen_generate"), count, cam=camera, pass_args=pass_args,
-                            r=PT_REGENERATION.record(count=count, first_id=next_id, base=length), stream=mem.stream)
+                self.kernels.launch("pt_compact_regen_generate", count, cam=camera, pass_args=pass_args,
+                                    r=PT_REGENERATION.record(count=count, first_id=next_id, base=length),
+                                    stream=mem.stream)
                 length += count
                 next_id += count
                 self.count_generate(count, size, draining=next_id == budget)
@@ -92,9 +94,9 @@ class PtCompactRegen(Technique):
             self.count_extend_and_compact(mem.lane_counts, length, size, draining=next_id == budget)
             # Trace the queued shadow rays: a packed stream of its own.
             if queued:
-                self.launch(self.kernel("pt_compact_regen_shadow"), queued, **self.scene_args(),
-                            pass_args=pass_args, queued=np.int32(queued), shadow_rays=mem.shadow_rays,
-                            radiance=mem.radiance, shadow_steps=mem.shadow_steps)
+                self.kernels.launch("pt_compact_regen_shadow", queued, **self.kernels.scene_args(),
+                                    pass_args=pass_args, queued=np.int32(queued), shadow_rays=mem.shadow_rays,
+                                    radiance=mem.radiance, shadow_steps=mem.shadow_steps)
                 self.count_shadow(mem.shadow_steps, queued)
             mem.swap()
             length = survivors
@@ -106,27 +108,28 @@ class PtCompactRegen(Technique):
         if self.compactor is None:
             return None
         self.compactor.reserve(size)
-        return self.int_buffer(size)
+        return self.memory.int_buffer(size)
 
     def extend_and_compact(self, pass_args, length, mem):
         """Extend the `length` paths of mem.stream; returns (the survivors, now packed at the start
         of mem.next_stream; the queued shadow rays)."""
+        k = self.kernels
         if self.compaction == "immediate":
-            self.launch(self.kernel("pt_compact_regen_trace"), length, **self.scene_args(), pass_args=pass_args,
-                        stream_length=np.int32(length), stream=mem.stream, hits=mem.hits, lane_counts=mem.lane_counts)
+            k.launch("pt_compact_regen_trace", length, **k.scene_args(), pass_args=pass_args,
+                     stream_length=np.int32(length), stream=mem.stream, hits=mem.hits, lane_counts=mem.lane_counts)
             cl.enqueue_fill_buffer(self.queue, mem.counters, np.int32(0), 0, 4 * len(StreamCounter))
-            self.launch(self.kernel("pt_compact_regen_shade"), length, **self.scene_args(), pass_args=pass_args,
-                        stream_length=np.int32(length), stream=mem.stream, hits=mem.hits, next_stream=mem.next_stream,
-                        shadow_rays=mem.shadow_rays, counters=mem.counters, radiance=mem.radiance,
-                        lane_counts=mem.lane_counts)
-            lengths = self.read_ints(mem.counters, len(StreamCounter))
+            k.launch("pt_compact_regen_shade", length, **k.scene_args(), pass_args=pass_args,
+                     stream_length=np.int32(length), stream=mem.stream, hits=mem.hits, next_stream=mem.next_stream,
+                     shadow_rays=mem.shadow_rays, counters=mem.counters, radiance=mem.radiance,
+                     lane_counts=mem.lane_counts)
+            lengths = self.memory.read_ints(mem.counters, len(StreamCounter))
             return int(lengths[StreamCounter.PATHS]), int(lengths[StreamCounter.SHADOW_RAYS])
         cl.enqueue_fill_buffer(self.queue, mem.alive, np.int32(1), 0, 4 * length)   # every path in the stream is live
         self.extend_in_place(pass_args, length, mem.stream, mem.alive, mem.hits, mem.radiance, mem.lane_counts)
         indices, survivors = self.compactor.compact_indices(mem.alive, length, method="multipass", out=mem.indices)
         if survivors:
-            self.launch(self.kernel("pt_compact_regen_gather"), survivors, pass_args=pass_args,
-                        count=np.int32(survivors), indices=indices, stream=mem.stream, next_stream=mem.next_stream)
+            k.launch("pt_compact_regen_gather", survivors, pass_args=pass_args, count=np.int32(survivors),
+                     indices=indices, stream=mem.stream, next_stream=mem.next_stream)
         return survivors, 0
 
     # --- SIMD counting: one hook per stage, no-ops unless count_simd ----------------------
@@ -135,17 +138,18 @@ class PtCompactRegen(Technique):
         """Regeneration fills `count` consecutive stream entries: every lane busy. Numbered as the
         extension step that follows it; `draining`: it started the budget's last samples."""
         if self.count_simd:
-            self.simd.add_stream_step("generate", count, iteration=self.iterations, capacity=size, draining=draining)
+            self.recorder.before_step("generate", count, capacity=size, draining=draining)
 
     def count_extend_and_compact(self, lane_counts, length, size, draining):
         """The extension step over the `length` paths of the stream, and their compaction;
         `draining`: every sample of the budget has started (the final drain)."""
         if self.count_simd:
-            self.count_stream_step(self.read_lane_counts(lane_counts, length), capacity=size, draining=draining)
-            self.simd.add_stream_step("compact", length)
+            self.recorder.extension_step(self.memory.read_lane_counts(lane_counts, length), capacity=size,
+                                         draining=draining, shadow_queue=self.shadow_queue)
+            self.recorder.simd.add_stream_step("compact", length)
 
     def count_shadow(self, shadow_steps, queued):
         """The packed queue of `queued` shadow rays: every lane busy, traversal loops per warp."""
         if self.count_simd:
-            self.simd.add_stream_step("shadow", queued)
-            self.traversal.add_warp_loops("shadow", self.read_ints(shadow_steps, queued))
+            self.recorder.simd.add_stream_step("shadow", queued)
+            self.recorder.traversal.add_warp_loops("shadow", self.memory.read_ints(shadow_steps, queued))

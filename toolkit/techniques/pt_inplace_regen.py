@@ -28,7 +28,7 @@ class SlotBuffers:
     alive: cl.Buffer         # int per slot: 1 while it holds a live path, 0 while it is free
     next_sample: cl.Buffer   # one int: the next sample id of the pass to start (the slots' atomic counter)
     any_alive: cl.Buffer     # one int: set by every slot that holds a live path after a regeneration
-    radiance: cl.Buffer = None   # float4 per sample of the pass (Technique.output_buffer): set by each pass
+    radiance: cl.Buffer = None   # float4 per sample of the pass (DeviceMemory.output_buffer): set by each pass
 
 
 class PtInplaceRegen(Technique):
@@ -46,20 +46,20 @@ class PtInplaceRegen(Technique):
 
     def slot_buffers(self, slots):
         """The device memory of `slots` slots (run_pass makes it once per stream size)."""
-        return SlotBuffers(paths=self.soa_buffer(PATH_STATE, slots), hits=self.soa_buffer(HIT_RECORD, slots),
-                           lane_counts=self.lane_counts_buffer(slots),
-                           regenerated=self.int_buffer(slots), alive=self.int_buffer(slots),
-                           next_sample=self.int_buffer(1), any_alive=self.int_buffer(1))
+        m = self.memory
+        return SlotBuffers(paths=m.soa_buffer(PATH_STATE, slots), hits=m.soa_buffer(HIT_RECORD, slots),
+                           lane_counts=m.lane_counts_buffer(slots), regenerated=m.int_buffer(slots),
+                           alive=m.int_buffer(slots), next_sample=m.int_buffer(1), any_alive=m.int_buffer(1))
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         budget = pixel_count(camera) * spp
         slots = min(self.stream_size, budget)
-        b = self.reused(("slots", slots), lambda: self.slot_buffers(slots))
-        self.fill_ints(b.alive, 0)        # every slot free
-        self.fill_ints(b.next_sample, 0)  # the pass's first sample comes next
-        b.radiance = self.output_buffer(budget)
+        mem = self.memory.reused(("slots", slots), lambda: self.slot_buffers(slots))
+        self.memory.fill_ints(mem.alive, 0)        # every slot free
+        self.memory.fill_ints(mem.next_sample, 0)  # the pass's first sample comes next
+        mem.radiance = self.memory.output_buffer(budget)
         pass_args = PT_PASS.record(seed=seed, sample_base=sample_base, budget=budget,
-                                   capacity=self.stream_capacity(slots))
+                                   capacity=self.memory.stream_capacity(slots))
         # The host waits for the "any path alive" flag only every `reads_every` iterations: in
         # between, the GPU runs on. Once every path has ended, the iterations issued before the
         # next read find no work (every lane returns at once), so the image does not change.
@@ -67,31 +67,32 @@ class PtInplaceRegen(Technique):
         step = 0
         while True:
             # Regenerate: every free slot starts the next sample of the budget, if one is left.
-            cl.enqueue_fill_buffer(self.queue, b.any_alive, np.int32(0), 0, 4)
-            self.launch(self.kernel("pt_inplace_regen_regenerate"), slots, cam=camera, pass_args=pass_args,
-                        slots=np.int32(slots), next_sample=b.next_sample, paths=b.paths, alive=b.alive,
-                        any_alive=b.any_alive, regenerated=b.regenerated)
-            self.count_regenerate(b.regenerated, slots, b.next_sample, budget)
+            cl.enqueue_fill_buffer(self.queue, mem.any_alive, np.int32(0), 0, 4)
+            self.kernels.launch("pt_inplace_regen_regenerate", slots, cam=camera, pass_args=pass_args,
+                                slots=np.int32(slots), next_sample=mem.next_sample, paths=mem.paths, alive=mem.alive,
+                                any_alive=mem.any_alive, regenerated=mem.regenerated)
+            self.count_regenerate(mem.regenerated, slots, mem.next_sample, budget)
             step += 1
-            if step % reads_every == 0 and not self.read_ints(b.any_alive, 1)[0]:
+            if step % reads_every == 0 and not self.memory.read_ints(mem.any_alive, 1)[0]:
                 break   # budget spent and every path has ended
             # Extend: every slot with a live path traces one more vertex.
-            self.extend_in_place(pass_args, slots, b.paths, b.alive, b.hits, b.radiance, b.lane_counts)
-            self.count_extend(b.lane_counts, slots, b.next_sample, budget)
-        self.collect(film, b.radiance, budget)
+            self.extend_in_place(pass_args, slots, mem.paths, mem.alive, mem.hits, mem.radiance, mem.lane_counts)
+            self.count_extend(mem.lane_counts, slots, mem.next_sample, budget)
+        self.collect(film, mem.radiance, budget)
 
     def count_regenerate(self, regenerated, slots, next_sample, budget):
         """The regeneration step: its lanes are the slots that started a sample, scattered over
         every warp. Numbered as the extension step that follows it (per iteration, for plots);
         once the sample counter has passed the budget, it started the last samples or none."""
         if self.count_simd:
-            draining = self.read_ints(next_sample, 1)[0] >= budget
-            self.simd.add_stream_step("generate", self.read_ints(regenerated, slots) > 0, iteration=self.iterations,
-                                      capacity=slots, draining=draining)
+            draining = self.memory.read_ints(next_sample, 1)[0] >= budget
+            self.recorder.before_step("generate", self.memory.read_ints(regenerated, slots) > 0, capacity=slots,
+                                      draining=draining)
 
     def count_extend(self, lane_counts, slots, next_sample, budget):
         """The extension step; once the sample counter has passed the budget, nothing regenerates
         any more and the step belongs to the final drain."""
         if self.count_simd:
-            draining = self.read_ints(next_sample, 1)[0] >= budget
-            self.count_stream_step(self.read_lane_counts(lane_counts, slots), capacity=slots, draining=draining)
+            draining = self.memory.read_ints(next_sample, 1)[0] >= budget
+            self.recorder.extension_step(self.memory.read_lane_counts(lane_counts, slots), capacity=slots,
+                                         draining=draining)

@@ -16,7 +16,7 @@ from toolkit.techniques.base import Technique, pixel_count
 @dataclass
 class NaiveBuffers:
     """What one pass of pt_naive writes on the device."""
-    radiance: cl.Buffer      # float4 per sample: its value (Technique.output_buffer; .w = -1 until written)
+    radiance: cl.Buffer      # float4 per sample: its value (DeviceMemory.output_buffer; .w = -1 until written)
     lane_counts: cl.Buffer   # LaneCounts per sample: its loop iterations and BVH steps (one, unused, without COUNT_SIMD)
 
 
@@ -24,29 +24,27 @@ class PtNaive(Technique):
     name = "pt_naive"
     family = "pt"
     source = "pt_naive.cl"
-    iterations = 0   # loop iterations over all passes so far (for per-iteration plots)
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         n = pixel_count(camera) * spp   # one work-item per sample
-        b = NaiveBuffers(radiance=self.output_buffer(n), lane_counts=self.lane_counts_buffer(n if self.count_simd else 1))
+        mem = NaiveBuffers(radiance=self.memory.output_buffer(n),
+                           lane_counts=self.memory.lane_counts_buffer(n if self.count_simd else 1))
         pass_args = PT_PASS.record(seed=seed, sample_base=sample_base, budget=n, capacity=0)
-        self.launch(self.kernel("pt_naive_render"), n, **self.scene_args(), cam=camera, pass_args=pass_args,
-                    radiance=b.radiance, lane_counts=b.lane_counts)
-        self.collect(film, b.radiance, n)
-        self.count_render(b.lane_counts, n)
+        self.kernels.launch("pt_naive_render", n, **self.kernels.scene_args(), cam=camera, pass_args=pass_args,
+                            radiance=mem.radiance, lane_counts=mem.lane_counts)
+        self.collect(film, mem.radiance, n)
+        self.count_render(mem.lane_counts, n)
 
     def count_render(self, lane_counts, n):
         """SIMD counters of one launch (a no-op unless count_simd)."""
         if not self.count_simd:
             return
-        lanes = self.read_lane_counts(lane_counts, n)
-        iterations = lanes["work"]
+        lanes = self.memory.read_lane_counts(lane_counts, n)
+        iterations, record = lanes["work"], self.recorder
         # Every lane generates its camera ray once; then the loop runs as long as the warp's longest path.
-        self.simd.add_stream_step("generate", np.ones(n, bool))
-        self.simd.add_warp_loops("extend", iterations)
-        self.simd.add_loop_iterations("extend", iterations, first_iteration=self.iterations)
-        self.iterations += int(iterations.max())
+        record.simd.add_stream_step("generate", np.ones(n, bool))
+        record.loop("extend", iterations)
         # A shadow ray is cast once per vertex at most; the warp issues the shadow step in each of its iterations.
-        self.simd.add_warp_loops("shadow", iterations, active=lanes["shadow_rays"].sum())
-        self.traversal.add_warp_loops("closest", lanes["closest_steps"])
-        self.traversal.add_warp_loops("shadow", lanes["shadow_steps"])
+        record.simd.add_warp_loops("shadow", iterations, active=lanes["shadow_rays"].sum())
+        record.traversal.add_warp_loops("closest", lanes["closest_steps"])
+        record.traversal.add_warp_loops("shadow", lanes["shadow_steps"])

@@ -34,7 +34,7 @@ def _regenerate(c, alive, next_sample, budget):
     any_alive, regenerated = c.buffer(np.zeros(1, np.int32)), c.buffer(np.full(capacity, -1, np.int32))
     camera = tech.scene.camera(16, 16)
     pass_args = PT_PASS.record(seed=c.seed(1), sample_base=0, budget=budget, capacity=capacity)
-    program.launch(c.queue, tech.kernel("pt_inplace_regen_regenerate"), n, camera, pass_args, np.int32(n),
+    program.launch(c.queue, tech.kernels.kernel("pt_inplace_regen_regenerate"), n, camera, pass_args, np.int32(n),
                    counter, paths, flags, any_alive, regenerated)
     ids = c.read(paths, np.int32, n, PATH_STATE.soa_offset("slot", capacity))
     return (ids, c.read(flags, np.int32, n), int(c.read(any_alive, np.int32, 1)[0]),

@@ -109,7 +109,7 @@ def _check_count(c):
     slots["light_vertices"] = rng.integers(1, 9, n)
     slots["eye_vertices"] = rng.integers(2, 9, n)
     counts = c.buffer(np.full(program.padded(n), -1, np.int32))
-    program.launch(c.queue, tech.kernel("bdpt_parallel_connect_count"), n, np.int32(n), c.buffer(slots), counts)
+    program.launch(c.queue, tech.kernels.kernel("bdpt_parallel_connect_count"), n, np.int32(n), c.buffer(slots), counts)
     got = c.read(counts, np.int32, n)
     expected = np.where(slots["live"] == 0, (slots["light_vertices"] + 1) * slots["eye_vertices"] - 1, 0)
     wrong = np.flatnonzero(got != expected)

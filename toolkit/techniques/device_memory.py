@@ -1,0 +1,72 @@
+"""A technique's device memory: buffers sized in whole work-groups, memory kept from pass to
+pass, and reading results back to the host."""
+import numpy as np
+import pyopencl as cl
+
+from toolkit.core.layout import LANE_COUNTS
+from toolkit.opencl import program
+
+
+class DeviceMemory:
+    def __init__(self, queue, local_size):
+        self.queue = queue
+        self.local_size = local_size
+        self._reused = {}
+
+    def padded(self, n):
+        """n rounded up to a multiple of the local size (a launch's global size)."""
+        return program.padded(n, self.local_size)
+
+    def reused(self, key, make):
+        """Device memory that keeps its size from pass to pass (streams, vertex memory) is made
+        once: `key` names it with its size, `make()` allocates it."""
+        if key not in self._reused:
+            self._reused[key] = make()
+        return self._reused[key]
+
+    def output_buffer(self, n):
+        """One float4 per sample of the pass, pre-filled with .w = -1 ("not written yet"); made
+        once per pass size and refilled by every pass (the in-order queue runs collect's read of it first)."""
+        buf = self.reused(("output", n), lambda: cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
+                                                            16 * self.padded(n)))
+        cl.enqueue_fill_buffer(self.queue, buf, np.array([0, 0, 0, -1], np.float32), 0, 16 * self.padded(n))
+        return buf
+
+    def int_buffer(self, n, fill=None):
+        buf = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * max(1, self.padded(n)))
+        if fill is not None:
+            self.fill_ints(buf, fill)
+        return buf
+
+    def fill_ints(self, buffer, value):
+        """Set every int of `buffer` to `value` (on the device, queued)."""
+        cl.enqueue_fill_buffer(self.queue, buffer, np.int32(value), 0, buffer.size)
+
+    def lane_counts_buffer(self, n):
+        """One LaneCounts record per work-item (toolkit/core/layout.py), written when COUNT_SIMD."""
+        return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
+                         LANE_COUNTS.dtype.itemsize * self.padded(max(n, 1)))
+
+    def soa_buffer(self, record, n):
+        """A stream of n records as a structure of arrays in one buffer; its capacity (what the
+        kernels take with it) is n padded to the local size: see stream_capacity()."""
+        return record.soa_buffer(self.queue.context, self.stream_capacity(n))
+
+    def stream_capacity(self, n):
+        return self.padded(n)
+
+    def read_lane_counts(self, buffer, n):
+        return self.read_structs(LANE_COUNTS, buffer, n)
+
+    def read_structs(self, record, buffer, n, offset=0):
+        """n records of layout `record` from `buffer` (starting `offset` bytes in)."""
+        out = record.zeros(n)
+        if n:
+            cl.enqueue_copy(self.queue, out, buffer, src_offset=offset)
+        return out
+
+    def read_ints(self, buffer, n, columns=1):
+        out = np.empty((n, columns) if columns > 1 else n, np.int32)
+        if n:
+            cl.enqueue_copy(self.queue, out, buffer)
+        return out
