@@ -5,7 +5,7 @@ import inspect
 
 import pytest
 
-from toolkit.api import render
+from toolkit.core.render_options import RenderOptions
 from toolkit.core.layout import LONGEST_SUBPATH
 from toolkit.core.sample_dims import used_dims
 from toolkit.core.validate import LIMITS
@@ -37,4 +37,4 @@ def test_the_limits_derive_from_the_longest_subpath():
 
 
 def test_render_uses_the_programs_work_group_size():
-    assert inspect.signature(render).parameters["local_size"].default == program.LOCAL_SIZE
+    assert RenderOptions().local_size == program.LOCAL_SIZE

@@ -14,6 +14,7 @@ import pytest
 from toolkit.core import private_folder
 from toolkit.grading import limits
 from toolkit.opencl import device, program, runtimes, windows_runtime
+from toolkit.opencl.session import session
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -102,7 +103,7 @@ def test_pip_runtimes_are_registered_only_where_pip_installed_one(monkeypatch, t
     """macOS (Apple's OpenCL) and ARM Linux (no runtime from pip) register nothing."""
     monkeypatch.setattr(runtimes.platform, "system", lambda: system)
     monkeypatch.setattr(runtimes, "intel_cpu_library", lambda: tmp_path / library if library else None)
-    monkeypatch.setattr(windows_runtime, "_dll_directories", [])
+    monkeypatch.setattr(session(), "dll_directories", [])
     for variable in ("OCL_ICD_FILENAMES", "OCL_ICD_VENDORS", "TOOLKIT_NO_PIP_RUNTIMES"):
         monkeypatch.delenv(variable, raising=False)
     monkeypatch.setenv("PATH", os.environ["PATH"])         # restored after the test

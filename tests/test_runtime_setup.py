@@ -16,6 +16,7 @@ from toolkit.cli.devices import devices_report
 from toolkit.opencl import device, kernel_cache, probe_cache, runtimes
 from toolkit.opencl.device_model import is_gpu
 from toolkit.opencl.program import build
+from toolkit.opencl.session import session
 
 ROOT = Path(__file__).resolve().parent.parent
 NOBODY = 65534
@@ -111,8 +112,8 @@ def test_a_stale_lock_builds_without_the_cache_and_says_so(tmp_path, monkeypatch
 def fresh_probes(tmp_path, monkeypatch, queue):
     """The verdict file of the suite's device in an empty cache folder, forgotten in this process."""
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
-    monkeypatch.setattr(device, "_probed", {})
-    monkeypatch.setattr(device, "probe_notes", {})
+    monkeypatch.setattr(session(), "probe_verdicts", {})
+    monkeypatch.setattr(session(), "probe_notes", {})
     return device.verdict_file(device._probe_identity(queue.device))
 
 
@@ -125,7 +126,7 @@ def test_an_opencl_error_while_probing_is_not_kept(fresh_probes, monkeypatch, qu
         usable, reason = device.probe(queue.device)
     assert not usable and "OUT_OF_RESOURCES" in reason
     assert not fresh_probes.exists() and "not kept" in device.probe_note(queue.device)
-    device._probed.clear()                 # the next run probes again, and the device is usable
+    session().probe_verdicts.clear()       # the next run probes again, and the device is usable
     assert device.probe(queue.device) == (True, "")
     assert json.loads(fresh_probes.read_text())["usable"] is True
     assert str(fresh_probes) in devices_report()    # `devices` names the file

@@ -8,7 +8,8 @@ from toolkit.opencl.runtimes import before_pyopencl_import
 before_pyopencl_import()
 
 from toolkit.api import RenderResult, render  # noqa: E402  (after the step above: it imports pyopencl)
+from toolkit.core.render_options import RenderOptions  # noqa: E402
 from toolkit.core.scene import Scene, SceneError, load_scene  # noqa: E402
 
-__all__ = ["render", "RenderResult", "load_scene", "Scene", "SceneError"]
+__all__ = ["render", "RenderOptions", "RenderResult", "load_scene", "Scene", "SceneError"]
 __version__ = "0.1.0"

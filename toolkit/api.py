@@ -11,15 +11,14 @@ import numpy as np
 
 from toolkit.opencl.kernel_times import KernelTimes, profiling_queue
 from toolkit.opencl.device import describe, get_queue
-from toolkit.opencl.lanes import checked as checked_lanes, describe as describe_lanes
+from toolkit.opencl.lanes import describe as describe_lanes
 from toolkit.opencl.lanes import width as lane_width
 from toolkit.opencl.device_scene import DeviceScene
-from toolkit.core.layout import BVH_KINDS
 from toolkit.core.scene import Scene, bundled_scene_dir, check_scene, load_scene
 from toolkit.techniques import get_technique
 from toolkit.techniques.strategy_images import StrategyImages
-from toolkit.opencl.program import LOCAL_SIZE
-from toolkit.core.validate import InputError, local_size as checked_local_size, render_args, whole_number
+from toolkit.core.render_options import RenderOptions, with_fields
+from toolkit.core.validate import InputError, camera_size
 
 
 class DroppedSamplesWarning(UserWarning):
@@ -35,7 +34,7 @@ class RenderResult:
     stderr: np.ndarray     # (H, W, 3) per-pixel standard error of the mean
     stats: dict = field(default_factory=dict)
     iterations: list = field(default_factory=list)   # per-iteration SIMD figures, for plots
-    strategy_images: StrategyImages = None   # per-strategy images (render(..., strategy_images=K)), else None
+    strategy_images: StrategyImages = None   # per-strategy images (RenderOptions.strategy_images=K), else None
 
 
 def as_scene(scene):
@@ -47,14 +46,14 @@ def as_scene(scene):
     return load_scene(bundled_scene_dir() if scene is None else scene)
 
 
-# Constructor keywords that render sets from its own arguments: not options.
+# Constructor keywords that render sets from RenderOptions' own fields: not technique options.
 RENDER_ARGUMENTS = {"warp_width", "count_simd", "extra_defines", "local_size", "general",
-                    "strategy_max_edges"}   # the last: render(..., strategy_images=K)
+                    "strategy_max_edges"}   # the last: RenderOptions.strategy_images=K
 
 
 def technique_options(cls):
-    """The options `render(..., options={...})` passes to technique class `cls`: {name: (default,
-    the class whose constructor takes it)}, the most specific constructor first. The keyword
+    """The options `render` passes (RenderOptions.technique_options) to technique class `cls`: {name:
+    (default, the class whose constructor takes it)}, the most specific constructor first. The keyword
     parameters of its constructors, less render's own arguments (RENDER_ARGUMENTS)."""
     found = {}
     for c in cls.__mro__:
@@ -69,8 +68,6 @@ def technique_options(cls):
 
 def _options(cls, options):
     """Technique options must be keyword parameters of the technique's constructors."""
-    if not isinstance(options, dict):
-        raise InputError(f"options must be a dict, got {type(options).__name__}")
     known = technique_options(cls)
     for key in options:
         if key not in known:
@@ -79,66 +76,41 @@ def _options(cls, options):
 
 
 def _strategy_images(cls, technique, max_edges):
-    """render's `strategy_images`, checked: None or the longest paths (edges) with images of their own."""
-    if max_edges is None:
-        return None
-    if cls.family != "bdpt":
+    """render's `strategy_images` (checked by RenderOptions), for this technique: None or the longest
+    paths (edges) with images of their own."""
+    if max_edges is not None and cls.family != "bdpt":
         raise InputError(f"per-strategy images need a bidirectional technique (bdpt_naive_connect or "
                          f"bdpt_parallel_connect), not {technique}")
-    return whole_number("render.strategy_images", max_edges, "strategy_images")
+    return max_edges
 
 
-def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, device=None,
-           warp_width=None, count_simd=True, progress=False, options=None, bvh="wide", local_size=LOCAL_SIZE,
-           general=False, strategy_images=None, lanes=None, time_phases=False):
-    """Render a scene (a Scene, a folder, a scene.json or None for the bundled Cornell box).
-
-    `resolution` (width, height) keeps the scene's camera and field of view. `technique` is a
-    name from toolkit.techniques.TECHNIQUES, optionally with a variant ("pt_compact_regen/multipass");
-    `options` are passed to the technique. Returns a RenderResult with the image, its
-    standard-error image and stats (timings, SIMD efficiency). `bvh` is "wide" (eight children
-    per node tested together with float8 operations, four with float4 where work-items run as SIMD
-    lanes: SIMD inside one ray) or "binary"; both
-    give the same image (tests/test_wide_bvh.py). `local_size` is the work-group size the
-    kernels are built and launched with, a power of two 32 .. 256; random numbers are keyed by
-    sample, not by work-item, so the image does not depend on it (tests/test_strategies.py).
-    `warp_width` is the W of the SIMD-efficiency counters; None takes the device's
-    (toolkit.opencl.device_model.choose_warp_width: 32 on NVIDIA and on a CPU, 64 on AMD, 16 on Intel GPUs);
-    stats["warp_width"] and ["warp_width_source"] say which. `general=True` builds the general
-    kernel (every material and feature compiled in) instead of the one specialized to the scene
-    (Scene.features; toolkit/measure/specialization.py measures what that costs): the same image.
-    `strategy_images=K` (bdpt_* only) also keeps one image per connection strategy (s, t) of the
-    paths up to K edges, with and without its MIS weight, in result.strategy_images (a
-    StrategyImages; toolkit/measure/strategies.py writes them and each strategy's share of the
-    variance); the kernels are built for it, and the image stays the same.
-    `lanes` "on" or "off": whether the compiler may run work-items as SIMD lanes, on Intel's CPU
-    runtime (toolkit/opencl/lanes.py; None: TOOLKIT_LANES, else off); the image stays the same
-    within toolkit.same_image. stats["lanes"] says what the device did, stats["vector_widths"]
-    each kernel's width from the compiler's log.
-    `time_phases=True` runs on a profiling queue of the same context and puts each kernel's launches
-    and device seconds in stats["kernel_times"] (toolkit/opencl/kernel_times.py), with the lane-steps
-    behind the SIMD efficiencies in stats["simd_lane_steps"] (toolkit/measure/phases.py reads both).
+def render(scene=None, technique="pt_naive", options=None, **fields):
+    """Render `scene` (a Scene, a folder, a scene.json, or None for the bundled Cornell box) with
+    `technique` (a name from toolkit.techniques.TECHNIQUES, or a variant such as
+    "pt_compact_regen/multipass") and `options`, a RenderOptions: every field is described once in
+    toolkit/core/render_options.py. Fields may also be given as keywords (`render(scene, spp=64)`),
+    alone or on top of an options object; a dict as `options` is the technique's own options (its
+    technique_options field). Returns a RenderResult: the image, its standard error and the stats.
     """
     # Every argument is checked before any work (kernel builds, BVH) starts.
-    cls, options, strategy_max_edges = _checked(technique, options, strategy_images, resolution, bvh, device)
-    lanes = checked_lanes(lanes)
+    options = _render_options(options, fields)
+    cls, tech_options, strategy_max_edges = _checked(technique, options)
     scene = as_scene(scene)
-    width, height = resolution or (scene.camera.width, scene.camera.height)
-    spp, seed, width, height = render_args(spp, seed, width, height, warp_width)
-    local_size = checked_local_size(local_size)
-    queue = get_queue(device, lanes)
-    if time_phases:
+    width, height = camera_size(*(options.resolution or (scene.camera.width, scene.camera.height)), options.spp)
+    queue = get_queue(options.device, options.lanes)
+    if options.time_phases:
         queue = profiling_queue(queue)
     builds = len(queue.builds.lanes_log)   # the programs this render builds (or finds built) follow
-    device_scene = DeviceScene(queue, scene, bvh=bvh)
-    tech = cls(queue, device_scene, warp_width=warp_width, count_simd=count_simd, local_size=local_size,
-               general=bool(general), **options,
+    device_scene = DeviceScene(queue, scene, bvh=options.bvh)
+    tech = cls(queue, device_scene, warp_width=options.warp_width, count_simd=options.count_simd,
+               local_size=options.local_size, general=options.general, **tech_options,
                **({"strategy_max_edges": strategy_max_edges} if strategy_max_edges else {}))
-    times = KernelTimes(queue) if time_phases else None
+    times = KernelTimes(queue) if options.time_phases else None
     with times or _nothing():
-        film, seconds = _run(tech, f"{technique} {scene.name} {width}x{height}", width, height, spp, seed, progress)
+        film, seconds = _run(tech, f"{technique} {scene.name} {width}x{height}", width, height, options.spp,
+                             options.seed, options.progress)
     image, stderr = film.image(), film.stderr()
-    stats = {"scene": scene.name, "technique": technique, "spp": spp, "resolution": [width, height],
+    stats = {"scene": scene.name, "technique": technique, "spp": options.spp, "resolution": [width, height],
              **_stats(tech, film, image, seconds), "bvh": device_scene.bvh_stats(),
              "triangles": int(len(scene.triangles)), "degrees_of_freedom": film.degrees_of_freedom,
              **_lanes_stats(queue, queue.builds.vector_widths_since(builds)), **tech.extra_stats(),
@@ -147,26 +119,32 @@ def render(scene=None, technique="pt_naive", spp=16, seed=0, resolution=None, de
         # A non-finite sample is a bug to fix where it comes from; never only inside the stats.
         warnings.warn(f"{technique} on {scene.name}: {film.nonfinite_samples} non-finite sample(s) "
                       "were dropped from the image", DroppedSamplesWarning, stacklevel=2)
-    return RenderResult(image, stderr, stats, tech.recorder.simd.per_iteration if count_simd else [],
+    return RenderResult(image, stderr, stats, tech.recorder.simd.per_iteration if options.count_simd else [],
                         tech.strategy_images if strategy_max_edges else None)
 
 
-def _checked(technique, options, strategy_images, resolution, bvh, device):
-    """render's arguments that need no scene, checked: (technique class, its options with the
-    variant's, strategy_max_edges or None)."""
+def _render_options(options, fields):
+    """render's RenderOptions: `options` with the keyword `fields` on top. A dict as `options` is
+    the technique's options, as it was before RenderOptions (render(..., options={"pass_spp": 4}))."""
+    if not isinstance(options, (RenderOptions, dict, type(None))):
+        raise InputError(f"options must be a RenderOptions (or a dict of the technique's options), "
+                         f"got {type(options).__name__}")
+    if isinstance(options, dict):
+        if "technique_options" in fields:
+            raise InputError("technique options given twice: as options={...} and as technique_options")
+        options, fields = None, {**fields, "technique_options": options}
+    return with_fields(options, **fields)
+
+
+def _checked(technique, options):
+    """What of render's `options` (a RenderOptions) depends on the technique, checked: (the technique
+    class, its options with the variant's, strategy_max_edges or None)."""
     if not isinstance(technique, str):
         raise InputError(f"technique must be a name, got {technique!r}")
     cls, variant_options = get_technique(technique)
-    options = _options(cls, options if options is not None else {})
-    strategy_max_edges = _strategy_images(cls, technique, strategy_images)
-    if resolution is not None and (isinstance(resolution, (str, bytes)) or not hasattr(resolution, "__len__")
-                                   or len(resolution) != 2):
-        raise InputError(f"resolution must be (width, height), got {resolution!r}")
-    if bvh not in BVH_KINDS:
-        raise InputError(f"bvh must be one of {', '.join(BVH_KINDS)}, got {bvh!r}")
-    if device is not None and not isinstance(device, str):
-        raise InputError(f"device must be a string like '0:0' or a name part, got {device!r}")
-    return cls, {**variant_options, **options}, strategy_max_edges
+    technique_options = _options(cls, options.technique_options)
+    strategy_max_edges = _strategy_images(cls, technique, options.strategy_images)
+    return cls, {**variant_options, **technique_options}, strategy_max_edges
 
 
 def _lanes_stats(queue, widths):

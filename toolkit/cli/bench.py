@@ -6,7 +6,7 @@ import sys
 
 from toolkit.api import as_scene
 from toolkit.cli.options import (BVH, DEVICE, GENERAL, LANES_BOTH, SCENE, TECHNIQUE_NAMES, number, positive,
-                                 resolution, technique_list)
+                                 render_options, resolution, technique_list)
 from toolkit.core.validate import finite_number, whole_number
 from toolkit.measure import specialization
 from toolkit.measure.bench import DEFAULT, bench, format_bench
@@ -51,9 +51,9 @@ def cmd_bench(args):
         return cmd_bench_specialization(args)
     if args.equal_time is not None:
         return cmd_bench_equal_time(args)
-    report = bench(args.scene, tuple(technique_list(args.techniques or ",".join(DEFAULT))), spp=args.spp,
-                   resolution=args.resolution or (128, 128), repeats=args.repeats, device=args.device, bvh=args.bvh,
-                   general=args.general, lanes=args.lanes or (None,))
+    # --lanes here is a list of settings, each a row of the bench: not one render's.
+    report = bench(args.scene, tuple(technique_list(args.techniques or ",".join(DEFAULT))),
+                   render_options(args, lanes=None), repeats=args.repeats, lanes=args.lanes or (None,))
     print(format_bench(report))
     if args.json:
         print(json.dumps(report))

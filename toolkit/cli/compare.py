@@ -2,8 +2,8 @@
 with images and plots."""
 import json
 
-from toolkit.cli.options import (BVH, DEVICE, GENERAL, LANES, SCENE, TECHNIQUE_NAMES, positive, resolution,
-                                 technique_list, whole)
+from toolkit.cli.options import (BVH, DEVICE, GENERAL, LANES, SCENE, TECHNIQUE_NAMES, positive, render_options,
+                                 resolution, technique_list, whole)
 from toolkit.measure.compare import compare, format_table
 
 
@@ -31,10 +31,8 @@ def add_command(sub):
 
 
 def cmd_compare(args):
-    table = compare(args.scene, technique_list(args.techniques), args.spp, resolution=args.resolution,
-                    seed=args.seed, warp_width=args.warp_width, out_dir=args.out, device=args.device,
-                    progress=not args.no_progress, bvh=args.bvh, general=args.general,
-                    lanes=args.lanes, phase_plot=args.plot)
+    table = compare(args.scene, technique_list(args.techniques), options=render_options(args), out_dir=args.out,
+                    phase_plot=args.plot)
     print(format_table(table))
     first = next(iter(table.values()))
     print("plots: " + ", ".join(first.get("plots", {}).values()))

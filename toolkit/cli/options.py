@@ -3,6 +3,7 @@ reason and exit code 2) and the options that mean the same in every command, as 
 (`sub.add_parser(..., parents=[DEVICE, BVH])`)."""
 import argparse
 
+from toolkit.core.render_options import FIELDS, RenderOptions
 from toolkit.techniques import TECHNIQUES, VARIANTS, get_technique
 
 DEVICE_HELP = "OpenCL device: P:D indices or a name part (overrides PYOPENCL_CTX)"
@@ -70,6 +71,17 @@ def numbers(text, kind, option):
     if not values:
         raise ValueError(f"{option}: no value given")
     return values
+
+
+def render_options(args, **fields):
+    """The RenderOptions of a command's parsed arguments: the one place where the command line's
+    options become render's. Each option named as a field (--spp, --seed, --resolution, --device,
+    --warp-width, --bvh, --general, --lanes) is taken as it is, --no-progress turns `progress` off;
+    `fields` are what the command sets itself, on top. A bad value is an InputError (exit code 2)."""
+    given = {name: getattr(args, name) for name in FIELDS if hasattr(args, name)}
+    if hasattr(args, "no_progress"):
+        given["progress"] = not args.no_progress
+    return RenderOptions(**{**given, **fields})
 
 
 def _parent():

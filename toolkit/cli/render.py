@@ -5,7 +5,7 @@ import json
 import numpy as np
 
 from toolkit.api import as_scene, render
-from toolkit.cli.options import BVH, DEVICE, GENERAL, LANES, SCENE, positive, resolution, whole
+from toolkit.cli.options import BVH, DEVICE, GENERAL, LANES, SCENE, positive, render_options, resolution, whole
 from toolkit.core.images import write_image
 from toolkit.core.validate import check_output
 from toolkit.measure.reference import reference_at, reference_problem, rmse
@@ -37,14 +37,13 @@ def add_command(sub):
 def cmd_render(args):
     if args.strategies:
         return cmd_render_strategies(args)
+    options = render_options(args)  # before the render: a bad value must not cost its time
     if args.out:
-        check_output(args.out)      # before the render: a bad --out must not cost its time
+        check_output(args.out)      # so must a bad --out
     scene = as_scene(args.scene)
-    width, height = args.resolution or (scene.camera.width, scene.camera.height)
+    width, height = options.resolution or (scene.camera.width, scene.camera.height)
     out = check_output(args.out or f"out/{scene.name}_{args.technique}.exr")
-    result = render(scene, technique=args.technique, spp=args.spp, seed=args.seed,
-                    resolution=(width, height), device=args.device, progress=not args.no_progress, bvh=args.bvh,
-                    general=args.general, lanes=args.lanes)
+    result = render(scene, args.technique, options, resolution=(width, height))
     written = write_image(out, result.image.astype(np.float32))
     stats = dict(result.stats, out=str(out))
     ref, _ = reference_at(scene, width, height)
@@ -78,9 +77,8 @@ def cmd_render_strategies(args):
         raise ValueError("--strategies builds its own kernels; --general does not apply")
     scene = as_scene(args.scene)
     check_strategies_folder(args.strategies)     # before the render: a bad folder must not cost its time
-    result = render(scene, technique=args.technique, spp=args.spp, seed=args.seed, resolution=args.resolution,
-                    device=args.device, count_simd=False, progress=not args.no_progress, bvh=args.bvh,
-                    strategy_images=args.strategy_edges, lanes=args.lanes)
+    result = render(scene, args.technique,
+                    render_options(args, count_simd=False, strategy_images=args.strategy_edges))
     report = write_strategies(args.strategies, result.image, result.strategy_images, scene.name, args.technique)
     print(format_strategies(report))
     print(f"  wrote {len(report['strategies'])} x 2 strategy images, longer_weighted.exr, full.exr and "

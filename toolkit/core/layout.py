@@ -301,6 +301,7 @@ NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERT
 # The most vertices a BDPT subpath stores (MAX_VERTICES of a scene with unbounded depth): the
 # scene's largest max_depth, the vertex memory's size and mlt's largest max_dims derive from it.
 LONGEST_SUBPATH = 64
+LOCAL_SIZE = 64                             # work-items per work-group by default (opencl/program.py)
 BVH_STACK_SIZE = 64                         # entries of a traversal stack (cl/bvh.h); deeper BVHs are refused
 BVH_WIDTH = 4                               # triangles of a TriGroup (float4 lanes)
 BVH_KINDS = ("binary", "wide")              # --bvh: the traversal compiled in (BVH_WIDE for "wide")

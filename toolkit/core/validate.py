@@ -261,15 +261,6 @@ def local_size(value, where="local_size"):
     return value
 
 
-def render_args(spp, seed, width, height, warp_width=None):
-    """The numeric arguments of a render (CLI and toolkit.render alike); warp_width None: the device's."""
-    spp, seed = whole_number("spp", spp), whole_number("seed", seed)
-    if warp_width is not None and warp_width not in (1, 2, 4, 8, 16, 32, 64, 128):
-        raise InputError(f"warp width must be a power of two up to 128, got {warp_width!r}")
-    width, height = camera_size(width, height, spp)
-    return spp, seed, width, height
-
-
 def camera_size(width, height, spp=1):
     """(width, height) of a camera within LIMITS and within memory_bytes' estimate of what it
     needs (at `spp`), checked before anything is allocated for it: every command that allocates

@@ -9,6 +9,7 @@ import numpy as np
 
 from toolkit.api import as_scene, render
 from toolkit.core.images import to_srgb8, write_image
+from toolkit.core.render_options import with_fields
 from toolkit.core.validate import writable_folder
 from toolkit.measure.phase_plot import save_phase_plot
 from toolkit.measure.phases import format_phases, name_width, phase_rows
@@ -18,23 +19,23 @@ from toolkit.measure.reference import reference_at, rmse
 PHASES = ["generate", "extend", "walk", "shadow", "compact", "connect"]
 
 
-def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, out_dir="out/compare",
-            device=None, progress=False, plots=True, bvh="wide", general=False, lanes=None, phase_plot=None):
+def compare(scene, techniques, spp=None, options=None, out_dir="out/compare", plots=True, phase_plot=None,
+            **fields):
     """Render `scene` with each technique; returns {technique: figures} and writes images/plots.
-    `warp_width` None: the device's (toolkit.opencl.device_model.choose_warp_width); each row says which.
-    `general`: the general kernels instead of the scene's specialized ones, `lanes` "on"/"off": SIMD
-    lanes on Intel's CPU runtime (toolkit.render). Each row also has its time per phase (kernel) beside its
-    lane efficiency ("phases", toolkit/measure/phases.py), all from this one run; `phase_plot`: where the
-    figure of them goes (default <out_dir>/<scene>_phases.png, with the other plots)."""
+    `options`: a RenderOptions for every render (toolkit/core/render_options.py: warp_width None is
+    the device's, and each row says which), with `spp` and any other of its fields as keywords on
+    top, as toolkit.render takes them. Each row also has its time per phase (kernel) beside its lane
+    efficiency ("phases", toolkit/measure/phases.py), all from this one run (time_phases);
+    `phase_plot`: where the figure of them goes (default <out_dir>/<scene>_phases.png, with the other plots)."""
+    options = with_fields(options, **fields, **({} if spp is None else {"spp": spp}))
     out_dir = writable_folder(out_dir)      # before the renders: a bad folder must not cost their time
     scene = as_scene(scene)
-    width, height = resolution or (scene.camera.width, scene.camera.height)
+    width, height = options.resolution or (scene.camera.width, scene.camera.height)
+    options = with_fields(options, resolution=(width, height), time_phases=True)
     ref, _ = reference_at(scene, width, height)
     results, table = {}, {}
     for name in techniques:
-        result = render(scene, technique=name, spp=spp, seed=seed, resolution=(width, height),
-                        device=device, warp_width=warp_width, progress=progress, bvh=bvh, general=general,
-                        lanes=lanes, time_phases=True)
+        result = render(scene, name, options)
         path = out_dir / f"{scene.name}_{name.replace('/', '_')}.exr"
         write_image(path, result.image.astype(np.float32))
         results[name] = result
@@ -44,7 +45,7 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, ou
             "simd_efficiency": result.stats["simd_efficiency"],
             "traversal_efficiency": result.stats["traversal_efficiency"],
             "traversal_steps": result.stats["traversal_steps_per_sample"].get("closest", float("nan")),
-            "bvh": bvh,
+            "bvh": options.bvh,
             "warp_width": result.stats["warp_width"],
             "warp_width_source": result.stats["warp_width_source"],
             **{k: result.stats[k] for k in ("stream_size", "pool_size", "work_sizes_source") if k in result.stats},
@@ -61,7 +62,7 @@ def compare(scene, techniques, spp, resolution=None, seed=0, warp_width=None, ou
         table[a]["rmse_vs"] = {b: rmse(results[a].image, results[b].image) for b in techniques if b != a}
     if plots:
         plot_paths = save_plots(scene.name, results, ref, out_dir, next(iter(table.values()))["warp_width"])
-        title = f"{scene.name} {width}x{height}, {spp} spp: time per phase and lane efficiency"
+        title = f"{scene.name} {width}x{height}, {options.spp} spp: time per phase and lane efficiency"
         plot_paths["phases"] = str(save_phase_plot(phase_plot or out_dir / f"{scene.name}_phases.png", table, title))
         for name in techniques:
             table[name]["plots"] = plot_paths

@@ -6,6 +6,7 @@ the same interleaved runs (toolkit/measure/bench.py)."""
 import platform
 import statistics
 
+from toolkit.core.render_options import RenderOptions
 from toolkit.measure.bench import interleaved_rates
 from toolkit.opencl import lanes as cpu_lanes
 from toolkit.opencl.device import candidates
@@ -33,8 +34,8 @@ def time_lanes(runtime, scene, techniques, resolution, spp, repeats, options, se
     bench's interleaved runs after its warm-up. `options`: {technique: its options}. Returns
     ({(technique, setting): [samples/s per repeat]}, {setting: the widest vector the compiler used})."""
     rows = [(name, setting) for setting in ("off", "on") for name in techniques]
-    rates, stats = interleaved_rates(scene, rows, lambda name: spp, repeats, seed=seed,
-                                     resolution=(resolution, resolution), device=runtime.selector, options=options)
+    given = RenderOptions(seed=seed, resolution=(resolution, resolution), device=runtime.selector)
+    rates, stats = interleaved_rates(scene, rows, lambda name: spp, repeats, given, technique_options=options)
     widths = {}
     for (_, setting), st in stats.items():
         widths[setting] = max(widths.get(setting, 1), st["vector_width"] or 1)

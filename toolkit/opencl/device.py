@@ -28,7 +28,6 @@ count as unusable, e.g. to run on Intel's runtime where PoCL also works.
 import platform as host_platform
 import re
 from dataclasses import dataclass
-from functools import lru_cache
 from pathlib import Path
 
 import numpy as np
@@ -42,6 +41,7 @@ from toolkit.opencl.install_advice import fixes_when_nothing_builds, how_to_get_
 from toolkit.opencl.probe_cache import read_verdict, verdict_file, write_verdict
 from toolkit.opencl.program import LOCAL_SIZE, KernelBuildError, WorkGroupTooLarge, build, expand_includes, kernel, launch
 from toolkit.opencl.runtimes import intel_cpu_library
+from toolkit.opencl.session import session
 
 
 class NoOpenCLError(RuntimeError):
@@ -148,35 +148,33 @@ def _probe_identity(device):
                       device.version, expand_includes("probe.cl"), cl.VERSION_TEXT])
 
 
-_probed = {}          # verdict file: (usable, reason), per process
-probe_notes = {}      # verdict file: where the verdict came from (`python -m toolkit devices` shows it)
-
-
 def probe(device):
     """(usable, reason) for a device: build and run cl/probe.cl and check what it wrote.
-    Cached in memory and on disk per device, driver version, probe source and CPU
-    (toolkit/opencl/probe_cache.py: what is kept, and what is not)."""
+    Kept for the process (the Session's probe_verdicts, toolkit/opencl/session.py) and on disk per
+    device, driver version, probe source and CPU (toolkit/opencl/probe_cache.py: what is kept, and
+    what is not)."""
     file = verdict_file(_probe_identity(device))
-    if file in _probed:
-        return _probed[file]
+    verdicts, notes = session().probe_verdicts, session().probe_notes
+    if file in verdicts:
+        return verdicts[file]
     cached = read_verdict(file)
     if cached is not None:
-        _probed[file] = cached
-        probe_notes[file] = f"cached verdict in {file} (delete it to probe again)"
+        verdicts[file] = cached
+        notes[file] = f"cached verdict in {file} (delete it to probe again)"
         return cached
     usable, reason, lasting = _run_probe(device)
-    _probed[file] = usable, reason
+    verdicts[file] = usable, reason
     if lasting:
         problem = write_verdict(file, usable, reason, device.name.strip())
-        probe_notes[file] = f"probed now; verdict {problem or f'kept in {file}'}"
+        notes[file] = f"probed now; verdict {problem or f'kept in {file}'}"
     else:
-        probe_notes[file] = "probed now; not kept (an OpenCL error says nothing lasting about the device)"
-    return _probed[file]
+        notes[file] = "probed now; not kept (an OpenCL error says nothing lasting about the device)"
+    return verdicts[file]
 
 
 def probe_note(device):
     """Where the device's probe verdict came from, or "" if it was not probed in this process."""
-    return probe_notes.get(verdict_file(_probe_identity(device)), "")
+    return session().probe_notes.get(verdict_file(_probe_identity(device)), "")
 
 
 def _run_probe(device):
@@ -312,12 +310,16 @@ def _cpu_name():
         return host_platform.processor() or "unknown CPU"
 
 
-@lru_cache(maxsize=None)
 def _context_and_queue(device, setting=None):
+    """The process's one (context, queue) of `device` and lanes setting, kept in the Session's
+    queues: a second context would build every program again."""
     # One context per SIMD-lanes setting (toolkit/opencl/lanes.py): its Builds follow it. The
     # queue keeps its Context object alive (builds.Queue: Intel's runtime needs that).
-    context = cl.Context([device])
-    return context, Queue(context, Builds(setting))
+    queues = session().queues
+    if (device, setting) not in queues:
+        context = cl.Context([device])
+        queues[(device, setting)] = context, Queue(context, Builds(setting))
+    return queues[(device, setting)]
 
 
 def queue_for_device(device):

@@ -25,6 +25,7 @@ import platformdirs
 from toolkit.core.config import config
 from toolkit.opencl import runtimes
 from toolkit.opencl.runtimes import unwritable
+from toolkit.opencl.session import session
 
 # pyopencl holds its lock only while it reads or writes one cache entry, for milliseconds; a lock
 # this old was left by a process that no longer runs (pyopencl itself gives up after 60 s).
@@ -65,10 +66,6 @@ def cache_problem(folder, now=None):
     return None
 
 
-_checked = {}     # folder: its problem or None, looked at once per process
-_said = set()     # the problems already reported
-
-
 def build_cache_dir():
     """What `build` passes as Program.build's cache_dir: TOOLKIT_CACHE_DIR or pyopencl's default
     folder, or False (build without the cache) when that folder cannot be used (said once)."""
@@ -79,18 +76,20 @@ def build_cache_dir():
         cache_failed(prepared.no_pyopencl_cache)
         return False
     folder = config().cache_dir or str(default_folder())
-    if folder not in _checked:
-        _checked[folder] = cache_problem(folder)
-    if _checked[folder] is None:
+    problems = session().cache_problems      # each folder looked at once per process
+    if folder not in problems:
+        problems[folder] = cache_problem(folder)
+    if problems[folder] is None:
         return folder
-    cache_failed(_checked[folder])
+    cache_failed(problems[folder])
     return False
 
 
 def cache_failed(problem, what="pyopencl's kernel cache is not used, kernels are built without it: "):
     """Say once per process that kernels are built without pyopencl's cache, and why."""
-    if problem not in _said:
-        _said.add(problem)
+    said = session().cache_problems_said
+    if problem not in said:
+        said.add(problem)
         warnings.warn(KernelCacheWarning(what + problem), stacklevel=3)
 
 
@@ -118,9 +117,10 @@ def build_with_cache(program, options, compiler_warning, binary_cache=True):
             compiler_output.append(text)
             continue
         if "caching failed" in text:
+            problems = session().cache_problems
             if cache_dir:
-                _checked[cache_dir] = _exception_line(text)
-            cache_failed(_checked.get(cache_dir) or _exception_line(text))
+                problems[cache_dir] = _exception_line(text)
+            cache_failed(problems.get(cache_dir) or _exception_line(text))
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return program, "\n".join(compiler_output)

@@ -22,17 +22,21 @@ import json
 import os
 import platform
 import re
-from functools import lru_cache
 from pathlib import Path
 
 from toolkit.core.package_data import user_cache_folder
 from toolkit.core.private_folder import private_folder, unsafe_reason
+from toolkit.opencl.session import session
 
 
-@lru_cache(maxsize=None)
 def cpu_identity():
     """This CPU, as exactly as the system tells: vendor, family, model, stepping, name and a hash
-    of its feature flags (/proc/cpuinfo), else what Python's platform module knows."""
+    of its feature flags (/proc/cpuinfo), else what Python's platform module knows. Read once
+    per process (toolkit/opencl/session.py)."""
+    return session().once("cpu_identity", _read_cpu_identity)
+
+
+def _read_cpu_identity():
     try:
         info = Path("/proc/cpuinfo").read_text(errors="replace").split("\n\n")[0]
     except OSError:

@@ -18,17 +18,17 @@ from pathlib import Path
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.layout import c_header
+from toolkit.core.layout import LOCAL_SIZE, c_header
 from toolkit.core.package_data import data_dir
 from toolkit.core.config import config
 from toolkit.opencl import kernel_times, lanes, runtimes
 from toolkit.opencl.builds import BuiltProgram
 from toolkit.opencl.kernel_cache import ARG_INFO_OPTION, build_with_cache
 
-# The default work-group size. A program is built for one local size (the LOCAL_SIZE define: the
-# kernels' reqd_work_group_size and __local arrays) and must be launched with it: the techniques
-# and the Compactor take `local_size` and pass it to both build() and launch().
-LOCAL_SIZE = 64
+# LOCAL_SIZE (core/layout.py, where render's options take their default from) is the default
+# work-group size. A program is built for one local size (the LOCAL_SIZE define: the kernels'
+# reqd_work_group_size and __local arrays) and must be launched with it: the techniques and the
+# Compactor take `local_size` and pass it to both build() and launch().
 
 # The includes we inline ourselves (the grader's sources.py checks a student's file against it).
 INCLUDE_LINE = re.compile(r'^\s*#\s*include\s+"([^"]+)"\s*$')

@@ -56,9 +56,9 @@ import sys
 import tempfile
 from contextlib import contextmanager
 from dataclasses import dataclass, field
-from functools import cache
 from importlib import metadata
 from pathlib import Path
+from types import MappingProxyType
 
 import platformdirs
 
@@ -66,12 +66,13 @@ from toolkit.core.config import config
 from toolkit.core.package_data import APP_NAME, user_cache_folder
 from toolkit.core.private_folder import UnsafeFolder, private_folder, unsafe_reason, user_tag
 from toolkit.opencl import windows_runtime
+from toolkit.opencl.session import session
 
 SYSTEM_VENDORS = Path("/etc/OpenCL/vendors")
 
 
-# The library of Intel's CPU runtime in its pip wheel, per system (its wheels: setup.cfg).
-INTEL_CPU_LIBRARY = {"Linux": "libintelocl.so", "Windows": "intelocl64.dll"}
+# The library of Intel's CPU runtime in its pip wheel, per system (its wheels: setup.cfg); read-only.
+INTEL_CPU_LIBRARY = MappingProxyType({"Linux": "libintelocl.so", "Windows": "intelocl64.dll"})
 
 
 def intel_cpu_library():
@@ -205,11 +206,15 @@ def users_own_vendors():
 
 # ---- the kernel caches: what pyopencl and PoCL are told ---------------------------------------
 
-@cache   # once per process: pyopencl reads the variable once, when it is imported
 def before_pyopencl_import():
     """Where pytools' cache folder cannot be written, pyopencl's import fails to open its cache of
     launch code, and it makes no kernel: then PYOPENCL_NO_CACHE=1 (no pyopencl cache at all).
-    Returns why, or None. Too late once pyopencl is imported: nothing is changed then."""
+    Returns why, or None. Once per process (toolkit/opencl/session.py): pyopencl reads the
+    variable once, when it is imported; too late after that, and nothing is changed then."""
+    return session().once("before_pyopencl_import", _no_pyopencl_cache_if_unwritable)
+
+
+def _no_pyopencl_cache_if_unwritable():
     if "pyopencl" in sys.modules or os.environ.get("PYOPENCL_NO_CACHE"):
         return None
     problem = unwritable(platformdirs.user_cache_dir("pytools", "pytools"))
@@ -276,11 +281,15 @@ class Preparation:
     pocl_cache_moved: str = None       # why PoCL's cache was moved to a private temporary folder, or None
 
 
-@cache   # once per process: the loader reads the environment once, at the first platform query
 def prepare():
     """Register pip's runtimes and give PoCL a cache folder it can write; pyopencl's cache
     failures made non-fatal (pyopencl reads PYOPENCL_CACHE_FAILURE_FATAL when its cache fails,
-    and an unset one is a KeyError there). Returns the Preparation."""
+    and an unset one is a KeyError there). Returns the Preparation. Once per process
+    (toolkit/opencl/session.py): the loader reads the environment once, at the first platform query."""
+    return session().once("prepare", _prepare_now)
+
+
+def _prepare_now():
     os.environ.setdefault("PYOPENCL_CACHE_FAILURE_FATAL", "")
     done = Preparation(users_vendors=users_own_vendors(), no_pyopencl_cache=before_pyopencl_import(),
                        pocl_cache_moved=_private_pocl_cache())

@@ -10,7 +10,7 @@ use the safe search order, in os.add_dll_directory.
 """
 import os
 
-_dll_directories = []   # os.add_dll_directory's handles: the folder stays searched while they live
+from toolkit.opencl.session import session
 
 
 def register(library, environ=None, add_dll_directory=None):
@@ -24,5 +24,6 @@ def register(library, environ=None, add_dll_directory=None):
     environ["OCL_ICD_FILENAMES"] = str(library)
     environ["PATH"] = os.pathsep.join(p for p in (folder, environ.get("PATH")) if p)
     if add_dll_directory is not None:
-        _dll_directories.append(add_dll_directory(folder))
+        # Its handle is kept in the Session: the folder stays searched while the handle lives.
+        session().dll_directories.append(add_dll_directory(folder))
     return library

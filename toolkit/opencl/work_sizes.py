@@ -19,6 +19,7 @@ of these; the automatic choice shrinks to fit instead.
 """
 import re
 from dataclasses import dataclass
+from types import MappingProxyType
 
 import pyopencl as cl
 
@@ -44,8 +45,8 @@ CPU_CHAINS_PER_UNIT = 1024     # mlt's chains per CPU core: CHAINS_MEASURED belo
 # NVIDIA: maximum resident threads per SM, by compute capability (CUDA C++ Programming Guide,
 # "Technical Specifications per Compute Capability", row "Maximum number of resident threads
 # per SM"): 2048 for most; 1024 on Turing (7.5); 1536 on 8.6, 8.9 and 12.x. The capability
-# comes from cl_nv_device_attribute_query; without it, 2048.
-NVIDIA_RESIDENT = {(7, 5): 1024, (8, 6): 1536, (8, 9): 1536, (12, 0): 1536}
+# comes from cl_nv_device_attribute_query; without it, 2048. A constant table: read-only.
+NVIDIA_RESIDENT = MappingProxyType({(7, 5): 1024, (8, 6): 1536, (8, 9): 1536, (12, 0): 1536})
 NVIDIA_RESIDENT_DEFAULT = 2048
 # AMD GCN/CDNA: a compute unit has 4 SIMDs, each holding up to 10 wavefronts of 64 work-items
 # (AMD "Graphics Core Next Architecture" whitepaper, 2012; the SIMD count and wavefront width
