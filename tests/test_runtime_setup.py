@@ -190,3 +190,21 @@ def test_importing_the_toolkit_registers_nothing_until_a_device_is_asked_for():
     assert result.returncode == 0, result.stderr
     assert "after import: None True" in result.stdout      # pyopencl imported, nothing registered
     assert "after list_devices: True True" in result.stdout
+
+
+def test_the_cache_switch_comes_before_pyopencl_is_imported():
+    """`import toolkit` decides whether pyopencl may keep a cache (runtimes.before_pyopencl_import)
+    before anything imports pyopencl, which reads PYOPENCL_NO_CACHE once. It once came after: the
+    settings module imported validate.py for InputError, which imports the layouts and pyopencl."""
+    code = ("import sys\n"
+            "class Watch:\n"
+            "    def find_spec(self, name, path=None, target=None):\n"
+            "        if name == 'pyopencl':\n"
+            "            sys.meta_path.remove(self)\n"
+            "            from toolkit.opencl.session import session\n"
+            "            print('switch first' if 'before_pyopencl_import' in session().done else 'pyopencl first')\n"
+            "sys.meta_path.insert(0, Watch())\n"
+            "import toolkit\n")
+    result = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert result.stdout.strip() == "switch first"

@@ -37,7 +37,7 @@ and toolkit/opencl/windows_runtime.py, before the first OpenCL call.
 import os
 from dataclasses import dataclass
 
-from toolkit.core.validate import InputError
+from toolkit.core.errors import InputError
 
 LANES = ("on", "off")
 YES_NO = {"1": True, "0": False}

@@ -14,10 +14,7 @@ from pathlib import Path
 
 from toolkit.core.layout import LONGEST_SUBPATH
 from toolkit.core.sample_dims import used_dims
-
-
-class InputError(ValueError):
-    """A bad argument of the command line or of toolkit.render, with the problem named."""
+from toolkit.core.errors import InputError  # noqa: F401  (defined there; every caller imports it from here too)
 
 
 # name: (lowest, highest, why). Names are how FORMAT.md and the error messages call them.
