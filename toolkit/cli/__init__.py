@@ -7,7 +7,7 @@ from toolkit.cli import bench, compare, course, crosscheck, demo, devices, gpuch
 from toolkit.cli.devices import devices_report
 from toolkit.cli.options import DEVICE_HELP
 from toolkit.core.scene import SceneError
-from toolkit.opencl import program
+from toolkit.opencl.session import session
 from toolkit.opencl.device import NoOpenCLError
 from toolkit.opencl.program import KernelBuildError
 from toolkit.grading.stubs import AssignmentNotWritten
@@ -39,7 +39,7 @@ def main(argv=None):
     """Run one command; bad input (a scene, a value, a file, a kernel that does not build, no
     OpenCL device) is one `error:` line on stderr and exit code 2, never a traceback."""
     args = build_parser().parse_args(argv)
-    program.verbose = program.verbose or args.verbose
+    session().verbose_builds = session().verbose_builds or args.verbose
     shown = warnings.showwarning
     warnings.showwarning = _warning_line      # one "warning: ..." line, not file and source line
     try:

@@ -24,6 +24,7 @@ from toolkit.core.config import config
 from toolkit.opencl import kernel_times, lanes, runtimes
 from toolkit.opencl.builds import BuiltProgram
 from toolkit.opencl.kernel_cache import ARG_INFO_OPTION, build_with_cache
+from toolkit.opencl.session import session
 
 # LOCAL_SIZE (core/layout.py, where render's options take their default from) is the default
 # work-group size. A program is built for one local size (the LOCAL_SIZE define: the kernels'
@@ -78,11 +79,6 @@ def check_work_group(kernel_name, local_size, kernel_limit, device_name):
 class KernelBuildWarning(UserWarning):
     """A compiler warning in one of our kernels (the log's `warning:` lines)."""
 
-
-# Set by `--verbose` (as TOOLKIT_VERBOSE=1 is: toolkit/core/config.py): print every build log in
-# full (Intel's compiler reports its progress and vectorization there; pyopencl would show any
-# non-empty log as a CompilerWarning).
-verbose = False
 
 # Warnings a compiler writes about its own doing, not about our source: NVIDIA's OpenCL compiler
 # (driver 580, H200, results/gpu.md) says this of every kernel it builds.
@@ -237,7 +233,7 @@ def build(queue, name, defines=None, directory=None, arg_info=False, binary_cach
     start = time.perf_counter()
     program, retrieved = _compile(BuiltProgram(queue.context, source), name, source, options, binary_cache)
     log = relocate(_build_log_text(program), source)
-    if (verbose or config().verbose) and log.strip():
+    if (session().verbose_builds or config().verbose) and log.strip():
         print(f"--- build log of {name} on {device.name.strip()} ---\n{log}", file=sys.stderr)
     real = warning_lines(log)
     if real and "-Werror" in options:  # for compilers that ignore the option (Oclgrind)

@@ -32,6 +32,10 @@ class Session:
         self.cache_problems_said = set()   # the kernel cache's problems already warned about
         self.dll_directories = []     # os.add_dll_directory's handles (Windows)
         self.done = {}                # a step done once per process: what it returned
+        # `--verbose` (as TOOLKIT_VERBOSE=1 is: toolkit/core/config.py): print every build log in full
+        # (Intel's compiler reports its progress and vectorization there; pyopencl would show any
+        # non-empty log as a CompilerWarning).
+        self.verbose_builds = False
 
     def once(self, step, run):
         """What `run()` returned the first time `step` was asked for in this session."""
