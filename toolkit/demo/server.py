@@ -19,6 +19,8 @@ import webbrowser
 
 import panel as pn
 from tornado.ioloop import IOLoop
+from tornado.iostream import StreamClosedError
+from tornado.websocket import WebSocketClosedError
 
 from toolkit.demo.view import DemoView
 
@@ -28,6 +30,15 @@ STOP_SECONDS = 15          # the longest wait for a render thread's pass before 
 LOOPBACK = "127.0.0.1"
 # A tab's redraws between its closing and the end of its session find no connection: not news.
 logging.getLogger("bokeh.server.views.ws").setLevel(logging.ERROR)
+
+
+def quiet_closed_sockets(loop, context):
+    """The event loop's handler of errors nobody collected: a redraw sent to a tab that has just
+    closed fails with WebSocketClosedError in a task that Bokeh does not wait for, and asyncio
+    would print it with a traceback. Not news (as above); anything else goes to the default."""
+    if isinstance(context.get("exception"), (WebSocketClosedError, StreamClosedError)):
+        return
+    loop.default_exception_handler(context)
 
 
 def free_port(host):
@@ -55,6 +66,7 @@ class DemoServer:
         self.stopped_views = []            # closed tabs' views: their threads are waited for at exit
         self.ever_opened = False
         self.loop = IOLoop.current()
+        self.loop.asyncio_loop.set_exception_handler(quiet_closed_sockets)
         self.server = pn.serve({"/": self.new_tab}, port=self.port, address=host,
                                websocket_origin=allowed_origins(host, self.port), show=False, start=False,
                                title="SIMD efficiency, live", loop=self.loop, verbose=False,
