@@ -26,8 +26,8 @@ __kernel void extend_in_place_trace(SCENE_PARAMS, const PtPass pass_args, const 
     LaneCounters count = {0, 0, 0};
     int was_alive = alive[gid];
     if (was_alive) {
-        SceneView s = SCENE_INIT;
-        path_trace_entry(&s, path_state_soa(paths, pass_args.capacity), hit_record_soa(hits, pass_args.capacity),
+        SceneView scene = SCENE_INIT;
+        path_trace_entry(&scene, path_state_soa(paths, pass_args.capacity), hit_record_soa(hits, pass_args.capacity),
                          gid, &count);
     }
 #if COUNT_SIMD
@@ -41,14 +41,14 @@ __kernel void extend_in_place_shade(SCENE_PARAMS, const PtPass pass_args, const 
 {
     int gid = get_global_id(0);
     if (gid >= stream_length || !alive[gid]) return;
-    SceneView s = SCENE_INIT;
+    SceneView scene = SCENE_INIT;
     LaneCounters count = {0, 0, 0};
     PathStateSoA soa = path_state_soa(paths, pass_args.capacity);
     PathState p = path_state_load(soa, gid);
     ShadowRay shadow;
-    bool continues = path_shade_deferred(&s, &p, hit_record_load(hit_record_soa(hits, pass_args.capacity), gid),
+    bool continues = path_shade_deferred(&scene, &p, hit_record_load(hit_record_soa(hits, pass_args.capacity), gid),
                                          pass_args.seed, &shadow);
-    if (shadow.slot >= 0 && shadow_unoccluded(&s, &shadow, &count)) p.radiance.xyz += shadow.contribution.xyz;
+    if (shadow.slot >= 0 && shadow_unoccluded(&scene, &shadow, &count)) p.radiance.xyz += shadow.contribution.xyz;
     if (continues) path_state_store(soa, gid, &p);
     else path_finish(radiance, &p);
     alive[gid] = continues;

@@ -53,8 +53,8 @@ HELPER float path_rand(const PathState* p, Sampler* rng, uint offset) {
 /* Emission found by the BSDF-sampled ray (hit at distance t, from direction wo), MIS-weighted
  * against light sampling (Veach 1997, sec. 9.2); after the camera or a specular bounce light
  * sampling was impossible. */
-HELPER void path_add_emission(const SceneView* s, PathState* p, const Triangle* tri, float3 ng, float3 wo, float t) {
-    float3 le = emitted(s, tri, ng, wo);
+HELPER void path_add_emission(const SceneView* scene, PathState* p, const Triangle* tri, float3 ng, float3 wo, float t) {
+    float3 le = emitted(scene, tri, ng, wo);
     if (!is_black(le)) {
         float w = 1.0f;
         if (!p->prev_specular) {
@@ -68,10 +68,10 @@ HELPER void path_add_emission(const SceneView* s, PathState* p, const Triangle* 
 /* Next-event estimation at x (geometric normal ng, shading frame ts, tt, n): one point on a
  * light, one shadow ray, MIS with BSDF sampling. The shadow ray is only prepared here
  * (shadow->slot >= 0 if there is one); the caller traces it now or queues it. */
-HELPER void path_prepare_shadow_ray(const SceneView* s, const PathState* p, Sampler* rng, const Material* m,
+HELPER void path_prepare_shadow_ray(const SceneView* scene, const PathState* p, Sampler* rng, const Material* m,
                                     float3 x, float3 ng, float3 ts, float3 tt, float3 n, float3 wo_local,
                                     ShadowRay* shadow) {
-    LightSample ls = sample_light(s, path_rand(p, rng, DIM_LIGHT_PICK),
+    LightSample ls = sample_light(scene, path_rand(p, rng, DIM_LIGHT_PICK),
                                   path_rand(p, rng, DIM_LIGHT_U), path_rand(p, rng, DIM_LIGHT_V));
     float3 to_light = ls.p - x;
     float dist2 = dot(to_light, to_light);
@@ -83,8 +83,8 @@ HELPER void path_prepare_shadow_ray(const SceneView* s, const PathState* p, Samp
     float3 f = bsdf_eval(m, wo_local, wi_local, &bsdf_pdf);
     if (is_black(f)) return;
     float light_pdf = ls.pdf_area * dist2 / cos_light;
-    float3 from = offset_point(s, x, ng, wi);
-    float3 to = offset_point(s, ls.p, ls.n, -wi);
+    float3 from = offset_point(scene, x, ng, wi);
+    float3 to = offset_point(scene, ls.p, ls.n, -wi);
     float3 seg = to - from;
     float len = length(seg);
     if (dot(seg, wi) > 0.0f) {
@@ -99,7 +99,7 @@ HELPER void path_prepare_shadow_ray(const SceneView* s, const PathState* p, Samp
 
 /* Continue the path from x by sampling the BSDF, then Russian roulette (common.h) from RR_DEPTH
  * bounces on. Returns false when the path has terminated. */
-HELPER bool path_continue(const SceneView* s, PathState* p, Sampler* rng, const Material* m,
+HELPER bool path_continue(const SceneView* scene, PathState* p, Sampler* rng, const Material* m,
                           float3 x, float3 ng, float3 ts, float3 tt, float3 n, float3 wo_local) {
     BsdfSample bs;
     if (!bsdf_sample(m, wo_local, path_rand(p, rng, DIM_BSDF_U), path_rand(p, rng, DIM_BSDF_V),
@@ -109,7 +109,7 @@ HELPER bool path_continue(const SceneView* s, PathState* p, Sampler* rng, const 
     p->throughput.xyz *= bs.weight;
     p->prev_pdf = bs.pdf;
     p->prev_specular = bs.specular ? 1 : 0;
-    p->origin = (float4)(offset_point(s, x, ng, wi), 0.0f);
+    p->origin = (float4)(offset_point(scene, x, ng, wi), 0.0f);
     p->dir = (float4)(wi, 0.0f);
     p->bounce += 1;
 #if USE_RUSSIAN_ROULETTE
@@ -123,14 +123,14 @@ HELPER bool path_continue(const SceneView* s, PathState* p, Sampler* rng, const 
 }
 
 /* The closest hit of the path's next ray (a miss where the path may take no more segments). */
-HELPER HitRecord path_trace(const SceneView* s, const PathState* p, LaneCounters* count) {
+HELPER HitRecord path_trace(const SceneView* scene, const PathState* p, LaneCounters* count) {
     HitRecord miss = {INFINITY, -1};
 #if USE_MAX_DEPTH
     /* Only reached with max_depth 0 (longer limits end the path in path_shade_deferred): not even
      * the camera segment, so the image is black in every technique (FORMAT.md). */
     if (p->bounce >= MAX_DEPTH) return miss;
 #endif
-    Hit h = trace_closest(s, p->origin.xyz, p->dir.xyz, 0.0f, INFINITY, &count->traversal_steps);
+    Hit h = trace_closest(scene, p->origin.xyz, p->dir.xyz, 0.0f, INFINITY, &count->traversal_steps);
     if (h.tri < 0) return miss;
     HitRecord hit = {h.t, h.tri};
     return hit;
@@ -138,33 +138,33 @@ HELPER HitRecord path_trace(const SceneView* s, const PathState* p, LaneCounters
 
 /* path_trace for entry i of a stream of paths, its hit stored at entry i of a stream of hits:
  * the trace kernels of the wavefront techniques (pt_compact_regen, extend_in_place.h). */
-HELPER void path_trace_entry(const SceneView* s, PathStateSoA paths, HitRecordSoA hits, int i, LaneCounters* count) {
+HELPER void path_trace_entry(const SceneView* scene, PathStateSoA paths, HitRecordSoA hits, int i, LaneCounters* count) {
     PathState p = path_state_load(paths, i);
-    HitRecord hit = path_trace(s, &p, count);
+    HitRecord hit = path_trace(scene, &p, count);
     hit_record_store(hits, i, &hit);
 }
 
 /* Shade the vertex that the path's ray found (`hit`, from path_trace): add emission, prepare a
  * next-event shadow ray (shadow->slot >= 0 if there is one), sample the BSDF, roulette.
  * Returns false when the path has terminated. */
-HELPER bool path_shade_deferred(const SceneView* s, PathState* p, HitRecord hit, uint seed, ShadowRay* shadow) {
+HELPER bool path_shade_deferred(const SceneView* scene, PathState* p, HitRecord hit, uint seed, ShadowRay* shadow) {
     shadow->slot = -1;
     if (hit.tri < 0) return false;                   /* left the scene: no environment light */
     Sampler rng = sampler_init(seed, (uint)p->pixel, (uint)p->sample);
     float3 o = p->origin.xyz, d = p->dir.xyz;
 
-    Triangle tri = s->tris[hit.tri];
+    Triangle tri = scene->tris[hit.tri];
     float3 ng = triangle_normal(&tri);
     float3 x = o + hit.t * d;
     float3 wo = -d;
     int segments = p->bounce + 1;                    /* path segments so far, camera one included */
-    path_add_emission(s, p, &tri, ng, wo, hit.t);
+    path_add_emission(scene, p, &tri, ng, wo, hit.t);
 #if USE_MAX_DEPTH
     if (segments >= MAX_DEPTH) return false;
 #endif
     if (p->bounce >= HARD_MAX_BOUNCES) return false;
 
-    Material m = s->materials[tri.material];
+    Material m = scene->materials[tri.material];
     float3 n = shading_normal(m.type, ng, wo);
     float3 ts, tt;
     make_basis(n, &ts, &tt);
@@ -173,28 +173,28 @@ HELPER bool path_shade_deferred(const SceneView* s, PathState* p, HitRecord hit,
 #if USE_MAX_DEPTH
     nee_allowed = nee_allowed && segments + 1 <= MAX_DEPTH;
 #endif
-    if (nee_allowed) path_prepare_shadow_ray(s, p, &rng, &m, x, ng, ts, tt, n, wo_local, shadow);
-    return path_continue(s, p, &rng, &m, x, ng, ts, tt, n, wo_local);
+    if (nee_allowed) path_prepare_shadow_ray(scene, p, &rng, &m, x, ng, ts, tt, n, wo_local, shadow);
+    return path_continue(scene, p, &rng, &m, x, ng, ts, tt, n, wo_local);
 }
 
 /* Extend the path by one vertex: trace, then shade (the shadow ray only prepared).
  * Returns false when the path has terminated. */
-HELPER bool path_extend_deferred(const SceneView* s, PathState* p, uint seed, LaneCounters* count,
+HELPER bool path_extend_deferred(const SceneView* scene, PathState* p, uint seed, LaneCounters* count,
                                  ShadowRay* shadow) {
-    return path_shade_deferred(s, p, path_trace(s, p, count), seed, shadow);
+    return path_shade_deferred(scene, p, path_trace(scene, p, count), seed, shadow);
 }
 
 /* Whether a shadow ray reaches its light. */
-HELPER bool shadow_unoccluded(const SceneView* s, const ShadowRay* r, LaneCounters* count) {
+HELPER bool shadow_unoccluded(const SceneView* scene, const ShadowRay* r, LaneCounters* count) {
     count->shadow_rays += 1;
-    return !trace_any(s, r->origin, r->dir.xyz, 0.0f, r->length, &count->shadow_steps);
+    return !trace_any(scene, r->origin, r->dir.xyz, 0.0f, r->length, &count->shadow_steps);
 }
 
 /* Extend by one vertex and trace the shadow ray at once (one path per work-item). */
-HELPER bool path_extend(const SceneView* s, PathState* p, uint seed, LaneCounters* count) {
+HELPER bool path_extend(const SceneView* scene, PathState* p, uint seed, LaneCounters* count) {
     ShadowRay shadow;
-    bool continues = path_extend_deferred(s, p, seed, count, &shadow);
-    if (shadow.slot >= 0 && shadow_unoccluded(s, &shadow, count))
+    bool continues = path_extend_deferred(scene, p, seed, count, &shadow);
+    if (shadow.slot >= 0 && shadow_unoccluded(scene, &shadow, count))
         p->radiance.xyz += shadow.contribution.xyz;
     return continues;
 }

@@ -35,9 +35,9 @@ __kernel void pt_compact_regen_trace(SCENE_PARAMS, const PtPass pass_args, const
 {
     int gid = get_global_id(0);
     if (gid >= stream_length) return;
-    SceneView s = SCENE_INIT;
+    SceneView scene = SCENE_INIT;
     LaneCounters count = {0, 0, 0};
-    path_trace_entry(&s, path_state_soa(stream, pass_args.capacity), hit_record_soa(hits, pass_args.capacity),
+    path_trace_entry(&scene, path_state_soa(stream, pass_args.capacity), hit_record_soa(hits, pass_args.capacity),
                      gid, &count);
 #if COUNT_SIMD
     lane_counts[gid] = lane_counts_of(1, &count);   /* its traversal steps; shade adds the rest */
@@ -62,10 +62,10 @@ void pt_compact_regen_shade(SCENE_PARAMS, const PtPass pass_args, const int stre
     bool alive = false;
     /* No early return: every work-item of the group must reach the compaction barriers. */
     if (gid < stream_length) {
-        SceneView s = SCENE_INIT;
+        SceneView scene = SCENE_INIT;
         p = path_state_load(path_state_soa(stream, pass_args.capacity), gid);
         HitRecord hit = hit_record_load(hit_record_soa(hits, pass_args.capacity), gid);
-        alive = path_shade_deferred(&s, &p, hit, pass_args.seed, &ray);
+        alive = path_shade_deferred(&scene, &p, hit, pass_args.seed, &ray);
         if (!alive) path_finish(radiance, &p);
     }
     int slot = immediate_compact_slot(alive, scratch, &counters[STREAM_PATHS]);
@@ -86,10 +86,10 @@ __kernel void pt_compact_regen_shadow(SCENE_PARAMS, const PtPass pass_args, cons
 {
     int gid = get_global_id(0);
     if (gid >= queued) return;
-    SceneView s = SCENE_INIT;
+    SceneView scene = SCENE_INIT;
     ShadowRay ray = shadow_ray_load(shadow_ray_soa(shadow_rays, pass_args.capacity), gid);
     LaneCounters count = {0, 0, 0};
-    if (shadow_unoccluded(&s, &ray, &count))
+    if (shadow_unoccluded(&scene, &ray, &count))
         radiance[ray.slot].xyz += ray.contribution.xyz;
 #if COUNT_SIMD
     shadow_steps[gid] = count.shadow_steps;

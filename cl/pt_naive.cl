@@ -12,7 +12,7 @@ __kernel void pt_naive_render(SCENE_PARAMS, const Camera cam, const PtPass pass_
 {
     int gid = get_global_id(0);
     if (gid >= pass_args.budget) return;
-    SceneView s = SCENE_INIT;
+    SceneView scene = SCENE_INIT;
     uint seed = pass_args.seed;
     PathState path;
     path_start_sample(&path, &cam, gid, pass_args.sample_base, seed);
@@ -21,7 +21,7 @@ __kernel void pt_naive_render(SCENE_PARAMS, const Camera cam, const PtPass pass_
 #if !(USE_MAX_DEPTH) || MAX_DEPTH > 0
     bool alive = true;
     while (alive) {
-        alive = path_extend(&s, &path, seed, &count);
+        alive = path_extend(&scene, &path, seed, &count);
         ++iterations;
     }
 #endif

@@ -35,13 +35,13 @@ def test_no_kernel_takes_more_than_16_arguments(queue, cornell_spheres, name):
 
 
 def test_named_w_lanes_are_the_fourth_float_of_their_field_on_both_sides(queue, tmp_path):
-    from toolkit.core.record_lanes import lane_dtype
+    from toolkit.core.packed_w import packed_w_dtype
     (tmp_path / "lanes.cl").write_text('#include "common.h"\n__kernel void lanes(__global Subpath* out) {\n'
                                        '    Subpath p = {.origin = (float4)(0.0f), .beta = (float4)(0.0f)};\n'
                                        '    SUBPATH_PDF_DIR(&p) = 2.5f;\n    SUBPATH_RR_NORMALISER(&p) = 7.0f;\n'
                                        '    out[0] = p;\n}\n')
     built = program.build(queue, "lanes.cl", directory=tmp_path)
-    out = np.zeros(1, lane_dtype(layout.SUBPATH, layout.SUBPATH_LANES))
+    out = np.zeros(1, packed_w_dtype(layout.SUBPATH, layout.SUBPATH_PACKED_W))
     assert out.dtype.itemsize == layout.SUBPATH.dtype.itemsize
     buffer = cl.Buffer(queue.context, cl.mem_flags.WRITE_ONLY, out.nbytes)
     program.kernel(built, "lanes")(queue, (1,), None, buffer)

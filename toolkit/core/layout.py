@@ -7,13 +7,13 @@ every program includes through cl/common.h, so host and device can never disagre
 `LAYOUT_CHECKS` lets a test kernel (cl/layout_check.cl) compare sizeof/offsetof of every struct
 with numpy (tests/test_layout.py). The index formulas both sides compute
 (toolkit/core/bdpt_indices.py, sample_dims.py) and the names of quantities packed into a float4's
-.w lane (record_lanes.py) are emitted into layout.h here too.
+.w component (packed_w.py) are emitted into layout.h here too.
 """
 from enum import IntEnum, IntFlag
 
 from toolkit.core import bdpt_indices, sample_dims
 from toolkit.core.record import Record
-from toolkit.core.record_lanes import Lane
+from toolkit.core.packed_w import PackedW
 
 # float4-first layouts keep every record 16-byte aligned on host and device alike.
 BVH_NODE = Record("BvhNode", [
@@ -149,9 +149,9 @@ BDPT_VERTEX = Record("BdptVertex", [
 ], "A stored BDPT path vertex, 96 bytes (the talk's vertex is 128).")
 
 SUBPATH = Record("Subpath", [
-    ("origin", "float4"),     # next ray origin; .w: pdf_dir (SUBPATH_LANES below)
+    ("origin", "float4"),     # next ray origin; .w: pdf_dir (SUBPATH_PACKED_W below)
     ("dir", "float4"),        # next ray direction
-    ("beta", "float4"),       # throughput; .w: rr_normaliser (SUBPATH_LANES below)
+    ("beta", "float4"),       # throughput; .w: rr_normaliser (SUBPATH_PACKED_W below)
     ("prev_pos", "float4"),   # the last stored vertex (exact, not offset)
     ("prev_normal", "float4"),
     ("slot", "int"),          # the sample's slot in the sample pool
@@ -374,7 +374,7 @@ def c_header(records=RECORDS):
             + "\n\n".join(r.c_soa() for r in SOA_RECORDS) + "\n\n"
             + c_layout_checks(records) + "\n\n"
             + c_shared_indices() + "\n\n"
-            + c_lanes() + "\n")
+            + c_packed_w() + "\n")
 
 
 # ---- index arithmetic and sample-dimension tables (their own modules, emitted here) ----------
@@ -386,14 +386,14 @@ def c_shared_indices():
             + "/* BDPT's connect-phase indices (toolkit/core/bdpt_indices.py). */\n" + bdpt_indices.c_definitions())
 
 
-# ---- quantities packed into the .w lane of a float4 field (toolkit/core/record_lanes.py) ---------
+# ---- quantities packed into the .w component of a float4 field (toolkit/core/packed_w.py) ----
 
-SUBPATH_LANES = [
-    Lane(SUBPATH, "origin", "pdf_dir", "solid-angle density of dir (delta_pdf_dir after a specular bounce)"),
-    Lane(SUBPATH, "beta", "rr_normaliser", "what roulette compares the throughput with: 1 for eye paths, "
-                                           "max(beta) at y_1 for light paths (cl/bdpt_walk.h)"),
+SUBPATH_PACKED_W = [
+    PackedW(SUBPATH, "origin", "pdf_dir", "solid-angle density of dir (delta_pdf_dir after a specular bounce)"),
+    PackedW(SUBPATH, "beta", "rr_normaliser", "what roulette compares the throughput with: 1 for eye paths, "
+                                              "max(beta) at y_1 for light paths (cl/bdpt_walk.h)"),
 ]
 
 
-def c_lanes():
-    return "\n".join(lane.c_macro() for lane in SUBPATH_LANES)
+def c_packed_w():
+    return "\n".join(packed.c_macro() for packed in SUBPATH_PACKED_W)

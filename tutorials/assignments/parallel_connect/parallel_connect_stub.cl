@@ -7,7 +7,7 @@
  *      index of sample i's first connection, and the total is the number of work-items;
  *   3. work-item g finds its sample by binary search: the LAST slot whose first index is <= g
  *      (slots with no connections share their first index with the next slot); its local
- *      index g - firsts[slot] picks the strategy (s, t) with connection_strategy (cl/bdpt.h).
+ *      index g - firsts[slot] picks the strategy (scene, t) with connection_strategy (cl/bdpt.h).
  * Worked example: counts [0, 3, 0, 2] scan to firsts [0, 0, 3, 3], total 5.
  *   g = 0, 1, 2 -> slot 1, local 0, 1, 2;   g = 3, 4 -> slot 3, local 0, 1.
  * Fill in the regions marked TODO; keep the names and arguments of the kernels and of find_sample. */
@@ -43,7 +43,7 @@ __kernel void bdpt_parallel_connect(SCENE_PARAMS, const Camera cam, const int to
 {
     int gid = get_global_id(0);
     if (gid >= total) return;
-    SceneView s = SCENE_INIT;
+    SceneView scene = SCENE_INIT;
     int slot = find_sample(firsts, pool, gid);
     /* TODO: this work-item's connection among its sample's connections (0, 1, ...) */
     int local_index = 0;
@@ -51,7 +51,7 @@ __kernel void bdpt_parallel_connect(SCENE_PARAMS, const Camera cam, const int to
     int s_len, t_len;
     connection_strategy(local_index, sample.light_vertices, &s_len, &t_len);
     int steps = 0;
-    Connection c = connect_strategy(&s, &cam, eye_vertices + vertex_index(slot, 0),
+    Connection c = connect_strategy(&scene, &cam, eye_vertices + vertex_index(slot, 0),
                                     light_vertices + vertex_index(slot, 0), s_len, t_len,
                                     sample_pixel(&cam, sample.sample_id), &steps);
     record_value[gid] = (float4)(c.value, c.weight);
