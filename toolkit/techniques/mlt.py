@@ -145,6 +145,8 @@ class Mlt(BdptPoolTechnique):
         self.bdpt = BdptEvaluator(self.bdpt_context, ParallelConnect(self.bdpt_context, read_slots=True),
                                   self.pool_size, regenerate_fraction, self.max_vertices)
         self.last_chains = None   # the chains of the last render, for its stats
+        self.total = 0            # the render's mutations in all (begin_render)
+        self.started = None       # when its chains started (perf_counter), for time_limit
 
     def check_options(self, scene, chains, large_step, start, candidates, max_dims, combine, time_limit,
                       small_step, kwargs):
