@@ -14,8 +14,8 @@ from toolkit.techniques.bdpt_base import BdptTechnique
 
 
 class NaiveConnect:
-    """The plain connect phase of BDPT's kernels, launched through `ctx` (a BdptContext) (cl/bdpt_naive_connect.cl): the light-tracing
-    (t = 1) splats of each slot, then one sum of its eye-path strategies per slot.
+    """The plain connect phase (cl/bdpt_naive_connect.cl), launched through `ctx` (a BdptContext):
+    the light-tracing (t = 1) splats of each slot, then one sum of its eye-path strategies per slot.
     `strategy_max_edges`: the kernels keep strategies apart (STRATEGY_IMAGES)."""
 
     def __init__(self, ctx, strategy_max_edges=None):

@@ -12,8 +12,8 @@ from toolkit.techniques.bdpt_base import BdptTechnique
 
 
 class ParallelConnect:
-    """The parallel connect phase of BDPT's kernels, launched through `ctx` (a BdptContext) (cl/bdpt_parallel_connect.cl). Its
-    records of one slot are consecutive, in slot order. `strategy_max_edges`: the kernels keep
+    """The parallel connect phase (cl/bdpt_parallel_connect.cl), launched through `ctx` (a
+    BdptContext). Its records of one slot are consecutive, in slot order. `strategy_max_edges`: the kernels keep
     strategies apart (STRATEGY_IMAGES), and each record gets its strategy; `read_slots`: the
     Connections carry the slots and their record counts (which sample each record belongs to)."""
 
