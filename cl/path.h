@@ -53,7 +53,8 @@ HELPER float path_rand(const PathState* p, Sampler* rng, uint offset) {
 /* Emission found by the BSDF-sampled ray (hit at distance t, from direction wo), MIS-weighted
  * against light sampling (Veach 1997, sec. 9.2); after the camera or a specular bounce light
  * sampling was impossible. */
-HELPER void path_add_emission(const SceneView* scene, PathState* p, const Triangle* tri, float3 ng, float3 wo, float t) {
+HELPER void path_add_emission(const SceneView* scene, PathState* p, const Triangle* tri, float3 ng, float3 wo,
+                              float t) {
     float3 le = emitted(scene, tri, ng, wo);
     if (!is_black(le)) {
         float w = 1.0f;
@@ -138,7 +139,8 @@ HELPER HitRecord path_trace(const SceneView* scene, const PathState* p, LaneCoun
 
 /* path_trace for entry i of a stream of paths, its hit stored at entry i of a stream of hits:
  * the trace kernels of the wavefront techniques (pt_compact_regen, extend_in_place.h). */
-HELPER void path_trace_entry(const SceneView* scene, PathStateSoA paths, HitRecordSoA hits, int i, LaneCounters* count) {
+HELPER void path_trace_entry(const SceneView* scene, PathStateSoA paths, HitRecordSoA hits, int i,
+                             LaneCounters* count) {
     PathState p = path_state_load(paths, i);
     HitRecord hit = path_trace(scene, &p, count);
     hit_record_store(hits, i, &hit);

@@ -7,7 +7,7 @@
  *      index of sample i's first connection, and the total is the number of work-items;
  *   3. work-item g finds its sample by binary search: the LAST slot whose first index is <= g
  *      (slots with no connections share their first index with the next slot); its local
- *      index g - firsts[slot] picks the strategy (scene, t) with connection_strategy (cl/bdpt.h).
+ *      index g - firsts[slot] picks the strategy (s, t) with connection_strategy (cl/bdpt.h).
  * Worked example: counts [0, 3, 0, 2] scan to firsts [0, 0, 3, 3], total 5.
  *   g = 0, 1, 2 -> slot 1, local 0, 1, 2;   g = 3, 4 -> slot 3, local 0, 1.
  * Fill in the regions marked TODO; keep the names and arguments of the kernels and of find_sample. */
