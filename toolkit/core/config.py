@@ -60,6 +60,14 @@ class Config:
     user_name: str = None
 
 
+def checked_lanes(value, what="lanes"):
+    """None, "on" or "off" (the values of TOOLKIT_LANES and of every lanes option); anything else an
+    InputError that names `what`."""
+    if value is None or value in LANES:
+        return value
+    raise InputError(f"{what} must be 'on' or 'off', got {value!r}")
+
+
 def config(environ=None):
     """The Config of `environ` (default: this process's environment, read now)."""
     environ = os.environ if environ is None else environ
@@ -75,9 +83,7 @@ def config(environ=None):
             raise InputError(f"{name} must be 1 or 0, got {value!r}")
         return YES_NO[value.strip()]
 
-    lanes = text("TOOLKIT_LANES")
-    if lanes is not None and lanes not in LANES:
-        raise InputError(f"TOOLKIT_LANES must be 'on' or 'off', got {lanes!r}")
+    lanes = checked_lanes(text("TOOLKIT_LANES"), "TOOLKIT_LANES")
     hidden = tuple(part.strip().lower() for part in (text("TOOLKIT_HIDE_PLATFORMS") or "").split(",") if part.strip())
     return Config(cache_dir=text("TOOLKIT_CACHE_DIR"), hide_platforms=hidden, lanes=lanes,
                     no_pip_runtimes=yes_no("TOOLKIT_NO_PIP_RUNTIMES", False), verbose=yes_no("TOOLKIT_VERBOSE", False),

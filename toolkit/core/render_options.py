@@ -12,7 +12,7 @@ from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
-from toolkit.core.config import LANES
+from toolkit.core.config import checked_lanes
 from toolkit.core.layout import BVH_KINDS, LOCAL_SIZE
 from toolkit.core.validate import InputError, local_size, whole_number
 
@@ -81,8 +81,7 @@ def checked_fields(options):
         raise InputError(f"warp_width must be a power of two up to 128, got {o.warp_width!r}")
     if o.bvh not in BVH_KINDS:
         raise InputError(f"bvh must be one of {', '.join(BVH_KINDS)}, got {o.bvh!r}")
-    if o.lanes is not None and o.lanes not in LANES:
-        raise InputError(f"lanes must be 'on' or 'off', got {o.lanes!r}")
+    checked_lanes(o.lanes)
     if not isinstance(o.technique_options, dict):
         raise InputError(f"technique_options must be a dict, got {type(o.technique_options).__name__}")
     for name in SWITCHES:

@@ -4,7 +4,7 @@ message the page shows; the command line's go through the same checks before the
 from dataclasses import dataclass, replace
 
 from toolkit.core.validate import InputError
-from toolkit.opencl.lanes import checked as checked_lanes
+from toolkit.core.config import checked_lanes
 from toolkit.techniques import TECHNIQUES
 
 MOST_TECHNIQUES = 3          # side by side

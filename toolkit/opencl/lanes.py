@@ -35,7 +35,7 @@ a branch and a store per lane (why cl/bvh.h pushes its stack without branches).
 """
 import re
 
-from toolkit.core.config import LANES, config
+from toolkit.core.config import LANES, checked_lanes, config
 from toolkit.core.validate import InputError
 from toolkit.opencl.device_model import is_gpu
 
@@ -55,13 +55,6 @@ LANES_ON_PREFIX = ("/* lanes on (toolkit/opencl/lanes.py): work-items as the {wi
                    "#define kernel __kernel\n")
 
 _VECTORIZED = re.compile(r'Kernel "(\w+)" was (?:successfully vectorized \((\d+)\)|not vectorized)')
-
-
-def checked(value, what="lanes"):
-    """None, "on" or "off"; anything else an InputError that names `what`."""
-    if value is None or value in SETTINGS:
-        return value
-    raise InputError(f"{what} must be 'on' or 'off', got {value!r}")
 
 
 def preferred():
@@ -90,7 +83,7 @@ def setting_for(device, asked=None):
     """What a build on `device` gets: "on" or "off" (Intel's CPU runtime), HARDWARE (a GPU) or
     None (the implementation decides and does not say). `asked`: an explicit choice, which the
     device must be able to follow; TOOLKIT_LANES applies where the toolkit can choose."""
-    asked = checked(asked)
+    asked = checked_lanes(asked)
     if can_choose(device):
         wanted = asked or preferred()
         fixed, variable = fixed_by_environment()
