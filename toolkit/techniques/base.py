@@ -32,8 +32,6 @@ class Technique:
     family = None    # "pt" (path tracing) or "bdpt" (bidirectional): what a technique's samples are
     # Work-items per launch we aim for: enough to fill a GPU, small enough to read back often.
     target_batch = 1 << 18
-    # Whether shadow rays go to a queue traced by a kernel of their own (counted there).
-    shadow_queue = False
     _collecting = None   # (film, host sums, read event, samples per pixel) of the pass collect queued last
     film_reduction = None   # the FilmReduction of collect, made at its first pass
 

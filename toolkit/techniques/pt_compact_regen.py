@@ -55,6 +55,7 @@ class PtCompactRegen(Technique):
         if compaction not in ("immediate", "multipass"):
             raise ValueError(f"compaction must be 'immediate' or 'multipass', not {compaction!r}")
         self.compaction = compaction
+        # immediate: shadow rays go to a queue traced (and counted) by a kernel of their own
         self.shadow_queue = compaction == "immediate"
         multipass = compaction == "multipass"
         self.compactor = Compactor(self.queue, self.local_size, self.sources.toolkit_only()) if multipass else None

@@ -40,11 +40,11 @@ class PtNaive(Technique):
         if not self.count_simd:
             return
         lanes = self.memory.read_lane_counts(lane_counts, n)
-        iterations, record = lanes["work"], self.recorder
+        iterations, recorder = lanes["work"], self.recorder
         # Every lane generates its camera ray once; then the loop runs as long as the warp's longest path.
-        record.simd.add_stream_step("generate", np.ones(n, bool))
-        record.loop("extend", iterations)
+        recorder.simd.add_stream_step("generate", np.ones(n, bool))
+        recorder.loop("extend", iterations)
         # A shadow ray is cast once per vertex at most; the warp issues the shadow step in each of its iterations.
-        record.simd.add_warp_loops("shadow", iterations, active=lanes["shadow_rays"].sum())
-        record.traversal.add_warp_loops("closest", lanes["closest_steps"])
-        record.traversal.add_warp_loops("shadow", lanes["shadow_steps"])
+        recorder.simd.add_warp_loops("shadow", iterations, active=lanes["shadow_rays"].sum())
+        recorder.traversal.add_warp_loops("closest", lanes["closest_steps"])
+        recorder.traversal.add_warp_loops("shadow", lanes["shadow_steps"])
