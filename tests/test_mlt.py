@@ -19,6 +19,7 @@ import toolkit
 from toolkit.measure import mlt_bias
 from toolkit.verify import mlt_toy
 from toolkit.api import DroppedSamplesWarning
+from toolkit.core.stats import bonferroni, student_t_two_sided_p
 from toolkit.measure.reference import reference_at, relative_mean_error, z_test
 from toolkit.techniques.mlt import SMALL_STEP
 from toolkit.core.validate import InputError
@@ -78,34 +79,33 @@ def test_small_steps_alone_keep_the_target_invariant(queue):
 # -- (b) agreement with the references ------------------------------------------------------------
 
 # 11 seeds (the z-test wants >= 10 degrees of freedom), each an independent MLT render at 8x8
-# (every pixel a region of the reference: 32x32 reference pixels, 8x8 for covered_lamp).
-# start = resample removes the startup bias in expectation (measured: bias^2 below its noise).
-# The image mean's luminance equals the estimate of b, a mean over the large steps (plain
-# BDPT samples), so its error is BDPT's for that many samples: covered_lamp's per-sample
-# relative deviation is ~2.9 (measured), and 32 candidates x 1024 chains x 11 seeds = 360k
-# large steps give it a standard error of ~0.5%; the others' is ~0.2%.
-# covered_lamp starts from the pool of all chains' candidates (start = pool: no weights, a
-# start bias of O(1 / 32k candidates)); with start = naive these settings (4 mutations per
-# chain) leave its mean 46% off (measured, 11 seeds), which this test fails.
+# (every pixel a region of the reference: 32x32 reference pixels, 8x8 for covered_lamp), at 256
+# mutations per pixel with the default options: the chain count the device gets (2,048 on a
+# 2-core CPU, so 8 mutations per chain) and the default start (pool). The naive start fails here
+# (cornell_spheres, 32x32, 11 seeds: worst |z| 19.7; results/issue48_mlt_start.md).
+# The image mean's luminance equals the estimate of b, a mean over the large steps (plain BDPT
+# samples), so its error is BDPT's for that many samples; the mean is tested against the
+# reference's with the standard error of the 11 runs' means and the reference's (Student's t, 10 degrees of freedom,
+# Bonferroni over the three channels at alpha 0.01).
 SEEDS = 11
-AGREEMENT = {"cornell_box": dict(spp=64, chains=1024, candidates=8, start="resample"),
-             "cornell_spheres": dict(spp=64, chains=1024, candidates=8, start="resample"),
-             "covered_lamp": dict(spp=64, chains=1024, candidates=32, start="pool")}
+AGREEMENT_SPP = 256
 
 
-@pytest.mark.parametrize("scene_name", sorted(AGREEMENT))
+@pytest.mark.parametrize("scene_name", ["cornell_box", "cornell_spheres", "covered_lamp", "door_ajar"])
 def test_mlt_agrees_with_the_reference_over_independent_runs(scene_name):
     scene = toolkit.load_scene(ROOT / "scenes" / scene_name)
-    settings = dict(AGREEMENT[scene_name])
-    spp = settings.pop("spp")
-    images = np.array([render(scene, spp, seed, 8, **settings).image for seed in range(SEEDS)])
+    images = np.array([render(scene, AGREEMENT_SPP, seed, 8).image for seed in range(SEEDS)])
     ref, ref_err = reference_at(scene, 8, 8)
     mean, stderr = images.mean(0), images.std(0, ddof=1) / np.sqrt(SEEDS)
     rel = relative_mean_error(mean, ref)
-    mean_se = images.reshape(SEEDS, -1, 3).mean(1).std(0, ddof=1) / np.sqrt(SEEDS) / ref.reshape(-1, 3).mean(0)
+    means = images.reshape(SEEDS, -1, 3).mean(1)
+    ref_mean = ref.reshape(-1, 3).mean(0)
+    ref_mean_se = np.sqrt((ref_err.reshape(-1, 3) ** 2).sum(0)) / (ref.size // 3)   # its pixels' errors are independent
+    mean_t = (means.mean(0) - ref_mean) / np.hypot(means.std(0, ddof=1) / np.sqrt(SEEDS), ref_mean_se)
+    mean_p = student_t_two_sided_p(mean_t, SEEDS - 1)
     test = z_test(mean, stderr, ref, ref_err, alpha=0.01, dof=SEEDS - 1)
-    print(f"mlt {scene_name}: {test}; mean rel error {np.round(rel, 4)} (its standard error {np.round(mean_se, 4)})")
-    assert np.all(rel < 0.01), f"mean off by {rel}"
+    print(f"mlt {scene_name}: {test}; mean rel error {np.round(rel, 4)}, its t {np.round(mean_t, 2)}")
+    assert mean_p.min() > bonferroni(0.01, 3), f"image mean off by {rel} (t = {mean_t})"
     assert test.passed, str(test)
 
 

@@ -70,8 +70,9 @@ class ProgressiveRender:
 
 
 class ProgressiveMetropolis(ProgressiveRender):
-    """mlt: its chains start once (the talk's naive start: biased at first) and then mutate for as
-    long as the view runs; each advance() runs iterations for about pass_seconds."""
+    """mlt: its chains start once (the technique's `start`; by default from the pool of all chains'
+    candidates) and then mutate for as long as the view runs; each advance() runs iterations for
+    about pass_seconds."""
 
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
