@@ -17,9 +17,14 @@ import sys
 import threading
 import webbrowser
 
-import panel as pn
-from tornado.ioloop import IOLoop
-from tornado.iostream import StreamClosedError
+# Bokeh's and Panel's files come from this server, never from a CDN: the page works offline, and a
+# style sheet that Panel would otherwise take from its CDN (loading.css, made in a callback where
+# Bokeh's own default, "cdn", applies) cannot fail to load.
+os.environ.setdefault("BOKEH_RESOURCES", "server")
+
+import panel as pn  # noqa: E402 (after the setting above)
+from tornado.ioloop import IOLoop  # noqa: E402
+from tornado.iostream import StreamClosedError  # noqa: E402
 from tornado.websocket import WebSocketClosedError
 
 from toolkit.demo.view import DemoView
@@ -80,7 +85,11 @@ class DemoServer:
 
     def new_tab(self):
         """A session's page: its own view and render thread, stopped with the session."""
-        view = DemoView(self.scenes, self.settings, self.device).start()
+        view = DemoView(self.scenes, self.settings, self.device)
+        # Redraws start once the browser has the page: a redraw that adds figures (the first
+        # frame's) sent before the page's document reached the browser referred to models the
+        # browser did not know yet ("reference ... isn't known"), and that tab never showed an image.
+        pn.state.onload(view.start)
         self.views.add(view)
         self.ever_opened = True
         pn.state.on_session_destroyed(lambda context: self.tab_closed(view))

@@ -119,6 +119,10 @@ class DemoView:
 
     def refresh(self):
         """Redraw what changed since the last look; returns True if anything did."""
+        with pn.io.hold():
+            return self._refresh()
+
+    def _refresh(self):
         snap = self.worker.snapshot()
         if snap.version == self.shown_version:
             return False
