@@ -1,6 +1,6 @@
 """`python -m toolkit bench`: samples/s of each technique and their ratios, measured in one run;
 or instead, with one option each: equal-time errors (--equal-time), the kernels specialized to the
-scene against the general one (--specialization), or a peer renderer beside ours (--peer)."""
+scene against the general one (--specialization), or a peer renderer beside ours (--peer), or what the host spends per sample (--host)."""
 import json
 import sys
 
@@ -10,6 +10,7 @@ from toolkit.cli.options import (BVH, DEVICE, GENERAL, LANES_BOTH, SCENE, TECHNI
 from toolkit.core.validate import finite_number, whole_number
 from toolkit.measure import specialization
 from toolkit.measure.bench import DEFAULT, bench, format_bench
+from toolkit.measure.host_meter import HOST_DEFAULT, format_host_meter, host_meter
 from toolkit.measure.reference import reference_at
 from toolkit.measure.study import equal_time, format_equal_time
 from toolkit.opencl.device import get_queue
@@ -36,15 +37,26 @@ def add_command(sub):
                    help="instead: the kernels specialized to the scene against the general kernel, on SCENE or "
                         "every bundled scene: samples/s, uncached build time, binary size (default techniques "
                         "pt_naive,pt_compact_regen,bdpt_parallel_connect; resolution 64x64)")
+    p.add_argument("--host", action="store_true",
+                   help="instead: the host meter: each technique rendered at N and 4N samples per pixel (N: --spp "
+                        "for path tracers, a quarter of it for BDPT and mlt), and what the 3N more samples cost the "
+                        "host: CPU time, bytes read back and written, blocking reads, launches, the kernels' share "
+                        f"(default techniques {','.join(HOST_DEFAULT)}; resolution 256x256)")
+    p.add_argument("--gpu-sizes", action="store_true",
+                   help="with --host: render at a GPU's stream, pool and chain sizes (the H200's), whatever the device")
     p.add_argument("--json", action="store_true")
     p.set_defaults(run=cmd_bench)
 
 
 def cmd_bench(args):
     whole_number("bench.repeats", args.repeats, "--repeats")
-    if args.lanes and (args.peer or args.specialization or args.equal_time is not None):
-        raise ValueError("--lanes applies to the samples/s bench only, not to --peer, --specialization or "
-                         "--equal-time")
+    if args.lanes and (args.peer or args.specialization or args.equal_time is not None or args.host):
+        raise ValueError("--lanes applies to the samples/s bench only, not to --peer, --specialization, "
+                         "--equal-time or --host")
+    if args.gpu_sizes and not args.host:
+        raise ValueError("--gpu-sizes applies to the host meter only (--host)")
+    if args.host:
+        return cmd_bench_host(args)
     if args.peer:
         return cmd_bench_peer(args)
     if args.specialization:
@@ -55,6 +67,17 @@ def cmd_bench(args):
     report = bench(args.scene, tuple(technique_list(args.techniques or ",".join(DEFAULT))),
                    render_options(args, lanes=None), repeats=args.repeats, lanes=args.lanes or (None,))
     print(format_bench(report))
+    if args.json:
+        print(json.dumps(report))
+    return 0
+
+
+def cmd_bench_host(args):
+    if args.peer or args.specialization or args.equal_time is not None:
+        raise ValueError("--host is a bench of its own: not with --peer, --specialization or --equal-time")
+    report = host_meter(args.scene, tuple(technique_list(args.techniques or ",".join(HOST_DEFAULT))),
+                        render_options(args, lanes=None), spp=args.spp, gpu_sizes=args.gpu_sizes)
+    print(format_host_meter(report))
     if args.json:
         print(json.dumps(report))
     return 0
