@@ -137,3 +137,32 @@ def format_prediction(prediction):
     for label, r in prediction["ratios"].items():
         lines.append(f"| {label} ({r['of']}) | {r['wall']:.2f}x | {r['kernels']:.2f}x | {r['talk']:.2f}x |")
     return "\n".join(lines)
+
+
+def against_measured(renders, gpucheck, host_speed=1.0):
+    """The model's validation: {technique: predicted and measured wall seconds of one render, and their
+    ratio}. `renders`: {technique: the meter's figures of one render on this CPU, with its samples and
+    kernel seconds} of the code the GPU ran, at the settings of the GPU's bench (gpucheck's "bench":
+    one render of the same samples; its samples/s gives the measured wall time)."""
+    cpu_kernel = {name: r["kernel_seconds"] / r["samples"] * 1e9 for name, r in renders.items()}
+    measured_rates = {name: row["samples_per_second"] for name, row in gpucheck["bench"]["techniques"].items()}
+    out = {}
+    for name, r in renders.items():
+        if name not in measured_rates:
+            continue
+        kernel_ns, source = kernel_ns_on_gpu(name, gpucheck, cpu_kernel)
+        predicted = predict_render(r, kernel_ns * 1e-9 * r["samples"], host_speed)
+        measured = r["samples"] / measured_rates[name]
+        out[name] = {"predicted_seconds": predicted, "measured_seconds": measured, "ratio": predicted / measured,
+                     "kernel_source": source}
+    return out
+
+
+def format_validation(checked):
+    """against_measured's figures as a Markdown table."""
+    lines = ["| technique | predicted wall (ms) | measured on the GPU (ms) | predicted / measured | kernels from |",
+             "|---|---:|---:|---:|---|"]
+    for name, r in checked.items():
+        lines.append(f"| {name} | {r['predicted_seconds'] * 1e3:,.1f} | {r['measured_seconds'] * 1e3:,.1f} | "
+                     f"{r['ratio']:.2f} | {r['kernel_source']} |")
+    return "\n".join(lines)

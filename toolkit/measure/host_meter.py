@@ -154,3 +154,17 @@ def format_host_meter(report):
                  "device's queue was empty (from a blocking read, finish or wait to the next launch); blocking: "
                  "blocking reads and writes; per pass: in the 4N render. Kernels: OpenCL profiling events.")
     return "\n".join(lines)
+
+
+def markdown_table(report):
+    """The report's figures per technique as a Markdown table (for a results note)."""
+    lines = ["| technique | N, 4N spp | kernels 4N (s) | kernels' share of wall | host CPU ns/sample | of it serial | "
+             "bytes read/sample | bytes written/sample | reads/M samples | blocking/M samples | launches/M samples | "
+             "blocking/pass | launches/pass |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for name, r in report["techniques"].items():
+        lines.append(f"| {name} | {r['spp'][0]}, {r['spp'][1]} | {r['renders'][1]['kernel_seconds']:.2f} | "
+                     f"{r['kernel_share']:.0%} | {r['host_cpu_ns_per_sample']:,.1f} | {r['serial_ns_per_sample']:,.1f} | "
+                     f"{r['read_bytes_per_sample']:,.2f} | {r['write_bytes_per_sample']:,.2f} | "
+                     f"{r['reads_per_million']:,.1f} | {r['blocking_per_million']:,.1f} | "
+                     f"{r['launches_per_million']:,.1f} | {r['blocking_per_pass']:,.1f} | {r['launches_per_pass']:,.1f} |")
+    return "\n".join(lines)
