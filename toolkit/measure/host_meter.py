@@ -123,15 +123,10 @@ def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_si
         n = spp_of(technique, spp)
         first = metered_render(scene, technique, with_fields(base, spp=n))
         second = metered_render(scene, technique, with_fields(base, spp=GROWTH * n))
-        report["device"] = render_device(scene, base)
+        report["device"] = describe(get_queue(base.device, base.lanes).device)
         report["techniques"][technique] = {"spp": [n, GROWTH * n], "renders": [first, second],
                                            **costs(first, second)}
     return report
-
-
-def render_device(scene, options):
-    """The device's description as render's stats give it."""
-    return describe(get_queue(options.device, options.lanes).device)
 
 
 def format_host_meter(report):
