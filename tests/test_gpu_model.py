@@ -72,6 +72,9 @@ def test_the_prediction_for_todays_code_and_its_command(capsys):
     assert main(["bench", "--predict-gpu", str(H200), "--meter", str(METER), "--cpu-meter", str(CPU_METER),
                  "--json"]) == 0
     out = capsys.readouterr().out
+    assert main(["bench", "--predict-gpu", str(H200), "--meter", str(METER), "--host-speed", "0.5", "--json"]) == 0
+    faster = json.loads(capsys.readouterr().out.strip().splitlines()[-1])["techniques"]["bdpt_parallel_connect"]
+    assert faster["host_ns"] == pytest.approx(rows["bdpt_parallel_connect"]["host_ns"] / 2)
     assert "a model, not a measurement" in out and json.loads(out.strip().splitlines()[-1]) == json.loads(json.dumps(prediction))
 
 
@@ -83,6 +86,7 @@ def test_bad_reports_are_refused_with_exit_code_2(tmp_path, capsys):
                           (["--predict-gpu", str(tmp_path / "list.json")], "holds no report"),
                           (["--predict-gpu", str(METER)], "not a gpucheck report"),
                           (["--predict-gpu", str(H200), "--meter", str(H200)], "not a host meter report"),
-                          (["--meter", str(METER)], "go with --predict-gpu")):
+                          (["--meter", str(METER)], "go with --predict-gpu"),
+                          (["--predict-gpu", str(H200), "--meter", str(METER), "--host-speed", "0"], "above 0")):
         assert main(["bench", *argv]) == 2, argv
         assert message in capsys.readouterr().err

@@ -54,6 +54,9 @@ def add_command(sub):
                                                    "--json's last line) instead of measuring one")
     p.add_argument("--cpu-meter", metavar="JSON", help="with --predict-gpu: a host meter report at the CPU's own sizes, "
                                                        "for this CPU's samples/s (default: --meter's)")
+    p.add_argument("--host-speed", type=number, default=1.0, metavar="FACTOR",
+                   help="with --predict-gpu: the GPU machine's host time over this one's for the same work "
+                        "(default 1; 0.5: a host twice as fast)")
     p.add_argument("--json", action="store_true")
     p.set_defaults(run=cmd_bench)
 
@@ -65,8 +68,8 @@ def cmd_bench(args):
                          "--equal-time or --host")
     if args.gpu_sizes and not args.host:
         raise ValueError("--gpu-sizes applies to the host meter only (--host)")
-    if (args.meter or args.cpu_meter) and not args.predict_gpu:
-        raise ValueError("--meter and --cpu-meter go with --predict-gpu")
+    if (args.meter or args.cpu_meter or args.host_speed != 1.0) and not args.predict_gpu:
+        raise ValueError("--meter, --cpu-meter and --host-speed go with --predict-gpu")
     if args.predict_gpu:
         return cmd_bench_predict(args)
     if args.host:
@@ -113,9 +116,12 @@ def cmd_bench_predict(args):
     for report, option in ((meter, "--meter"), (cpu_meter, "--cpu-meter")):
         if report is not None and "techniques" not in report:
             raise InputError(f"{option}: not a host meter report (bench --host --json's last line)")
-    prediction = gpu_model.predict(meter, gpucheck, cpu_meter)
+    if not 0 < args.host_speed <= 1000:   # also refuses nan and inf
+        raise InputError(f"--host-speed must be above 0 and at most 1000 (the GPU machine's host time over this "
+                         f"one's), got {args.host_speed:g}")
+    prediction = gpu_model.predict(meter, gpucheck, cpu_meter, host_speed=args.host_speed)
     print(f"predicted for {prediction['gpu']} (a model, not a measurement: toolkit/measure/gpu_model.py states its "
-          f"assumptions), from the host meter on {prediction['cpu']}; ns per sample")
+          f"assumptions), from the host meter on {prediction['cpu']}, host speed x{args.host_speed:g}; ns per sample")
     print(gpu_model.format_prediction(prediction))
     if args.json:
         print(json.dumps(prediction))
