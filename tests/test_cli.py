@@ -186,3 +186,14 @@ def test_equal_time_report_says_what_a_bdpt_sample_costs_and_is_worth():
     assert "best BDPT / best PT RMSE, whole image: 0.80" in text
     # cost (10/200) / (10/1000) = 5.0; worth (0.01^2 * 1000) / (0.008^2 * 200) = 7.8
     assert "one bdpt_parallel_connect sample costs 5.0 pt_naive samples here and is worth 7.8 of them" in text
+
+
+def test_compare_renders_mlt_alone(tmp_path):
+    """mlt alone used to stop at the phase plot (a figure of no rows: `Number of rows must be a positive
+    integer, not 0`, exit 2); the plot has panels for the path tracers and BDPT only, so it is left out."""
+    result = run_cli("compare", "--techniques", "mlt", "--resolution", "8x8", "--spp", "2", "--no-progress",
+                     "--json", "--out", str(tmp_path))
+    assert result.returncode == 0, result.stderr
+    table = json.loads(result.stdout.strip().splitlines()[-1])
+    assert list(table) == ["mlt"] and table["mlt"]["nonfinite"] == 0
+    assert "phases" not in table["mlt"]["plots"] and Path(table["mlt"]["out"]).is_file()

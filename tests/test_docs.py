@@ -218,3 +218,84 @@ def test_pages_in_a_browser(served):
     assert any("techniques/pt_compact_regen.html" in href for href in found), found[:10]
     errors += console_errors(log)
     assert not errors, errors
+
+
+# Imports the tutorials reach that belong to another extra on purpose, each behind its own option
+# (none of the tutorials' cells takes it): Dask for `study --scheduler`, Mitsuba for `bench --peer`.
+OTHER_EXTRAS = {"distributed": "cluster", "mitsuba": "peers"}
+
+
+def _requirements(section, key):
+    """The distribution names one setup.cfg list names (comments and markers left out)."""
+    import configparser
+    from packaging.requirements import Requirement
+    config = configparser.ConfigParser()
+    config.read(ROOT / "setup.cfg")
+    lines = [line.split("#")[0].strip() for line in config[section][key].splitlines()]
+    return {Requirement(line).name.lower().replace("_", "-") for line in lines if line}
+
+
+def _with_dependencies(names):
+    """`names` and every distribution they require, as installed here (markers evaluated, extras not)."""
+    from importlib import metadata
+    from packaging.requirements import Requirement
+    found, todo = set(), list(names)
+    while todo:
+        name = todo.pop()
+        if name in found:
+            continue
+        found.add(name)
+        try:
+            requires = metadata.requires(name) or []
+        except metadata.PackageNotFoundError:
+            continue
+        for text in requires:
+            requirement = Requirement(text)
+            if requirement.marker is None or requirement.marker.evaluate({"extra": ""}):
+                todo.append(requirement.name.lower().replace("_", "-"))
+    return found
+
+
+def _imports(source):
+    """The modules a piece of Python imports (absolute imports, wherever they stand)."""
+    import ast
+    tree = ast.parse("\n".join(line for line in source.splitlines() if not line.lstrip().startswith(("%", "!"))))
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            yield from (alias.name for alias in node.names)
+        elif isinstance(node, ast.ImportFrom) and node.module and not node.level:
+            yield node.module
+            yield from (f"{node.module}.{alias.name}" for alias in node.names)
+
+
+def test_the_docs_extra_carries_what_the_tutorials_import():
+    """`pip install ".[docs]"` then the README's build command executes every tutorial: every module
+    they import, and every module of the toolkit they import imports in turn (at its top or inside a
+    function), must come with Python, the toolkit's requirements or the docs extra. (The build failed
+    on a fresh environment at tutorial 01's live view: Panel was only in the test extra.)"""
+    import json
+    from importlib import metadata
+    allowed = _with_dependencies(_requirements("options", "install_requires") | _requirements("options.extras_require", "docs"))
+    distributions = {module: {d.lower().replace("_", "-") for d in dists}
+                     for module, dists in metadata.packages_distributions().items()}
+    seen, todo, third_party = set(), [], {}
+    for notebook in NOTEBOOKS:
+        cells = json.loads(notebook.read_text())["cells"]
+        todo += [(name, notebook.name) for cell in cells if cell["cell_type"] == "code"
+                 for name in _imports("".join(cell["source"]))]
+    while todo:
+        name, where = todo.pop()
+        top = name.split(".")[0]
+        if name in seen or top in sys.stdlib_module_names or top in OTHER_EXTRAS:
+            continue
+        seen.add(name)
+        if top != "toolkit":
+            third_party.setdefault(top, where)
+            continue
+        path = ROOT.joinpath(*name.split("."))
+        for file in (path / "__init__.py", path.with_suffix(".py")):
+            if file.is_file():
+                todo += [(imported, str(file.relative_to(ROOT))) for imported in _imports(file.read_text())]
+    assert {"panel", "numpy", "pyopencl"} <= set(third_party)   # the walk found the toolkit's own imports
+    missing = {top: where for top, where in third_party.items() if not distributions.get(top, set()) & allowed}
+    assert not missing, f"imported by the tutorials (module: where) but not in the docs extra: {missing}"

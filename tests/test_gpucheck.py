@@ -16,6 +16,7 @@ from toolkit.cli import main
 from toolkit.opencl.device import get_queue
 from toolkit.opencl.device_model import device_warp_width
 from toolkit.opencl.work_sizes import device_work_sizes
+from toolkit.measure.host_meter import HOST_DEFAULT
 
 
 @pytest.fixture(scope="module")
@@ -54,7 +55,12 @@ def test_fast_gpucheck_passes_and_reports_what_the_issue_asks(fast_run):
         assert report["ratios"][label]["ratio"] == pytest.approx(rates[a]["samples_per_second"] /
                                                                  rates[b]["samples_per_second"])
     assert report["compare"]["pt_compact_regen"]["simd_efficiency"]["overall"] > 0
+    host = report["host_meter"]
+    assert set(host["techniques"]) == set(HOST_DEFAULT) and host["resolution"] == [32, 32]
+    for row in host["techniques"].values():   # the host meter's figures (tests/test_host_meter.py checks its counts)
+        assert row["launches_per_pass"] > 0 and 0 < row["kernel_share"] <= 1 and row["read_bytes_per_sample"] >= 0
     text = out.read_text()
+    assert "host meter: cornell_box 32x32" in text
     assert f"stream {sizes.stream_size:,} paths" in text and "talk 1.20x" in text and "talk 1.15x" in text
     if not d["gpu"]:
         assert "GPU against CPU: only a CPU here" in text and not report["gpu_vs_cpu"]["measured"]

@@ -15,7 +15,10 @@ above them:
 6. GPU against CPU where the machine has both (talk: a GPU 8-18x a CPU);
 7. time per phase (kernel) of the four techniques behind the talk's two ratios, beside their
    SIMD efficiency (toolkit/measure/phases.py): where a ratio falls short, which phase costs;
-8. without --fast, samples/s against the stream size, the pool size and MLT's chain count, from
+8. the host meter (toolkit/measure/host_meter.py): per technique, what the host spends per sample
+   (CPU time, bytes read back and written, blocking reads, launches) and the kernels' share of the
+   wall time, at the device's own sizes;
+9. without --fast, samples/s against the stream size, the pool size and MLT's chain count, from
    a sixteenth of the device's choice to twice it: whether the chosen sizes fill the device.
 
 Step 2 also compares with CPU reference images carried from another machine, where given
@@ -42,6 +45,7 @@ from toolkit.core.scene import bundled_scene_dir
 from toolkit.core.validate import InputError, writable_file
 from toolkit.measure.bench import bench
 from toolkit.measure.compare import compare
+from toolkit.measure.host_meter import HOST_DEFAULT, format_host_meter, host_meter
 from toolkit.opencl import device as devices
 from toolkit.opencl.device_model import device_warp_width
 from toolkit.opencl.work_sizes import device_work_sizes
@@ -61,7 +65,8 @@ SWEEP_FACTORS = (1 / 16, 1 / 8, 1 / 4, 1 / 2, 1, 2)     # of the device's stream
 COMPARE_TECHNIQUES = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "bdpt_naive_connect",
                       "bdpt_parallel_connect")
 FAST = {"same_resolution": (16, 16), "same_spp": 8, "rays": 2000, "bench_resolution": (32, 32), "bench_spp": 8,
-        "repeats": 1, "compare_resolution": (24, 24), "compare_spp": 8, "scenes": ("cornell_box",)}
+        "repeats": 1, "compare_resolution": (24, 24), "compare_spp": 8, "scenes": ("cornell_box",),
+        "host_resolution": (32, 32), "host_spp": 4}
 
 
 def side_for(samples, spp, multiple=16):
@@ -79,7 +84,9 @@ def settings(sizes, fast):
     return {"same_resolution": (same, same), "same_spp": 8, "rays": 100_000,
             "bench_resolution": (side_for(8 * sizes.stream_size, 16),) * 2, "bench_spp": 16, "repeats": 3,
             "compare_resolution": (side_for(8 * sizes.stream_size, 64),) * 2, "compare_spp": 64,
-            "scenes": ("cornell_box", "cornell_spheres")}
+            "scenes": ("cornell_box", "cornell_spheres"),
+            # the host meter's (bench --host): path tracers at 16 and 64 spp, BDPT and mlt at 4 and 16
+            "host_resolution": (256, 256), "host_spp": 16}
 
 
 def run(device=None, fast=False, out_dir="out/gpucheck", log=None, cpu_reference_folder=None, save=None):
@@ -129,6 +136,11 @@ def run(device=None, fast=False, out_dir="out/gpucheck", log=None, cpu_reference
     report["gpu_vs_cpu"] = gpu_vs_cpu(dev, report["device"]["gpu"], report["bench"], s, box, log)
     step_done()
     report["phases"] = _phase_step(box, device, s, log)
+    step_done()
+    res = s["host_resolution"]
+    log(f"[+] host meter: {', '.join(HOST_DEFAULT)}, {res[0]}x{res[1]}, N = {s['host_spp']} spp (BDPT and mlt "
+        f"{max(1, s['host_spp'] // 4)}) and 4N")
+    report["host_meter"] = host_meter(box, HOST_DEFAULT, spp=s["host_spp"], resolution=res, device=device)
     step_done()
     if not fast:
         report["sweep"] = _sweep_step(box, device, sizes, s, log)
@@ -298,6 +310,8 @@ def format_report(r):
         lines.append(f"GPU against CPU: {g['note']}")
     if "phases" in r:
         lines += _phase_lines(r["phases"])
+    if "host_meter" in r:
+        lines += ["", format_host_meter(r["host_meter"])]
     if "sweep" in r:
         lines += _sweep_lines(r["sweep"])
     failed = sum(not c["passed"] for c in r["checks"])

@@ -11,7 +11,7 @@ from toolkit.api import as_scene, render
 from toolkit.core.images import to_srgb8, write_image
 from toolkit.core.render_options import with_fields
 from toolkit.core.validate import writable_folder
-from toolkit.measure.phase_plot import save_phase_plot
+from toolkit.measure.phase_plot import FAMILIES as PHASE_FAMILIES, save_phase_plot
 from toolkit.measure.phases import format_phases, name_width, phase_rows
 from toolkit.techniques import get_technique
 from toolkit.measure.reference import reference_at, rmse
@@ -26,7 +26,8 @@ def compare(scene, techniques, spp=None, options=None, out_dir="out/compare", pl
     the device's, and each row says which), with `spp` and any other of its fields as keywords on
     top, as toolkit.render takes them. Each row also has its time per phase (kernel) beside its lane
     efficiency ("phases", toolkit/measure/phases.py), all from this one run (time_phases);
-    `phase_plot`: where the figure of them goes (default <out_dir>/<scene>_phases.png, with the other plots)."""
+    `phase_plot`: where the figure of them goes (default <out_dir>/<scene>_phases.png, with the other plots;
+    none when no technique has a panel in it: mlt alone)."""
     options = with_fields(options, **fields, **({} if spp is None else {"spp": spp}))
     out_dir = writable_folder(out_dir)      # before the renders: a bad folder must not cost their time
     scene = as_scene(scene)
@@ -63,7 +64,9 @@ def compare(scene, techniques, spp=None, options=None, out_dir="out/compare", pl
     if plots:
         plot_paths = save_plots(scene.name, results, ref, out_dir, next(iter(table.values()))["warp_width"])
         title = f"{scene.name} {width}x{height}, {options.spp} spp: time per phase and lane efficiency"
-        plot_paths["phases"] = str(save_phase_plot(phase_plot or out_dir / f"{scene.name}_phases.png", table, title))
+        if any(row["family"] in PHASE_FAMILIES for row in table.values()):   # mlt alone has no panel in it
+            plot_paths["phases"] = str(save_phase_plot(phase_plot or out_dir / f"{scene.name}_phases.png", table,
+                                                       title))
         for name in techniques:
             table[name]["plots"] = plot_paths
     return table

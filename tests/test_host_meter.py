@@ -1,0 +1,146 @@
+"""The host meter (issue 48, item 1): toolkit/opencl/traffic.py's counts on cases whose answer is
+known (a made-up sequence of commands; pt_naive's passes), the same counts from an independent
+counter (pyopencl's lower entry points in pyopencl._cl, and the profiling events of the launches),
+and `bench --host` on the command line."""
+import json
+
+import numpy as np
+import pyopencl as cl
+import pyopencl._cl as _cl
+import pytest
+
+from toolkit.api import render
+from toolkit.core.layout import FILM_PIXEL
+from toolkit.measure.host_meter import costs, metered_render, spp_of
+from toolkit.opencl import program
+from toolkit.opencl.traffic import Traffic
+from test_cli import run_cli
+
+# A tiny kernel of the test's own: the meter counts commands, whatever they run.
+ADD_ONE = "__kernel void add_one(__global int *x, int n) { int i = get_global_id(0); if (i < n) x[i] += 1; }"
+
+
+def test_a_known_sequence_of_commands_is_counted_exactly(queue):
+    kernel = cl.Kernel(cl.Program(queue.context, ADD_ONE).build(), "add_one")
+    n = 1000
+    host = np.zeros(n, np.int32)
+    buffer = cl.Buffer(queue.context, cl.mem_flags.READ_WRITE, 4 * n)
+    other = cl.Buffer(queue.context, cl.mem_flags.READ_WRITE, 4 * n)
+    with Traffic() as traffic:
+        cl.enqueue_copy(queue, buffer, host)                                  # a blocking write: 4,000 bytes
+        cl.enqueue_fill_buffer(queue, other, np.int32(0), 0, 4 * n)           # a fill: no host bytes
+        for _ in range(3):
+            program.launch(queue, kernel, n, buffer, np.int32(n), local_size=64)
+        cl.enqueue_copy(queue, host, buffer)                                  # a blocking read: a drain
+        program.launch(queue, kernel, n, buffer, np.int32(n), local_size=64)
+        early = cl.enqueue_copy(queue, host[:10], buffer, is_blocking=False)  # 40 bytes, not waited for yet
+        program.launch(queue, kernel, n, buffer, np.int32(n), local_size=64)
+        early.wait()                           # a kernel is queued behind it: not a drain
+        late = cl.enqueue_copy(queue, host, buffer, is_blocking=False)
+        late.wait()                            # the last command queued: a drain
+        cl.enqueue_copy(queue, other, buffer)                                 # on the device: no host bytes
+        queue.finish()                                                        # a drain
+    assert np.all(host == 5)
+    assert traffic.figures() | {"serial_seconds": 0, "cpu_seconds": 0} == {
+        "launches": 5, "fills": 1, "reads": 3, "blocking_reads": 1, "read_bytes": 4 * n + 40 + 4 * n,
+        "writes": 1, "blocking_writes": 1, "write_bytes": 4 * n, "device_copies": 1,
+        "drains": 4, "serial_seconds": 0, "cpu_seconds": 0}   # blocking write, blocking read, late.wait, finish
+    assert 0 < traffic.serial_seconds <= traffic.cpu_seconds
+    # Restored after: nothing counts outside the recording.
+    cl.enqueue_copy(queue, host, buffer)
+    assert traffic.reads == 3 and cl.enqueue_copy.__module__ == "pyopencl"
+
+
+def test_only_the_recording_thread_is_counted(queue):
+    import threading
+    host, buffer = np.zeros(4, np.int32), cl.Buffer(queue.context, cl.mem_flags.READ_WRITE, 16)
+    with Traffic() as traffic:
+        other = threading.Thread(target=lambda: cl.enqueue_copy(queue, host, buffer))
+        other.start()
+        other.join()
+        cl.enqueue_copy(queue, host, buffer)
+    assert traffic.reads == 1
+
+
+def test_pt_naive_known_counts_per_pass(cornell_box):
+    """pt_naive, counters off, one sample per pixel per pass: each pass fills its output, launches
+    its kernel and the film's sum (2 launches), and queues one asynchronous read of a FilmPixel per
+    pixel; no pass blocks. The extra passes of the second render cost exactly that."""
+    width, height = 8, 4
+    options = dict(resolution=(width, height), technique_options={"pass_spp": 1})
+    first = metered_render(cornell_box, "pt_naive", options_of(options, spp=2))
+    second = metered_render(cornell_box, "pt_naive", options_of(options, spp=5))
+    assert (first["passes"], second["passes"]) == (2, 5)
+    for r in (first, second):
+        assert r["launches"] == 2 * r["passes"] and r["fills"] == r["passes"]
+        assert r["reads"] == r["passes"] and r["blocking_reads"] == 0
+        assert r["read_bytes"] == r["passes"] * width * height * FILM_PIXEL.dtype.itemsize
+        assert r["samples"] == width * height * r["passes"]
+    extra = costs(first, second)
+    assert extra["read_bytes_per_sample"] == pytest.approx(FILM_PIXEL.dtype.itemsize)   # one pixel's sums per sample
+    assert extra["launches_per_million"] == pytest.approx(2e6 / (width * height))
+    assert extra["blocking_per_pass"] == 0 and extra["launches_per_pass"] == 2
+    assert 0 < extra["kernel_share"] <= 1
+
+
+def options_of(fields, **more):
+    from toolkit.core.render_options import with_fields
+    return with_fields(None, **{**fields, **more})
+
+
+class LowerCount:
+    """An independent count: pyopencl's lower entry points (pyopencl._cl, which enqueue_copy and
+    enqueue_fill_buffer call), patched for the block."""
+
+    def __init__(self, monkeypatch):
+        self.reads = self.blocking_reads = self.read_bytes = self.writes = self.write_bytes = self.fills = 0
+        real_read, real_write, real_fill = _cl._enqueue_read_buffer, _cl._enqueue_write_buffer, _cl._enqueue_fill_buffer
+
+        def read(queue, mem, hostbuf, *args, **kwargs):
+            self.reads += 1
+            self.blocking_reads += bool(kwargs.get("is_blocking", True))
+            self.read_bytes += np.asarray(hostbuf).nbytes
+            return real_read(queue, mem, hostbuf, *args, **kwargs)
+
+        def write(queue, mem, hostbuf, *args, **kwargs):
+            self.writes += 1
+            self.write_bytes += np.asarray(hostbuf).nbytes
+            return real_write(queue, mem, hostbuf, *args, **kwargs)
+
+        def fill(*args, **kwargs):
+            self.fills += 1
+            return real_fill(*args, **kwargs)
+        monkeypatch.setattr(_cl, "_enqueue_read_buffer", read)
+        monkeypatch.setattr(_cl, "_enqueue_write_buffer", write)
+        monkeypatch.setattr(_cl, "_enqueue_fill_buffer", fill)
+
+
+@pytest.mark.parametrize("technique", ["pt_compact_regen", "bdpt_naive_connect", "mlt"])
+def test_an_independent_count_agrees_with_the_meter(monkeypatch, cornell_box, technique):
+    """The meter's counts (pyopencl's enqueue_* wrapped) against pyopencl._cl's entry points and the
+    profiling events of every launch (program.launch's hook, toolkit/opencl/kernel_times.py)."""
+    lower = LowerCount(monkeypatch)
+    options = dict(resolution=(16, 16), spp=spp_of(technique, 8), count_simd=False, time_phases=True,
+                   technique_options={"stream_size": 1024} if technique == "pt_compact_regen" else {})
+    with Traffic() as traffic:
+        result = render(cornell_box, technique, options_of(options))
+    events = sum(k["launches"] for k in result.stats["kernel_times"].values())
+    assert traffic.launches == events > 0
+    assert (traffic.reads, traffic.blocking_reads, traffic.read_bytes) == (lower.reads, lower.blocking_reads,
+                                                                         lower.read_bytes)
+    assert (traffic.writes, traffic.write_bytes, traffic.fills) == (lower.writes, lower.write_bytes, lower.fills)
+    assert traffic.reads > 0 and traffic.fills > 0     # every technique reads its film back: counts to agree on
+
+
+def test_bench_host_on_the_command_line():
+    result = run_cli("bench", "--host", "--techniques", "pt_naive", "--resolution", "16x8", "--spp", "2", "--json")
+    assert result.returncode == 0, result.stderr
+    lines = result.stdout.strip().splitlines()
+    assert lines[0].startswith("host meter: cornell_box 16x8")
+    report = json.loads(lines[-1])
+    row = report["techniques"]["pt_naive"]
+    assert row["spp"] == [2, 8] and row["blocking_per_pass"] == 0 and row["launches_per_pass"] == 2
+    assert row["read_bytes_per_sample"] == 0   # 8 spp in one pass: no more reads than 2 spp
+    refused = run_cli("bench", "--gpu-sizes")
+    assert refused.returncode == 2 and "--gpu-sizes applies to the host meter only" in refused.stderr
+    assert "Traceback" not in refused.stderr

@@ -1,0 +1,165 @@
+"""The host meter (`python -m toolkit bench --host`): what rendering costs the host, per sample,
+on any device, so that a CPU can tell what will hold a GPU back.
+
+Each technique renders twice, at N and at 4N samples per pixel (path tracers 16 and 64 by default,
+BDPT and Metropolis a quarter of that), and the meter reports what the 3N more samples cost: the
+fixed costs of a render (buffers made, kernels found built, the scene's upload) drop out.
+Per sample: the CPU time of the thread that drives the queue (time.thread_time), the part of it
+during which the device's queue was empty (`serial`: toolkit/opencl/traffic.py), the bytes read
+back and written, the kernels' device time (OpenCL's profiling events). Per million samples: the
+reads, the blocking transfers and the launches. Per pass, from the 4N render: blocking transfers
+and launches. And the kernels' share of the 4N render's wall time.
+
+Counts come from toolkit/opencl/traffic.py (pyopencl's entry points, wrapped while a render is
+measured); the kernel times from toolkit/opencl/kernel_times.py (`time_phases`). SIMD counters are
+off. `gpu_sizes=True` renders at a GPU's sizes (GPU_SIZES: the H200's streams and pools and
+Metropolis's chain cap), so that a CPU measures the host's work of a GPU's render.
+"""
+from contextlib import contextmanager
+
+from toolkit.api import as_scene, render, technique_options
+from toolkit.core.render_options import with_fields
+from toolkit.opencl.device import describe, get_queue
+from toolkit.opencl.traffic import Traffic
+from toolkit.techniques import family, get_technique
+
+HOST_DEFAULT = ("pt_naive", "pt_inplace_regen", "pt_compact_regen", "bdpt_naive_connect", "bdpt_parallel_connect",
+                "mlt")
+RESOLUTION = (256, 256)
+# An H200's sizes (results/gpu.md): 132 SMs x 2,048 resident work-items per stream and pool; Metropolis's
+# chains are capped at 2^18 (toolkit/techniques/mlt.py).
+GPU_SIZES = {"stream_size": 270_336, "pool_size": 270_336, "chains": 262_144}
+GROWTH = 4   # the second render has GROWTH times the first one's samples
+
+
+def spp_of(technique, spp):
+    """N for `technique`: `spp` for a path tracer, a quarter of it (at least 1) for BDPT and Metropolis,
+    whose samples cost about ten times more."""
+    return spp if family(technique) == "pt" else max(1, spp // 4)
+
+
+def sized_options(technique, gpu_sizes):
+    """The technique options that set its work in flight to GPU_SIZES (those its class takes), or none."""
+    if not gpu_sizes:
+        return {}
+    takes = technique_options(get_technique(technique)[0])
+    return {name: size for name, size in GPU_SIZES.items() if name in takes}
+
+
+def metered_render(scene, technique, options):
+    """One render under the meter: the traffic figures (traffic.Traffic), its wall seconds, the
+    kernels' device seconds, its samples and its passes."""
+    cls = get_technique(technique)[0]
+    with counted_passes(cls) as passes, Traffic() as traffic:
+        result = render(scene, technique, with_fields(options, count_simd=False, time_phases=True))
+    stats = result.stats
+    return {**traffic.figures(), "seconds": stats["seconds"],
+            "kernel_seconds": sum(k["seconds"] for k in stats["kernel_times"].values()),
+            "samples": round(stats["samples_per_second"] * stats["seconds"]), "passes": passes[0]}
+
+
+@contextmanager
+def counted_passes(cls):
+    """Counts the calls of `cls.run_pass` (a technique's passes) while the block runs; yields [count]."""
+    count, real = [0], cls.__dict__.get("run_pass")
+    inherited = cls.run_pass
+
+    def run_pass(self, *args, **kwargs):
+        count[0] += 1
+        return inherited(self, *args, **kwargs)
+    cls.run_pass = run_pass
+    try:
+        yield count
+    finally:
+        if real is None:
+            del cls.run_pass
+        else:
+            cls.run_pass = real
+
+
+def costs(first, second):
+    """What the second render's extra samples cost, and its per-pass figures."""
+    extra = second["samples"] - first["samples"]
+    if extra <= 0:
+        raise ValueError("the second render must have more samples than the first")
+
+    def per_sample(key):
+        return (second[key] - first[key]) / extra
+
+    def per_million(key):
+        return per_sample(key) * 1e6
+    passes = max(second["passes"], 1)
+    return {
+        "host_cpu_ns_per_sample": per_sample("cpu_seconds") * 1e9,
+        "serial_ns_per_sample": per_sample("serial_seconds") * 1e9,
+        "kernel_ns_per_sample": per_sample("kernel_seconds") * 1e9,
+        "wall_ns_per_sample": per_sample("seconds") * 1e9,
+        "read_bytes_per_sample": per_sample("read_bytes"),
+        "write_bytes_per_sample": per_sample("write_bytes"),
+        "reads_per_million": per_million("reads"),
+        "blocking_per_million": per_million("blocking_reads") + per_million("blocking_writes"),
+        "drains_per_million": per_million("drains"),
+        "launches_per_million": per_million("launches"),
+        "blocking_per_pass": (second["blocking_reads"] + second["blocking_writes"]) / passes,
+        "launches_per_pass": second["launches"] / passes,
+        "kernel_share": second["kernel_seconds"] / second["seconds"] if second["seconds"] > 0 else 0.0,
+    }
+
+
+def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_sizes=False, **fields):
+    """The host meter's report: for each technique, its renders at N and GROWTH x N samples per pixel
+    (N: spp_of(technique, spp)) and what the extra samples cost (`costs`). `options`: a RenderOptions
+    (its fields as keywords on top); resolution None is RESOLUTION. Each technique is built first by a
+    small render, so no build is measured."""
+    options = with_fields(options, **fields)
+    options = with_fields(options, resolution=options.resolution or RESOLUTION)
+    scene = as_scene(scene)
+    report = {"scene": scene.name, "resolution": list(options.resolution), "gpu_sizes": bool(gpu_sizes),
+              "sizes": GPU_SIZES if gpu_sizes else "the device's own", "techniques": {}}
+    for technique in techniques:
+        own = {**options.technique_options, **sized_options(technique, gpu_sizes)}
+        base = with_fields(options, technique_options=own)
+        render(scene, technique, with_fields(base, spp=1, resolution=(16, 16), count_simd=False))   # builds
+        n = spp_of(technique, spp)
+        first = metered_render(scene, technique, with_fields(base, spp=n))
+        second = metered_render(scene, technique, with_fields(base, spp=GROWTH * n))
+        report["device"] = describe(get_queue(base.device, base.lanes).device)
+        report["techniques"][technique] = {"spp": [n, GROWTH * n], "renders": [first, second],
+                                           **costs(first, second)}
+    return report
+
+
+def format_host_meter(report):
+    sizes = "the GPU's sizes (" + ", ".join(f"{k} {v:,}" for k, v in GPU_SIZES.items()) + ")" \
+        if report["gpu_sizes"] else "the device's own sizes"
+    lines = [f"host meter: {report['scene']} {report['resolution'][0]}x{report['resolution'][1]} at {sizes}, "
+             f"on {report.get('device', '?')}; what the second render's {GROWTH - 1}N more samples cost "
+             f"(N: the first render's samples per pixel)",
+             f"{'technique':<24}{'N, 4N spp':>10}{'kernels 4N s':>13}{'kernel share':>13}{'host CPU ns/sample':>19}"
+             f"{'serial ns':>10}{'read B/sample':>14}{'written B':>10}{'reads/M':>9}{'blocking/M':>11}"
+             f"{'launches/M':>11}{'blocking/pass':>14}{'launches/pass':>14}"]
+    for name, row in report["techniques"].items():
+        lines.append(f"{name:<24}{'%d, %d' % tuple(row['spp']):>10}{row['renders'][1]['kernel_seconds']:>13.2f}"
+                     f"{row['kernel_share']:>13.0%}{row['host_cpu_ns_per_sample']:>19,.1f}"
+                     f"{row['serial_ns_per_sample']:>10,.1f}{row['read_bytes_per_sample']:>14,.2f}"
+                     f"{row['write_bytes_per_sample']:>10,.2f}{row['reads_per_million']:>9,.1f}"
+                     f"{row['blocking_per_million']:>11,.1f}{row['launches_per_million']:>11,.1f}"
+                     f"{row['blocking_per_pass']:>14,.1f}{row['launches_per_pass']:>14,.1f}")
+    lines.append("host CPU: the CPU time of the thread that drives the queue; serial: the part of it while the "
+                 "device's queue was empty (from a blocking read, finish or wait to the next launch); blocking: "
+                 "blocking reads and writes; per pass: in the 4N render. Kernels: OpenCL profiling events.")
+    return "\n".join(lines)
+
+
+def markdown_table(report):
+    """The report's figures per technique as a Markdown table (for a results note)."""
+    lines = ["| technique | N, 4N spp | kernels 4N (s) | kernels' share of wall | host CPU ns/sample | of it serial | "
+             "bytes read/sample | bytes written/sample | reads/M samples | blocking/M samples | launches/M samples | "
+             "blocking/pass | launches/pass |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for name, r in report["techniques"].items():
+        lines.append(f"| {name} | {r['spp'][0]}, {r['spp'][1]} | {r['renders'][1]['kernel_seconds']:.2f} | "
+                     f"{r['kernel_share']:.0%} | {r['host_cpu_ns_per_sample']:,.1f} | {r['serial_ns_per_sample']:,.1f} | "
+                     f"{r['read_bytes_per_sample']:,.2f} | {r['write_bytes_per_sample']:,.2f} | "
+                     f"{r['reads_per_million']:,.1f} | {r['blocking_per_million']:,.1f} | "
+                     f"{r['launches_per_million']:,.1f} | {r['blocking_per_pass']:,.1f} | {r['launches_per_pass']:,.1f} |")
+    return "\n".join(lines)
