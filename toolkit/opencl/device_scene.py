@@ -4,6 +4,8 @@ Precision: the host subtracts the scene's centre in float64 before converting to
 a scene translated far from the origin keeps the precision of one at the origin
 ("camera-relative" / origin rebasing). Ray offsets scale with the scene's size (scene_epsilon).
 """
+import hashlib
+
 import numpy as np
 import pyopencl as cl
 
@@ -14,7 +16,9 @@ from toolkit.opencl import lanes
 def _bvh_for(queue, scene, tri_vertices):
     """The host BVH of this geometry, built once per context (its Builds keeps it: builds.py)."""
     bvhs = queue.builds.bvhs
-    key = (scene.name, tri_vertices.shape, hash(tri_vertices.tobytes()))
+    # Hashed where it lies: tobytes() would copy it (72 MB for a million triangles).
+    digest = hashlib.blake2b(np.ascontiguousarray(tri_vertices).data, digest_size=16).digest()
+    key = (scene.name, tri_vertices.shape, digest)
     if key not in bvhs:
         bvhs[key] = build_bvh(tri_vertices)
     return bvhs[key]
@@ -52,12 +56,14 @@ class DeviceScene:
         self.extent = float(np.linalg.norm(hi - lo))
         self.epsilon = np.float32(self.EPSILON_RELATIVE * self.extent)
         local = scene.vertices - self.center                    # float64 rebasing
-        tri_vertices = local[scene.triangles]
-        self.bvh = _bvh_for(queue, scene, tri_vertices)
+        # Every triangle's float64 vertices only for the build (a million triangles: 72 MB).
+        self.bvh = _bvh_for(queue, scene, local[scene.triangles])
         if self.bvh.max_depth >= BVH_STACK_SIZE - 1:
             raise ValueError(f"{scene.name}: BVH depth {self.bvh.max_depth} exceeds the device stack ({BVH_STACK_SIZE})")
         order = self.bvh.order
-        tv = tri_vertices[order].astype(np.float32)
+        # Rounded to float32 vertex by vertex, then gathered: the same numbers as gathering in
+        # float64 and rounding, without a float64 copy of every triangle (72 MB for a million).
+        tv = local.astype(np.float32)[scene.triangles[order]]
         self.triangles = TRIANGLE.zeros(len(order))
         self.triangles["v0"][:, :3] = tv[:, 0]
         self.triangles["v1"][:, :3] = tv[:, 1]
@@ -76,7 +82,7 @@ class DeviceScene:
                 raise ValueError(f"{scene.name}: the wide BVH needs {self.wide.stack_needed} stack entries, "
                                  f"more than the device stack ({BVH_STACK_SIZE})")
             nodes = self.wide.words
-        self._build_lights(tri_vertices, order)
+        self._build_lights(local, order)
         self.materials = MATERIAL.zeros(len(scene.materials))
         for i, m in enumerate(scene.materials):
             self.materials[i]["reflectance"][:3] = m["reflectance"]
@@ -89,13 +95,13 @@ class DeviceScene:
                         (("nodes", nodes), ("tris", self.triangles), ("materials", self.materials),
                          ("lights", self.lights))}
 
-    def _build_lights(self, tri_vertices, order):
-        """Pick lights in proportion to power: area x luminance(emission)."""
+    def _build_lights(self, local, order):
+        """Pick lights in proportion to power: area x luminance(emission). `local`: the rebased vertices."""
         scene = self.scene
         slot_of = np.empty(len(order), np.int64)
         slot_of[order] = np.arange(len(order))
         light_tris = scene.light_triangles
-        v = tri_vertices[light_tris]
+        v = local[scene.triangles[light_tris]]
         area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
         emission = scene.emission_of[light_tris]
         power = area * (emission @ np.array(LUMINANCE_WEIGHTS))
