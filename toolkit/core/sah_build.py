@@ -106,29 +106,32 @@ def _bin_of(c, cmin, extent, bins):
 
 
 @njit(cache=True)
-def _add(blo, bhi, counts, axis, b, bounds, k):
-    """Triangle k into bin b of `axis`."""
+def _add(blo, bhi, counts, axis, b, x0, y0, z0, x1, y1, z1):
+    """A triangle of box (x0, y0, z0) .. (x1, y1, z1) into bin b of `axis`."""
     counts[axis, b] += 1
-    for j in range(3):
-        blo[axis, b, j] = min(blo[axis, b, j], bounds[k, j])
-        bhi[axis, b, j] = max(bhi[axis, b, j], bounds[k, 3 + j])
+    blo[axis, b, 0], blo[axis, b, 1], blo[axis, b, 2] = min(blo[axis, b, 0], x0), min(blo[axis, b, 1], y0), \
+        min(blo[axis, b, 2], z0)
+    bhi[axis, b, 0], bhi[axis, b, 1], bhi[axis, b, 2] = max(bhi[axis, b, 0], x1), max(bhi[axis, b, 1], y1), \
+        max(bhi[axis, b, 2], z1)
 
 
 @njit(cache=True)
 def _fill_bins(bounds, start, end, box, bins, blo, bhi, counts):
     """Counts and boxes of the triangles in each bin of each axis, one pass over bounds[start:end]
-    for all three axes (an axis whose centroids do not spread is left empty). The centroids' box
-    is copied into scalars first: the compiler cannot know that writing a bin leaves it alone."""
+    for all three axes (an axis whose centroids do not spread is left empty). What the loop reads
+    is copied into scalars first: the compiler cannot know that writing a bin leaves it alone,
+    and would read it again (a third slower)."""
     blo[:], bhi[:], counts[:] = np.inf, -np.inf, 0
     cx, cy, cz = box[6], box[7], box[8]
     ex, ey, ez = box[9] - cx, box[10] - cy, box[11] - cz
     for k in range(start, end):
+        x0, y0, z0, x1, y1, z1 = bounds[k, 0], bounds[k, 1], bounds[k, 2], bounds[k, 3], bounds[k, 4], bounds[k, 5]
         if ex > 0.0:
-            _add(blo, bhi, counts, 0, _bin_of(0.5 * (bounds[k, 0] + bounds[k, 3]), cx, ex, bins), bounds, k)
+            _add(blo, bhi, counts, 0, _bin_of(0.5 * (x0 + x1), cx, ex, bins), x0, y0, z0, x1, y1, z1)
         if ey > 0.0:
-            _add(blo, bhi, counts, 1, _bin_of(0.5 * (bounds[k, 1] + bounds[k, 4]), cy, ey, bins), bounds, k)
+            _add(blo, bhi, counts, 1, _bin_of(0.5 * (y0 + y1), cy, ey, bins), x0, y0, z0, x1, y1, z1)
         if ez > 0.0:
-            _add(blo, bhi, counts, 2, _bin_of(0.5 * (bounds[k, 2] + bounds[k, 5]), cz, ez, bins), bounds, k)
+            _add(blo, bhi, counts, 2, _bin_of(0.5 * (z0 + z1), cz, ez, bins), x0, y0, z0, x1, y1, z1)
 
 
 @njit(cache=True)
