@@ -18,9 +18,14 @@ spec.loader.exec_module(make_million)
 
 
 def rebased(scene):
-    """The scene's triangles as DeviceScene hands them to the build: float64, centred."""
+    """The scene as DeviceScene hands it to the build: float64 vertices, centred, and triangles."""
     lo, hi = scene.vertices.min(0), scene.vertices.max(0)
-    return (scene.vertices - 0.5 * (lo + hi))[scene.triangles]
+    return scene.vertices - 0.5 * (lo + hi), scene.triangles
+
+
+def unshared(tri_vertices):
+    """(vertices, triangles) of (M, 3, 3) triangle vertices that share no vertex."""
+    return tri_vertices.reshape(-1, 3), np.arange(3 * len(tri_vertices)).reshape(-1, 3)
 
 
 def random_triangles(seed):
@@ -33,19 +38,19 @@ def random_triangles(seed):
         tv = np.round(tv, 1)
     if seed % 5 == 0:
         tv[: n // 2] = tv[0]
-    return tv
+    return unshared(tv)
 
 
 def sphere_triangles(around=120, rings=60):
     vertices, triangles = make_million.uv_sphere(around, rings)
     tv = vertices[triangles]
     area = np.linalg.norm(np.cross(tv[:, 1] - tv[:, 0], tv[:, 2] - tv[:, 0]), axis=1)
-    return tv[area > 0]          # the poles' degenerate triangles, as the loader drops them
+    return vertices, triangles[area > 0]     # the poles' degenerate triangles, as the loader drops them
 
 
 CASES = {p.name: (lambda p=p: rebased(load_scene(p))) for p in scene_dirs()}
 CASES.update({f"random{seed}": (lambda seed=seed: random_triangles(seed)) for seed in range(12)})
-CASES["one triangle"] = lambda: random_triangles(1)[:1]
+CASES["one triangle"] = lambda: unshared(np.random.default_rng(1).random((1, 3, 3)))
 CASES["sphere 120x60"] = sphere_triangles
 
 
@@ -56,21 +61,21 @@ def assert_same(a, b):
 
 @pytest.mark.parametrize("case", CASES)
 def test_compiled_build_gives_numpy_tree(case):
-    tv = CASES[case]()
-    assert_same(bvh._build_numpy(tv, 4, 16), bvh._build_compiled(tv, 4, 16))
+    vertices, triangles = CASES[case]()
+    assert_same(bvh._build_numpy(vertices[triangles], 4, 16), bvh._build_compiled(vertices, triangles, 4, 16))
 
 
 def test_a_build_in_steps_gives_the_same_tree(monkeypatch):
     """The progress bar's steps (PROGRESS_STEP) stop and resume the build: any step gives one tree."""
-    tv = sphere_triangles(60, 30)
-    whole = bvh._build_compiled(tv, 4, 16)
+    sphere = sphere_triangles(60, 30)
+    whole = bvh._build_compiled(*sphere, 4, 16)
     monkeypatch.setattr(bvh, "PROGRESS_STEP", 7)
-    assert_same(whole, bvh._build_compiled(tv, 4, 16))
+    assert_same(whole, bvh._build_compiled(*sphere, 4, 16))
 
 
 @functools.lru_cache(maxsize=None)
 def tree(case):
-    return bvh.build_bvh(CASES[case]())
+    return bvh.build_bvh(*CASES[case]())
 
 
 @pytest.mark.parametrize("width", [4, 8])
@@ -85,17 +90,19 @@ def test_compiled_wide_children_are_pythons(case, width, monkeypatch):
     for what, x, y in zip(("kids", "index_of", "depth", "stack"), python, compiled):
         assert np.array_equal(x, y), what
     assert (python[0][:, 1] >= 0).any(), "a wide node with children (the comparison is not vacuous)"
+    # What DeviceScene asks before it collapses (does the tree fit the stack at this width?).
+    assert bvh.wide_stack_needed(tree(case), width) == python[3].max()
 
 
 def test_build_bvh_takes_the_compiled_build_from_compiled_from(monkeypatch):
-    tv = sphere_triangles(60, 30)
-    monkeypatch.setattr(bvh, "COMPILED_FROM", len(tv))
+    vertices, triangles = sphere_triangles(60, 30)
+    monkeypatch.setattr(bvh, "COMPILED_FROM", len(triangles))
     calls = []
     for name in ("_build_numpy", "_build_compiled"):
         real = getattr(bvh, name)
         monkeypatch.setattr(bvh, name, lambda *a, real=real, name=name: calls.append(name) or real(*a))
-    bvh.build_bvh(tv)
-    bvh.build_bvh(tv[:-1])
+    bvh.build_bvh(vertices, triangles)
+    bvh.build_bvh(vertices, triangles[:-1])
     assert calls == ["_build_compiled", "_build_numpy"]
 
 

@@ -62,7 +62,7 @@ def main(folder, toolkit_load=False):
     triangles = triangles[np.linalg.norm(edges, axis=1) > 0]     # the loader drops degenerate triangles too
     del edges
     print(f"{len(triangles):,} triangles")
-    bvh = clock("BVH build", build_bvh, local[triangles])
+    bvh = clock("BVH build", build_bvh, local, triangles)
     leaf_vertices = local.astype(np.float32)[triangles[bvh.order]]
     wide = clock("wide BVH (4 children)", collapse_wide, bvh, leaf_vertices, 4)
     cpu = sum(clock.rows[k][0] for k in ("load (trimesh)", "BVH build", "wide BVH (4 children)"))

@@ -52,15 +52,15 @@ def _area(lo, hi):
     return 2.0 * (d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0])
 
 
-def build_bvh(tri_vertices, leaf_size=4, bins=16):
-    """Build over triangles given as (M, 3, 3) float64 vertex positions. From COMPILED_FROM
-    triangles on, the compiled build does it (toolkit/core/sah_build.py, the same tree bit for
-    bit); a scene of PROGRESS_FROM triangles or more shows its progress."""
+def build_bvh(vertices, triangles, leaf_size=4, bins=16):
+    """Build over triangles (M, 3) of vertex indices into `vertices`, (V, 3) float64 positions.
+    From COMPILED_FROM triangles on, the compiled build does it (toolkit/core/sah_build.py, the
+    same tree bit for bit); a scene of PROGRESS_FROM triangles or more shows its progress."""
     start = time.perf_counter()
-    if len(tri_vertices) >= COMPILED_FROM:
-        lo, hi, first, count, axis, order, depth = _build_compiled(tri_vertices, leaf_size, bins)
+    if len(triangles) >= COMPILED_FROM:
+        lo, hi, first, count, axis, order, depth = _build_compiled(vertices, triangles, leaf_size, bins)
     else:
-        lo, hi, first, count, axis, order, depth = _build_numpy(tri_vertices, leaf_size, bins)
+        lo, hi, first, count, axis, order, depth = _build_numpy(vertices[triangles], leaf_size, bins)
     flat = BVH_NODE.zeros(len(first))
     # Round outwards so float32 boxes still contain the float32 triangles.
     flat["lo"][:, :3] = np.nextafter(lo.astype(np.float32), np.float32(-np.inf))
@@ -70,13 +70,13 @@ def build_bvh(tri_vertices, leaf_size=4, bins=16):
     return Bvh(flat, order, time.perf_counter() - start, len(flat) - leaves, leaves, depth)
 
 
-def _build_compiled(tri_vertices, leaf_size, bins):
+def _build_compiled(vertices, triangles, leaf_size, bins):
     # Imported here: numba's start costs about a second and 150 MB, which small scenes need not pay.
     from toolkit.core import sah_build
 
-    state = sah_build.BuildState(tri_vertices)
-    with tqdm(total=len(tri_vertices), unit="tri", desc="BVH build", file=sys.stderr, leave=False,
-              disable=len(tri_vertices) < PROGRESS_FROM, mininterval=0.5) as bar:
+    state = sah_build.BuildState(vertices, triangles)
+    with tqdm(total=len(triangles), unit="tri", desc="BVH build", file=sys.stderr, leave=False,
+              disable=len(triangles) < PROGRESS_FROM, mininterval=0.5) as bar:
         while not state.done:
             placed = state.run(PROGRESS_STEP, leaf_size, bins)   # progress: triangles placed in leaves
             bar.update(placed - bar.n)
@@ -118,7 +118,8 @@ def _best_split(lo, hi, centroid, bins):
 
 
 def _build_numpy(tri_vertices, leaf_size, bins):
-    """The build in numpy, one node at a time: what sah_build.py compiles, as it reads best."""
+    """The build in numpy, one node at a time, over (M, 3, 3) float64 triangle vertices: what
+    sah_build.py compiles, as it reads best."""
     lo_all, hi_all = tri_vertices.min(1), tri_vertices.max(1)
     centroid_all = 0.5 * (lo_all + hi_all)
     nodes = []            # [lo, hi, first, count, axis]
@@ -188,9 +189,14 @@ def collapse_wide(bvh, leaf_vertices, node_width, width=BVH_WIDTH):
     is_leaf = nodes["count"] > 0
     if is_leaf.any() and nodes["count"].max() > width:
         raise ValueError(f"a TriGroup holds {width} triangles; the BVH has leaves of {nodes['count'].max()}")
-    groups, group_of = _tri_groups(nodes, is_leaf, leaf_vertices, width)
     kids, index_of, depth_of, stack_of = _wide_children(nodes, is_leaf, node_width)
-    wide = WIDE_NODES[node_width].zeros(len(kids))
+    leaves = int(is_leaf.sum())
+    # One buffer of words, zeroed, and the records written into it where they lie (no copy).
+    split = len(kids) * WIDE_NODES[node_width].dtype.itemsize
+    records = np.zeros(split + leaves * TRI_GROUP.dtype.itemsize, np.uint8)
+    wide = records[:split].view(WIDE_NODES[node_width].dtype)
+    groups = records[split:].view(TRI_GROUP.dtype)
+    group_of = _tri_groups(nodes, is_leaf, leaf_vertices, width, groups)
     used = kids >= 0
     k = kids[used]
     for axis, name in enumerate("xyz"):
@@ -200,17 +206,23 @@ def collapse_wide(bvh, leaf_vertices, node_width, width=BVH_WIDTH):
     wide["child"] = int(WideChild.EMPTY)
     wide["child"][used] = np.where(is_leaf[k], ~(group_base + group_of[k] * GROUP_WORDS),
                                    index_of[k] * node_words(node_width))
-    words = np.concatenate([wide.view(np.float32).reshape(-1, 4), groups.view(np.float32).reshape(-1, 4)])
-    return WideBvh(np.ascontiguousarray(words), node_width, len(kids), len(groups), int(depth_of.max()),
+    return WideBvh(records.view(np.float32).reshape(-1, 4), node_width, len(kids), len(groups), int(depth_of.max()),
                    int(stack_of.max()))
 
 
-def _tri_groups(nodes, is_leaf, leaf_vertices, width):
-    """One TriGroup per binary leaf, in node order: (groups, binary node -> its group or -1)."""
+def wide_stack_needed(bvh, node_width):
+    """The traversal-stack entries collapse_wide(bvh, ..., node_width) will need (WideBvh.stack_needed),
+    without making its records."""
+    nodes = bvh.nodes
+    return int(_wide_children(nodes, nodes["count"] > 0, node_width)[3].max())
+
+
+def _tri_groups(nodes, is_leaf, leaf_vertices, width, groups):
+    """One TriGroup per binary leaf, in node order, written into `groups` (zeroed records, one per
+    leaf); returns binary node -> its group or -1."""
     leaves = np.flatnonzero(is_leaf)
     group_of = np.full(len(nodes), -1)
     group_of[leaves] = np.arange(len(leaves))
-    groups = TRI_GROUP.zeros(len(leaves))
     groups["tri"] = -1
     first, count = nodes["first"][leaves], nodes["count"][leaves]
     for lane in range(width):
@@ -221,7 +233,7 @@ def _tri_groups(nodes, is_leaf, leaf_vertices, width):
             for k, name in enumerate("xyz"):
                 # Empty lanes keep v0 = v1 = v2 = 0: a degenerate triangle the test rejects (det = 0).
                 groups[f"v{v}{name}"][has, lane] = leaf_vertices[slot, v, k]
-    return groups, group_of
+    return group_of
 
 
 def _wide_children(nodes, is_leaf, width):

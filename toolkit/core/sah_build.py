@@ -31,8 +31,8 @@ class BuildState:
     left child follows its parent); and the stack of node ranges still to build, each with its
     boxes (a split measures its sides' boxes, so a child never measures its own)."""
 
-    def __init__(self, tri_vertices):
-        n = len(tri_vertices)
+    def __init__(self, vertices, triangles):
+        n = len(triangles)
         # Per triangle: lo x, y, z, hi x, y, z. Its centroid is 0.5 * (lo + hi), computed when needed.
         self.bounds = np.empty((n, 6))
         self.order = np.arange(n, dtype=np.int64)
@@ -47,7 +47,8 @@ class BuildState:
         # right child of each node on the current path waits, so a stack of n + 1 always suffices.
         self.stack, self.boxes = np.empty((n + 1, 4), np.int64), np.empty((n + 1, 12))
         self.stack[0] = (0, n, -1, 0)
-        _measure(np.ascontiguousarray(tri_vertices, np.float64), self.bounds, self.boxes[0])
+        _measure(np.ascontiguousarray(vertices, np.float64), np.ascontiguousarray(triangles, np.int64), self.bounds,
+                 self.boxes[0])
         self.counters = np.zeros(4, np.int64)
         self.counters[STACKED] = 1
 
@@ -81,13 +82,14 @@ def _grow(box, bounds, k):
 
 
 @njit(cache=True)
-def _measure(tri_vertices, bounds, box):
+def _measure(vertices, triangles, bounds, box):
     """Each triangle's box into `bounds`, and the boxes of all of them into `box`."""
     _empty(box)
-    for k in range(len(tri_vertices)):
+    for k in range(len(triangles)):
+        a, b, c = triangles[k, 0], triangles[k, 1], triangles[k, 2]
         for j in range(3):
-            bounds[k, j] = min(tri_vertices[k, 0, j], tri_vertices[k, 1, j], tri_vertices[k, 2, j])
-            bounds[k, 3 + j] = max(tri_vertices[k, 0, j], tri_vertices[k, 1, j], tri_vertices[k, 2, j])
+            bounds[k, j] = min(vertices[a, j], vertices[b, j], vertices[c, j])
+            bounds[k, 3 + j] = max(vertices[a, j], vertices[b, j], vertices[c, j])
         _grow(box, bounds, k)
 
 

@@ -9,18 +9,23 @@ import hashlib
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.bvh import build_bvh, collapse_wide
+from toolkit.core.bvh import build_bvh, collapse_wide, wide_stack_needed
 from toolkit.core.layout import BVH_KINDS, BVH_STACK_SIZE, CAMERA, LIGHT, LUMINANCE_WEIGHTS, MATERIAL, MATERIAL_TYPES, SCENE_ARGS, TRIANGLE, WIDE_NODES
 from toolkit.opencl import lanes
 
-def _bvh_for(queue, scene, tri_vertices):
-    """The host BVH of this geometry, built once per context (its Builds keeps it: builds.py)."""
+def _bvh_for(queue, scene, local):
+    """The host BVH of this geometry (`local`: the rebased vertices), built once per context (its
+    Builds keeps it: builds.py)."""
     bvhs = queue.builds.bvhs
-    # Hashed where it lies: tobytes() would copy it (72 MB for a million triangles).
-    digest = hashlib.blake2b(np.ascontiguousarray(tri_vertices).data, digest_size=16).digest()
-    key = (scene.name, tri_vertices.shape, digest)
+    # Vertices and indices hashed where they lie, not every triangle's vertices (72 MB for a million).
+    digest = hashlib.blake2b(digest_size=16)
+    for array in (local, scene.triangles):
+        array = np.ascontiguousarray(array)
+        digest.update(str((array.dtype.str, array.shape)).encode())
+        digest.update(array.data)
+    key = (scene.name, digest.digest())
     if key not in bvhs:
-        bvhs[key] = build_bvh(tri_vertices)
+        bvhs[key] = build_bvh(local, scene.triangles)
     return bvhs[key]
 
 
@@ -56,8 +61,7 @@ class DeviceScene:
         self.extent = float(np.linalg.norm(hi - lo))
         self.epsilon = np.float32(self.EPSILON_RELATIVE * self.extent)
         local = scene.vertices - self.center                    # float64 rebasing
-        # Every triangle's float64 vertices only for the build (a million triangles: 72 MB).
-        self.bvh = _bvh_for(queue, scene, local[scene.triangles])
+        self.bvh = _bvh_for(queue, scene, local)
         if self.bvh.max_depth >= BVH_STACK_SIZE - 1:
             raise ValueError(f"{scene.name}: BVH depth {self.bvh.max_depth} exceeds the device stack ({BVH_STACK_SIZE})")
         order = self.bvh.order
@@ -74,14 +78,15 @@ class DeviceScene:
         nodes = self.bvh.nodes
         self.wide = None
         if bvh == "wide":
-            self.wide = collapse_wide(self.bvh, tv, wide_width or node_width(queue))
-            if self.wide.stack_needed > BVH_STACK_SIZE and wide_width is None and self.wide.node_width == 8:
-                # Eight children a level fill the stack faster: a tree too deep for it gets four.
-                self.wide = collapse_wide(self.bvh, tv, 4)
+            width = wide_width or node_width(queue)
+            if wide_width is None and width == 8 and wide_stack_needed(self.bvh, 8) > BVH_STACK_SIZE:
+                width = 4   # eight children a level fill the stack faster: a tree too deep for it gets four
+            self.wide = collapse_wide(self.bvh, tv, width)
             if self.wide.stack_needed > BVH_STACK_SIZE:
                 raise ValueError(f"{scene.name}: the wide BVH needs {self.wide.stack_needed} stack entries, "
                                  f"more than the device stack ({BVH_STACK_SIZE})")
             nodes = self.wide.words
+        del tv      # before the buffers are made: a million triangles' float32 vertices are 36 MB
         self._build_lights(local, order)
         self.materials = MATERIAL.zeros(len(scene.materials))
         for i, m in enumerate(scene.materials):
