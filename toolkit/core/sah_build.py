@@ -25,17 +25,17 @@ NODES, STACKED, PLACED, DEPTH = range(4)
 
 
 class BuildState:
-    """Everything a build keeps between calls: each triangle's box, and the triangles' order,
-    both partitioned in place (so each node's triangles are one range of them, read front to
-    back, and at the end `order` is the leaves' order); the nodes made so far (depth-first: a
-    left child follows its parent); and the stack of node ranges still to build, each with its
-    boxes (a split measures its sides' boxes, so a child never measures its own)."""
+    """Everything a build of one range of triangles keeps between calls: each triangle's box and
+    the triangles' order (`bounds` and `order`, shared by every state of one build), both
+    partitioned in place (so each node's triangles are one range of them, read front to back,
+    and at the end `order` is the leaves' order); the nodes made so far (depth-first: a left
+    child follows its parent; numbered from 0 in each state); and the stack of ranges still to
+    build, each with its boxes (a split measures its sides' boxes, so a child never measures its
+    own). Two states of disjoint ranges can run at once, in two threads (numba's nogil)."""
 
-    def __init__(self, vertices, triangles):
-        n = len(triangles)
-        # Per triangle: lo x, y, z, hi x, y, z. Its centroid is 0.5 * (lo + hi), computed when needed.
-        self.bounds = np.empty((n, 6))
-        self.order = np.arange(n, dtype=np.int64)
+    def __init__(self, bounds, order, start, end, depth, box):
+        n = end - start
+        self.bounds, self.order = bounds, order
         # The right side of a partition, before its copy back: a node's right side is at most n.
         self.scratch_bounds, self.scratch_order = np.empty((n, 6)), np.empty(n, np.int64)
         cap = max(2 * n - 1, 1)                          # a binary tree of n leaves or fewer
@@ -46,21 +46,63 @@ class BuildState:
         # A range waits on the stack: (start, end, parent to patch or -1, depth) and its boxes. The
         # right child of each node on the current path waits, so a stack of n + 1 always suffices.
         self.stack, self.boxes = np.empty((n + 1, 4), np.int64), np.empty((n + 1, 12))
-        self.stack[0] = (0, n, -1, 0)
-        _measure(np.ascontiguousarray(vertices, np.float64), np.ascontiguousarray(triangles, np.int64), self.bounds,
-                 self.boxes[0])
+        self.stack[0], self.boxes[0] = (start, end, -1, depth), box
         self.counters = np.zeros(4, np.int64)
         self.counters[STACKED] = 1
 
-    def run(self, budget, leaf_size, bins):
-        """Build until `budget` more triangles are in leaves (or all are); returns how many are."""
+    @classmethod
+    def of_triangles(cls, vertices, triangles):
+        """The state of a whole build: triangles (M, 3) indexing vertices (V, 3)."""
+        bounds, box = np.empty((len(triangles), 6)), np.empty(12)
+        # Per triangle: lo x, y, z, hi x, y, z. Its centroid is 0.5 * (lo + hi), computed when needed.
+        _measure(np.ascontiguousarray(vertices, np.float64), np.ascontiguousarray(triangles, np.int64), bounds, box)
+        return cls(bounds, np.arange(len(triangles), dtype=np.int64), 0, len(triangles), 0, box)
+
+    def run(self, budget, leaf_size, bins, max_nodes=1 << 62):
+        """Build until `budget` more triangles are in leaves (or all are), or `max_nodes` nodes
+        are made; returns how many triangles are in leaves."""
         return build_some(self.bounds, self.order, self.scratch_bounds, self.scratch_order, self.node_lo,
                           self.node_hi, self.node_first, self.node_count, self.node_axis, self.stack, self.boxes,
-                          self.counters, budget, leaf_size, bins)
+                          self.counters, budget, max_nodes, leaf_size, bins)
 
     @property
     def done(self):
         return self.counters[STACKED] == 0
+
+    @property
+    def nodes(self):
+        return self.counters[NODES]
+
+    def waiting(self):
+        """A state for each range on the stack (the left child's first), the stack emptied."""
+        states = [BuildState(self.bounds, self.order, *self.stack[i, [0, 1, 3]], self.boxes[i])
+                  for i in range(self.counters[STACKED] - 1, -1, -1)]
+        self.counters[STACKED] = 0
+        return states
+
+    def release(self):
+        """Let go of the triangles' boxes and the scratch space (a million triangles: up to 100 MB),
+        once this state builds no more: the nodes and the order are what a build keeps."""
+        self.bounds = self.scratch_bounds = self.scratch_order = None
+
+
+def join(root, left, right):
+    """The arrays (lo, hi, first, count, axis, depth) of one depth-first tree from a root state
+    that made node 0 only and the states that built its left and right subtrees: the left
+    subtree's nodes follow the root, the right one's follow them, and each inner node's `first`
+    (its right child) moves with them. Leaves' `first` are positions in `order`, shared by all."""
+    n_left, n_right = left.nodes, right.nodes
+    lo, hi = np.empty((1 + n_left + n_right, 3)), np.empty((1 + n_left + n_right, 3))
+    first, count, axis = (np.empty(1 + n_left + n_right, np.int64) for _ in range(3))
+    for at, state in ((0, root), (1, left), (1 + n_left, right)):
+        n = state.nodes if state is not root else 1
+        lo[at:at + n], hi[at:at + n] = state.node_lo[:n], state.node_hi[:n]
+        count[at:at + n], axis[at:at + n] = state.node_count[:n], state.node_axis[:n]
+        inner = state.node_count[:n] == 0
+        first[at:at + n] = np.where(inner, state.node_first[:n] + at, state.node_first[:n])
+    first[0] = 1 + n_left                          # the root's right child
+    depth = max(left.counters[DEPTH], right.counters[DEPTH])
+    return lo, hi, first, count, axis, depth
 
 
 # A range's boxes, 12 numbers (BuildState.boxes): its triangles' box lo x, y, z, hi x, y, z, then
@@ -176,16 +218,17 @@ def _push(stack, boxes, counters, start, end, parent, depth, box):
     counters[STACKED] += 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def build_some(bounds, order, scratch_bounds, scratch_order, node_lo, node_hi, node_first, node_count, node_axis,
-               stack, boxes, counters, budget, leaf_size, bins):
+               stack, boxes, counters, budget, max_nodes, leaf_size, bins):
     """Pop node ranges and build them depth first (see BuildState) until `budget` more triangles
-    sit in leaves or the stack is empty; returns the triangles in leaves."""
+    sit in leaves, `max_nodes` nodes are made or the stack is empty; returns the triangles in
+    leaves. Holds no lock of Python's (nogil): two threads can build two subtrees at once."""
     stop = counters[PLACED] + budget
     blo, bhi, counts = np.empty((3, bins, 3)), np.empty((3, bins, 3)), np.empty((3, bins), np.int64)
     rlo, rhi = np.empty((bins, 3)), np.empty((bins, 3))
     box, left_box, right_box = np.empty(12), np.empty(12), np.empty(12)
-    while counters[STACKED] > 0 and counters[PLACED] < stop:
+    while counters[STACKED] > 0 and counters[PLACED] < stop and counters[NODES] < max_nodes:
         counters[STACKED] -= 1
         top = counters[STACKED]
         start, end, parent, depth = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
