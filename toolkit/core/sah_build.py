@@ -6,7 +6,7 @@ heuristic, cost = N_left * area_left + N_right * area_right, is least among the 
 BINS equal bins of the centroids' extent on each axis. Written as plain loops over triangles,
 it is what numpy cannot do fast: every node is a different small problem, and Python's loop over
 a million triangles' nodes took a minute. numba compiles the loops once (and caches the machine
-code on disk), and the build runs at millions of triangles per second.
+code on disk), and the build runs at about a million triangles per second on one core.
 
 The tree is the same, bit for bit, as numpy's build of the same algorithm gave: every float64
 operation is written in numpy's order (no fast-math, no fused multiply-add: numba leaves both
@@ -15,7 +15,9 @@ off unless asked), ties go to the lower bin and then the lower axis, as np.argmi
 builders to the same nodes on random and bundled scenes.
 
 The build is resumable: `build_some` works until `budget` more triangles sit in leaves and
-returns, so the caller can show progress between calls on a big scene.
+returns, so the caller can show progress between calls on a big scene. And a state builds one
+range of triangles, apart from any other: toolkit/core/bvh.py builds the root's two subtrees
+at once, in two threads, and `join` makes one tree of them.
 """
 import numpy as np
 from numba import njit
