@@ -17,8 +17,10 @@ def wide_children(right, is_leaf, area, width):
     n = len(right)
     kids = np.full((max(n, 1), width), -1, np.int64)
     index_of = np.full(n, -1, np.int64)
-    depth_of, stack_of = np.zeros(max(n, 1), np.int64), np.zeros(max(n, 1), np.int64)
-    queue, queue_depth, queue_stacked = np.empty(max(n, 1), np.int64), np.empty(max(n, 1), np.int64), np.empty(max(n, 1), np.int64)
+    room = max(n, 1)                   # wide nodes: at most one per binary node
+    depth_of, stack_of = np.zeros(room, np.int64), np.zeros(room, np.int64)
+    # The breadth-first queue, (binary node, depth, stack entries below it) per wide node to make.
+    queue, queue_depth, queue_stacked = np.empty(room, np.int64), np.empty(room, np.int64), np.empty(room, np.int64)
     queue[0], queue_depth[0], queue_stacked[0] = 0, 1, 0
     index_of[0] = 0
     head, tail = 0, 1                  # the queue is wide node order: queue[w] becomes wide node w
@@ -49,6 +51,7 @@ def wide_children(right, is_leaf, area, width):
             k = row[lane]
             if not is_leaf[k]:
                 index_of[k] = tail
-                queue[tail], queue_depth[tail], queue_stacked[tail] = k, queue_depth[w] + 1, queue_stacked[w] + count - 1
+                queue[tail], queue_depth[tail] = k, queue_depth[w] + 1
+                queue_stacked[tail] = queue_stacked[w] + count - 1
                 tail += 1
     return kids[:tail], index_of, depth_of[:tail], stack_of[:tail]
