@@ -29,10 +29,10 @@ def unshared(tri_vertices):
 
 
 def random_triangles(seed):
-    """Triangles of 1 to 3,000, some rounded to one decimal (equal bins, equal costs), some with
+    """Triangles of 1 to 2,000, some rounded to one decimal (equal bins, equal costs), some with
     half of them on one triangle (coincident centroids: the build splits the list in half)."""
     rng = np.random.default_rng(seed)
-    n = int(rng.integers(1, 3000))
+    n = int(rng.integers(1, 2000))
     tv = rng.random((n, 3, 3)) * rng.random(3) * 10
     if seed % 3 == 0:
         tv = np.round(tv, 1)
@@ -49,7 +49,7 @@ def sphere_triangles(around=120, rings=60):
 
 
 CASES = {p.name: (lambda p=p: rebased(load_scene(p))) for p in scene_dirs()}
-CASES.update({f"random{seed}": (lambda seed=seed: random_triangles(seed)) for seed in range(12)})
+CASES.update({f"random{seed}": (lambda seed=seed: random_triangles(seed)) for seed in range(8)})
 CASES["one triangle"] = lambda: unshared(np.random.default_rng(1).random((1, 3, 3)))
 CASES["sphere 120x60"] = sphere_triangles
 
@@ -79,7 +79,7 @@ def tree(case):
 
 
 @pytest.mark.parametrize("width", [4, 8])
-@pytest.mark.parametrize("case", ["cornell_spheres", "random0", "random7", "sphere 120x60"])
+@pytest.mark.parametrize("case", ["random0", "random7", "sphere 120x60"])
 def test_compiled_wide_children_are_pythons(case, width, monkeypatch):
     nodes = tree(case).nodes
     leaf = nodes["count"] > 0
