@@ -73,6 +73,17 @@ def test_a_build_in_steps_gives_the_same_tree(monkeypatch):
     assert_same(whole, bvh._build_compiled(*sphere, 4, 16))
 
 
+def test_a_build_that_runs_out_of_room_makes_more(monkeypatch):
+    """A state starts with room for some nodes and stack entries and doubles what runs out: from
+    room for one of each, the same tree."""
+    from toolkit.core import sah_build
+    sphere = sphere_triangles(60, 30)
+    whole = bvh._build_compiled(*sphere, 4, 16)
+    monkeypatch.setattr(sah_build, "NODE_ROOM", 0.0)
+    monkeypatch.setattr(sah_build, "STACK_ROOM", 1)
+    assert_same(whole, bvh._build_compiled(*sphere, 4, 16))
+
+
 @functools.lru_cache(maxsize=None)
 def tree(case):
     return bvh.build_bvh(*CASES[case]())

@@ -24,6 +24,10 @@ from numba import njit
 
 # Counters of a build in progress (BuildState.counters).
 NODES, STACKED, PLACED, DEPTH = range(4)
+# Room a state makes at first: nodes per triangle (a tree of leaves of up to four has about 0.6),
+# and stack entries (one per level of the tree on the current path). A state that runs out of
+# either doubles it and goes on.
+NODE_ROOM, STACK_ROOM = 1.0, 64
 
 
 class BuildState:
@@ -40,14 +44,13 @@ class BuildState:
         self.bounds, self.order = bounds, order
         # The right side of a partition, before its copy back: a node's right side is at most n.
         self.scratch_bounds, self.scratch_order = np.empty((n, 6)), np.empty(n, np.int64)
-        cap = max(2 * n - 1, 1)                          # a binary tree of n leaves or fewer
-        # np.empty reserves; only the pages the build touches take memory (about 2n/3 nodes).
-        self.node_lo, self.node_hi = np.empty((cap, 3)), np.empty((cap, 3))
-        self.node_first, self.node_count = np.empty(cap, np.int64), np.empty(cap, np.int64)
-        self.node_axis = np.empty(cap, np.int64)
+        room = max(int(NODE_ROOM * n), 1)
+        self.node_lo, self.node_hi = np.empty((room, 3)), np.empty((room, 3))
+        self.node_first, self.node_count = np.empty(room, np.int64), np.empty(room, np.int64)
+        self.node_axis = np.empty(room, np.int64)
         # A range waits on the stack: (start, end, parent to patch or -1, depth) and its boxes. The
-        # right child of each node on the current path waits, so a stack of n + 1 always suffices.
-        self.stack, self.boxes = np.empty((n + 1, 4), np.int64), np.empty((n + 1, 12))
+        # right child of each node on the current path waits.
+        self.stack, self.boxes = np.empty((STACK_ROOM, 4), np.int64), np.empty((STACK_ROOM, 12))
         self.stack[0], self.boxes[0] = (start, end, -1, depth), box
         self.counters = np.zeros(4, np.int64)
         self.counters[STACKED] = 1
@@ -63,9 +66,24 @@ class BuildState:
     def run(self, budget, leaf_size, bins, max_nodes=1 << 62):
         """Build until `budget` more triangles are in leaves (or all are), or `max_nodes` nodes
         are made; returns how many triangles are in leaves."""
-        return build_some(self.bounds, self.order, self.scratch_bounds, self.scratch_order, self.node_lo,
-                          self.node_hi, self.node_first, self.node_count, self.node_axis, self.stack, self.boxes,
-                          self.counters, budget, max_nodes, leaf_size, bins)
+        stop = self.counters[PLACED] + budget
+        while True:
+            placed = build_some(self.bounds, self.order, self.scratch_bounds, self.scratch_order, self.node_lo,
+                                self.node_hi, self.node_first, self.node_count, self.node_axis, self.stack,
+                                self.boxes, self.counters, stop - self.counters[PLACED], max_nodes, leaf_size, bins)
+            if self.done or placed >= stop or self.nodes >= max_nodes:
+                return placed
+            self._make_room()        # it stopped for room: the nodes or the stack are full
+
+    def _make_room(self):
+        """Twice the room for nodes, or for waiting ranges, whichever is full."""
+        def doubled(array):
+            return np.concatenate([array, np.empty_like(array)])
+        if self.nodes == len(self.node_first):
+            self.node_lo, self.node_hi, self.node_first, self.node_count, self.node_axis = (
+                doubled(a) for a in (self.node_lo, self.node_hi, self.node_first, self.node_count, self.node_axis))
+        if self.counters[STACKED] == len(self.stack):
+            self.stack, self.boxes = doubled(self.stack), doubled(self.boxes)
 
     @property
     def done(self):
@@ -224,13 +242,15 @@ def _push(stack, boxes, counters, start, end, parent, depth, box):
 def build_some(bounds, order, scratch_bounds, scratch_order, node_lo, node_hi, node_first, node_count, node_axis,
                stack, boxes, counters, budget, max_nodes, leaf_size, bins):
     """Pop node ranges and build them depth first (see BuildState) until `budget` more triangles
-    sit in leaves, `max_nodes` nodes are made or the stack is empty; returns the triangles in
+    sit in leaves, `max_nodes` nodes are made, the stack is empty, or there is no room for one
+    more node or one more waiting range (BuildState.run makes room); returns the triangles in
     leaves. Holds no lock of Python's (nogil): two threads can build two subtrees at once."""
     stop = counters[PLACED] + budget
     blo, bhi, counts = np.empty((3, bins, 3)), np.empty((3, bins, 3)), np.empty((3, bins), np.int64)
     rlo, rhi = np.empty((bins, 3)), np.empty((bins, 3))
     box, left_box, right_box = np.empty(12), np.empty(12), np.empty(12)
-    while counters[STACKED] > 0 and counters[PLACED] < stop and counters[NODES] < max_nodes:
+    while (counters[STACKED] > 0 and counters[PLACED] < stop and counters[NODES] < max_nodes
+           and counters[NODES] < len(node_first) and counters[STACKED] < len(stack)):
         counters[STACKED] -= 1
         top = counters[STACKED]
         start, end, parent, depth = stack[top, 0], stack[top, 1], stack[top, 2], stack[top, 3]
