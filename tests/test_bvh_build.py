@@ -50,7 +50,8 @@ def sphere_triangles(around=120, rings=60):
 
 CASES = {p.name: (lambda p=p: rebased(load_scene(p))) for p in scene_dirs()}
 CASES.update({f"random{seed}": (lambda seed=seed: random_triangles(seed)) for seed in range(8)})
-CASES["one triangle"] = lambda: unshared(np.random.default_rng(1).random((1, 3, 3)))
+CASES["one triangle"] = lambda: unshared(np.random.default_rng(1).random((1, 3, 3)))      # the root is a leaf
+CASES["six triangles"] = lambda: unshared(np.random.default_rng(2).random((6, 3, 3)))     # its children are
 CASES["sphere 120x60"] = sphere_triangles
 
 
