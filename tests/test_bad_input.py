@@ -97,7 +97,8 @@ def full(*a):   # like a full disk: any file write past 64 bytes fails (EFBIG; S
     return real(*a)
 im._write_temporary = full
 """
-BIG_MESH = "import toolkit.core.bvh; toolkit.core.bvh.PROGRESS_FROM = 1   # every build counts as big"
+BIG_MESH = ("import toolkit.core.bvh as b; b.PROGRESS_FROM = b.COMPILED_FROM = 1   "
+            "# every build counts as big")
 
 CASES = {
     # 1. memory corruption: BDPT at max_depth 0 wrote past its vertex memory (see also test_buffer_guard.py)

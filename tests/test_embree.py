@@ -51,3 +51,30 @@ def test_traversal_agrees_with_embree(folder, bvh):
     assert f["excused_rounding"] < 1e-3 * f["rays"]
     assert f["any_excused"] < 1e-3 * f["segments"]
     assert f["excused"] - f["ties_verified"] == f["excused_rounding"]
+
+
+@pytest.fixture(scope="module")
+def sphere_in_box(tmp_path_factory):
+    """The million-triangle scene's kind (scenes/tools/make_million.py) at 150 x 75 segments:
+    22,236 triangles, enough for the compiled build (toolkit/core/bvh.py COMPILED_FROM)."""
+    import importlib.util
+    spec = importlib.util.spec_from_file_location("make_million", ROOT / "scenes" / "tools" / "make_million.py")
+    make_million = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(make_million)
+    with pytest.warns(UserWarning, match="degenerate"):
+        return load_scene(make_million.write_million_scene(tmp_path_factory.mktemp("sphere"), 150, 75))
+
+
+@pytest.mark.parametrize("bvh", ["binary", "wide"])
+def test_compiled_build_agrees_with_embree(sphere_in_box, bvh):
+    from toolkit.core.bvh import COMPILED_FROM
+    assert len(sphere_in_box.triangles) >= COMPILED_FROM
+    f = compare_with_embree(sphere_in_box, n_random=100_000, seed=0, bvh=bvh)
+    print()
+    print(format_figures(f))
+    assert f["unexplained"] == 0, f["unexplained_examples"]
+    assert f["any_unexplained"] == 0, f["unexplained_examples"]
+    assert f["device_any_vs_closest_mismatch"] == 0
+    assert f["max_t_error_conditioned"] <= TIE_RELATIVE
+    assert f["excused_rounding"] < 1e-3 * f["rays"]
+    assert f["any_excused"] < 1e-3 * f["segments"]

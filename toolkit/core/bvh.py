@@ -1,4 +1,9 @@
-"""A binned SAH bounding-volume hierarchy built on the host with numpy, flattened for the device.
+"""A binned SAH bounding-volume hierarchy built on the host, flattened for the device.
+
+Two builders make the same tree, bit for bit: `_build_numpy`, one node at a time in numpy (the
+one to read), and toolkit/core/sah_build.py, the same loops compiled by numba, for scenes of
+COMPILED_FROM triangles or more (a million triangles: a minute in numpy, about a second
+compiled). tests/test_bvh_build.py holds them to the same nodes.
 
 Nodes are stored depth-first: an inner node's left child follows it, `first` holds the right
 child. Leaves hold at most `leaf_size` triangles, reordered so each leaf's are contiguous.
@@ -12,6 +17,7 @@ same triangle order and leaves.
 import sys
 import time
 from collections import deque
+from concurrent.futures import ThreadPoolExecutor, wait
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,8 +25,13 @@ from tqdm.auto import tqdm
 
 from toolkit.core.layout import BVH_NODE, BVH_WIDTH, TRI_GROUP, WIDE_NODES, WideChild
 
-# Builds of this many triangles or more show a progress bar (1M triangles take about a minute).
-PROGRESS_FROM = 100_000
+# Builds of this many triangles or more are compiled (toolkit/core/sah_build.py; the wide BVH's
+# choice of children too, from as many binary nodes): below, numpy's build (about 15,000
+# triangles/s) takes no longer than numba's start (half a second to a second) and spares its 150 MB.
+COMPILED_FROM = 15_000
+# Builds of this many triangles or more show a progress bar, updated every PROGRESS_STEP triangles.
+PROGRESS_FROM = 1_000_000
+PROGRESS_STEP = 250_000
 
 
 @dataclass
@@ -40,6 +51,54 @@ class Bvh:
 def _area(lo, hi):
     d = np.maximum(hi - lo, 0.0)
     return 2.0 * (d[..., 0] * d[..., 1] + d[..., 1] * d[..., 2] + d[..., 2] * d[..., 0])
+
+
+def build_bvh(vertices, triangles, leaf_size=4, bins=16):
+    """Build over triangles (M, 3) of vertex indices into `vertices`, (V, 3) float64 positions.
+    From COMPILED_FROM triangles on, the compiled build does it (toolkit/core/sah_build.py, the
+    same tree bit for bit); a scene of PROGRESS_FROM triangles or more shows its progress."""
+    start = time.perf_counter()
+    if len(triangles) >= COMPILED_FROM:
+        lo, hi, first, count, axis, order, depth = _build_compiled(vertices, triangles, leaf_size, bins)
+    else:
+        lo, hi, first, count, axis, order, depth = _build_numpy(vertices[triangles], leaf_size, bins)
+    flat = BVH_NODE.zeros(len(first))
+    # Round outwards so float32 boxes still contain the float32 triangles.
+    flat["lo"][:, :3] = np.nextafter(lo.astype(np.float32), np.float32(-np.inf))
+    flat["hi"][:, :3] = np.nextafter(hi.astype(np.float32), np.float32(np.inf))
+    flat["first"], flat["count"], flat["axis"] = first, count, axis
+    leaves = int((flat["count"] > 0).sum())
+    return Bvh(flat, order, time.perf_counter() - start, len(flat) - leaves, leaves, depth)
+
+
+def _build_compiled(vertices, triangles, leaf_size, bins):
+    """The root's split here, then its two subtrees at once, one thread each (2 cores, 2 threads)."""
+    # Imported here: numba's start costs about half a second and 150 MB, which small scenes need not pay.
+    from toolkit.core import sah_build
+
+    root = sah_build.BuildState.of_triangles(vertices, triangles)
+    root.run(len(triangles), leaf_size, bins, max_nodes=1)
+    if root.done:                   # the root is a leaf
+        return (root.node_lo[:1], root.node_hi[:1], root.node_first[:1], root.node_count[:1], root.node_axis[:1],
+                root.order, 0)
+    subtrees = root.waiting()
+    root.release()
+
+    def build(state):
+        while not state.done:
+            state.run(PROGRESS_STEP, leaf_size, bins)
+        state.release()
+
+    with tqdm(total=len(triangles), unit="tri", desc="BVH build", file=sys.stderr, leave=False,
+              disable=len(triangles) < PROGRESS_FROM, mininterval=0.5) as bar, \
+            ThreadPoolExecutor(len(subtrees)) as pool:
+        running = [pool.submit(build, state) for state in subtrees]
+        while wait(running, timeout=0.5).not_done:
+            bar.update(sum(state.counters[sah_build.PLACED] for state in subtrees) - bar.n)
+        for done in running:
+            done.result()           # raises what the thread raised
+    lo, hi, first, count, axis, depth = sah_build.join(root, *subtrees)
+    return lo, hi, first, count, axis, root.order, int(depth)
 
 
 def _best_split(lo, hi, centroid, bins):
@@ -74,11 +133,9 @@ def _best_split(lo, hi, centroid, bins):
     return best
 
 
-def build_bvh(tri_vertices, leaf_size=4, bins=16):
-    """Build over triangles given as (M, 3, 3) float64 vertex positions."""
-    start = time.perf_counter()
-    bar = tqdm(total=len(tri_vertices), unit="tri", desc="BVH build", file=sys.stderr, leave=False,
-               disable=len(tri_vertices) < PROGRESS_FROM, mininterval=0.5)
+def _build_numpy(tri_vertices, leaf_size, bins):
+    """The build in numpy, one node at a time, over (M, 3, 3) float64 triangle vertices: what
+    sah_build.py compiles, as it reads best."""
     lo_all, hi_all = tri_vertices.min(1), tri_vertices.max(1)
     centroid_all = 0.5 * (lo_all + hi_all)
     nodes = []            # [lo, hi, first, count, axis]
@@ -102,26 +159,15 @@ def build_bvh(tri_vertices, leaf_size=4, bins=16):
         if split is None:
             nodes.append([lo, hi, len(order), len(ids), 0])
             order.extend(ids.tolist())
-            bar.update(len(ids))      # progress: triangles placed in leaves
             continue
         _, axis, left = split
         nodes.append([lo, hi, -1, 0, axis])
         # Right pushed first so the left child is built next and lands at me + 1.
         stack.append((ids[~left], me, depth + 1))
         stack.append((ids[left], None, depth + 1))
-    bar.close()
-    flat = BVH_NODE.zeros(len(nodes))
-    lo = np.array([n[0] for n in nodes])
-    hi = np.array([n[1] for n in nodes])
-    # Round outwards so float32 boxes still contain the float32 triangles.
-    flat["lo"][:, :3] = np.nextafter(lo.astype(np.float32), np.float32(-np.inf))
-    flat["hi"][:, :3] = np.nextafter(hi.astype(np.float32), np.float32(np.inf))
-    flat["first"] = [n[2] for n in nodes]
-    flat["count"] = [n[3] for n in nodes]
-    flat["axis"] = [n[4] for n in nodes]
-    leaves = int((flat["count"] > 0).sum())
-    return Bvh(flat, np.asarray(order, np.int64), time.perf_counter() - start,
-               len(nodes) - leaves, leaves, depth_max)
+    return (np.array([n[0] for n in nodes]).reshape(-1, 3), np.array([n[1] for n in nodes]).reshape(-1, 3),
+            [n[2] for n in nodes], [n[3] for n in nodes], [n[4] for n in nodes], np.asarray(order, np.int64),
+            depth_max)
 
 
 @dataclass
@@ -159,28 +205,40 @@ def collapse_wide(bvh, leaf_vertices, node_width, width=BVH_WIDTH):
     is_leaf = nodes["count"] > 0
     if is_leaf.any() and nodes["count"].max() > width:
         raise ValueError(f"a TriGroup holds {width} triangles; the BVH has leaves of {nodes['count'].max()}")
-    groups, group_of = _tri_groups(nodes, is_leaf, leaf_vertices, width)
-    kids_of, index_of, depth_of, stack_of = _wide_children(nodes, is_leaf, node_width)
-    wide = WIDE_NODES[node_width].zeros(len(kids_of))
+    kids, index_of, depth_of, stack_of = _wide_children(nodes, is_leaf, node_width)
+    leaves = int(is_leaf.sum())
+    # One buffer of words, zeroed, and the records written into it where they lie (no copy).
+    split = len(kids) * WIDE_NODES[node_width].dtype.itemsize
+    records = np.zeros(split + leaves * TRI_GROUP.dtype.itemsize, np.uint8)
+    wide = records[:split].view(WIDE_NODES[node_width].dtype)
+    groups = records[split:].view(TRI_GROUP.dtype)
+    group_of = _tri_groups(nodes, is_leaf, leaf_vertices, width, groups)
+    used = kids >= 0
+    k = kids[used]
+    for axis, name in enumerate("xyz"):
+        wide[f"lo_{name}"][used] = nodes["lo"][k, axis]
+        wide[f"hi_{name}"][used] = nodes["hi"][k, axis]
+    group_base = len(kids) * node_words(node_width)
     wide["child"] = int(WideChild.EMPTY)
-    group_base = len(kids_of) * node_words(node_width)
-    for w, kids in enumerate(kids_of):
-        for lane, k in enumerate(kids):
-            for axis, name in enumerate("xyz"):
-                wide[f"lo_{name}"][w, lane] = nodes["lo"][k, axis]
-                wide[f"hi_{name}"][w, lane] = nodes["hi"][k, axis]
-            wide["child"][w, lane] = (~(group_base + int(group_of[k]) * GROUP_WORDS) if is_leaf[k]
-                                      else index_of[k] * node_words(node_width))
-    words = np.concatenate([wide.view(np.float32).reshape(-1, 4), groups.view(np.float32).reshape(-1, 4)])
-    return WideBvh(np.ascontiguousarray(words), node_width, len(kids_of), len(groups), max(depth_of), max(stack_of))
+    wide["child"][used] = np.where(is_leaf[k], ~(group_base + group_of[k] * GROUP_WORDS),
+                                   index_of[k] * node_words(node_width))
+    return WideBvh(records.view(np.float32).reshape(-1, 4), node_width, len(kids), len(groups), int(depth_of.max()),
+                   int(stack_of.max()))
 
 
-def _tri_groups(nodes, is_leaf, leaf_vertices, width):
-    """One TriGroup per binary leaf, in node order: (groups, binary node -> its group or -1)."""
+def wide_stack_needed(bvh, node_width):
+    """The traversal-stack entries collapse_wide(bvh, ..., node_width) will need (WideBvh.stack_needed),
+    without making its records."""
+    nodes = bvh.nodes
+    return int(_wide_children(nodes, nodes["count"] > 0, node_width)[3].max())
+
+
+def _tri_groups(nodes, is_leaf, leaf_vertices, width, groups):
+    """One TriGroup per binary leaf, in node order, written into `groups` (zeroed records, one per
+    leaf); returns binary node -> its group or -1."""
     leaves = np.flatnonzero(is_leaf)
     group_of = np.full(len(nodes), -1)
     group_of[leaves] = np.arange(len(leaves))
-    groups = TRI_GROUP.zeros(len(leaves))
     groups["tri"] = -1
     first, count = nodes["first"][leaves], nodes["count"][leaves]
     for lane in range(width):
@@ -191,22 +249,27 @@ def _tri_groups(nodes, is_leaf, leaf_vertices, width):
             for k, name in enumerate("xyz"):
                 # Empty lanes keep v0 = v1 = v2 = 0: a degenerate triangle the test rejects (det = 0).
                 groups[f"v{v}{name}"][has, lane] = leaf_vertices[slot, v, k]
-    return groups, group_of
+    return group_of
 
 
 def _wide_children(nodes, is_leaf, width):
     """The wide nodes' children, chosen top-down (the inner child of largest surface area opens
-    first): (binary children per wide node, binary node -> wide node index for inner children,
-    depth per wide node, stack entries a ray may hold on reaching it)."""
+    first): (binary children per wide node (wide nodes, width), -1 in empty lanes; binary node ->
+    wide node index for inner children, else -1; depth per wide node; stack entries a ray may
+    hold on reaching it). Big trees take the compiled walk (toolkit/core/wide_children.py)."""
     lo, hi = nodes["lo"][:, :3].astype(np.float64), nodes["hi"][:, :3].astype(np.float64)
     area = _area(lo, hi)
+    if len(nodes) >= COMPILED_FROM:
+        from toolkit.core.wide_children import wide_children      # numba: see build_bvh
+        return wide_children(nodes["first"].astype(np.int64), is_leaf, area, width)
 
     def children(b):
         return [b + 1, int(nodes["first"][b])]
 
     kids_of, depth_of, stack_of = [], [], []
     pending = deque([(0, 1, 0)])  # (binary node, depth, stack entries below it), breadth first
-    index_of = {0: 0}
+    index_of = np.full(len(nodes), -1)
+    index_of[0] = 0
     while pending:
         b, depth, stacked = pending.popleft()
         kids = [b] if is_leaf[b] else children(b)
@@ -217,11 +280,11 @@ def _wide_children(nodes, is_leaf, width):
             k = max(inner, key=lambda k: area[k])
             i = kids.index(k)
             kids[i:i + 1] = children(k)
-        kids_of.append(kids)
+        kids_of.append(kids + [-1] * (width - len(kids)))
         depth_of.append(depth)
         stack_of.append(stacked + len(kids))    # all children pushed, before the nearest is popped
         for k in kids:
             if not is_leaf[k]:
                 index_of[k] = len(kids_of) + len(pending)
                 pending.append((k, depth + 1, stacked + len(kids) - 1))
-    return kids_of, index_of, depth_of, stack_of
+    return np.array(kids_of, np.int64), index_of, np.array(depth_of), np.array(stack_of)

@@ -4,19 +4,28 @@ Precision: the host subtracts the scene's centre in float64 before converting to
 a scene translated far from the origin keeps the precision of one at the origin
 ("camera-relative" / origin rebasing). Ray offsets scale with the scene's size (scene_epsilon).
 """
+import hashlib
+
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.bvh import build_bvh, collapse_wide
+from toolkit.core.bvh import build_bvh, collapse_wide, wide_stack_needed
 from toolkit.core.layout import BVH_KINDS, BVH_STACK_SIZE, CAMERA, LIGHT, LUMINANCE_WEIGHTS, MATERIAL, MATERIAL_TYPES, SCENE_ARGS, TRIANGLE, WIDE_NODES
 from toolkit.opencl import lanes
 
-def _bvh_for(queue, scene, tri_vertices):
-    """The host BVH of this geometry, built once per context (its Builds keeps it: builds.py)."""
+def _bvh_for(queue, scene, local):
+    """The host BVH of this geometry (`local`: the rebased vertices), built once per context (its
+    Builds keeps it: builds.py)."""
     bvhs = queue.builds.bvhs
-    key = (scene.name, tri_vertices.shape, hash(tri_vertices.tobytes()))
+    # Vertices and indices hashed where they lie, not every triangle's vertices (72 MB for a million).
+    digest = hashlib.blake2b(digest_size=16)
+    for array in (local, scene.triangles):
+        array = np.ascontiguousarray(array)
+        digest.update(str((array.dtype.str, array.shape)).encode())
+        digest.update(array.data)
+    key = (scene.name, digest.digest())
     if key not in bvhs:
-        bvhs[key] = build_bvh(tri_vertices)
+        bvhs[key] = build_bvh(local, scene.triangles)
     return bvhs[key]
 
 
@@ -52,12 +61,13 @@ class DeviceScene:
         self.extent = float(np.linalg.norm(hi - lo))
         self.epsilon = np.float32(self.EPSILON_RELATIVE * self.extent)
         local = scene.vertices - self.center                    # float64 rebasing
-        tri_vertices = local[scene.triangles]
-        self.bvh = _bvh_for(queue, scene, tri_vertices)
+        self.bvh = _bvh_for(queue, scene, local)
         if self.bvh.max_depth >= BVH_STACK_SIZE - 1:
             raise ValueError(f"{scene.name}: BVH depth {self.bvh.max_depth} exceeds the device stack ({BVH_STACK_SIZE})")
         order = self.bvh.order
-        tv = tri_vertices[order].astype(np.float32)
+        # Rounded to float32 vertex by vertex, then gathered: the same numbers as gathering in
+        # float64 and rounding, without a float64 copy of every triangle (72 MB for a million).
+        tv = local.astype(np.float32)[scene.triangles[order]]
         self.triangles = TRIANGLE.zeros(len(order))
         self.triangles["v0"][:, :3] = tv[:, 0]
         self.triangles["v1"][:, :3] = tv[:, 1]
@@ -68,15 +78,16 @@ class DeviceScene:
         nodes = self.bvh.nodes
         self.wide = None
         if bvh == "wide":
-            self.wide = collapse_wide(self.bvh, tv, wide_width or node_width(queue))
-            if self.wide.stack_needed > BVH_STACK_SIZE and wide_width is None and self.wide.node_width == 8:
-                # Eight children a level fill the stack faster: a tree too deep for it gets four.
-                self.wide = collapse_wide(self.bvh, tv, 4)
+            width = wide_width or node_width(queue)
+            if wide_width is None and width == 8 and wide_stack_needed(self.bvh, 8) > BVH_STACK_SIZE:
+                width = 4   # eight children a level fill the stack faster: a tree too deep for it gets four
+            self.wide = collapse_wide(self.bvh, tv, width)
             if self.wide.stack_needed > BVH_STACK_SIZE:
                 raise ValueError(f"{scene.name}: the wide BVH needs {self.wide.stack_needed} stack entries, "
                                  f"more than the device stack ({BVH_STACK_SIZE})")
             nodes = self.wide.words
-        self._build_lights(tri_vertices, order)
+        del tv      # before the buffers are made: a million triangles' float32 vertices are 36 MB
+        self._build_lights(local, order)
         self.materials = MATERIAL.zeros(len(scene.materials))
         for i, m in enumerate(scene.materials):
             self.materials[i]["reflectance"][:3] = m["reflectance"]
@@ -89,13 +100,13 @@ class DeviceScene:
                         (("nodes", nodes), ("tris", self.triangles), ("materials", self.materials),
                          ("lights", self.lights))}
 
-    def _build_lights(self, tri_vertices, order):
-        """Pick lights in proportion to power: area x luminance(emission)."""
+    def _build_lights(self, local, order):
+        """Pick lights in proportion to power: area x luminance(emission). `local`: the rebased vertices."""
         scene = self.scene
         slot_of = np.empty(len(order), np.int64)
         slot_of[order] = np.arange(len(order))
         light_tris = scene.light_triangles
-        v = tri_vertices[light_tris]
+        v = local[scene.triangles[light_tris]]
         area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
         emission = scene.emission_of[light_tris]
         power = area * (emission @ np.array(LUMINANCE_WEIGHTS))

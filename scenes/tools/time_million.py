@@ -1,0 +1,81 @@
+"""Times the million-triangle scene's load and BVH build (issue 49): CPU seconds (this process)
+and wall seconds of each step, and the process's peak memory. On a shared machine trust the
+CPU seconds; the wall clock also counts other people's work.
+
+    python scenes/tools/make_million.py out/million
+    python scenes/tools/time_million.py out/million [--toolkit-load]
+
+Steps: (with --toolkit-load) the toolkit's load_scene, whose memory then counts in the peak; the
+meshes read by trimesh (a fast OBJ reader), as
+arrays; the BVH build on the rebased float64 triangles (toolkit/core/bvh.py, as DeviceScene
+calls it); the wide BVH of 4 children (the one a million-triangle scene gets: its 8-wide tree
+needs more stack than the kernels have). "load (trimesh) + build" is the issue's target figure.
+"""
+import json
+import resource
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent.parent
+sys.path.insert(0, str(ROOT))
+
+
+class Clock:
+    def __init__(self):
+        self.rows = {}
+
+    def __call__(self, name, step, *args):
+        cpu, wall = time.process_time(), time.perf_counter()
+        result = step(*args)
+        self.rows[name] = (time.process_time() - cpu, time.perf_counter() - wall)
+        print(f"{name:<34} {self.rows[name][0]:7.2f} s CPU {self.rows[name][1]:7.2f} s wall", flush=True)
+        return result
+
+
+def trimesh_arrays(scene_json):
+    """Every mesh of the scene read by trimesh, as one (vertices, triangles) pair."""
+    import trimesh
+    vertices, triangles = [], []
+    base = 0
+    for shape in json.loads(scene_json.read_text(encoding="utf-8"))["shapes"]:
+        mesh = trimesh.load(scene_json.parent / shape["mesh"], process=False)
+        vertices.append(np.asarray(mesh.vertices, np.float64))
+        triangles.append(np.asarray(mesh.faces, np.int64) + base)
+        base += len(mesh.vertices)
+    return np.concatenate(vertices), np.concatenate(triangles)
+
+
+def main(folder, toolkit_load=False):
+    scene_json = Path(folder) / "scene.json"
+    clock = Clock()
+    from toolkit.core.bvh import build_bvh, collapse_wide
+    if toolkit_load:
+        from toolkit.core.scene import load_scene
+        clock("load (toolkit's load_scene)", load_scene, scene_json)
+    vertices, triangles = clock("load (trimesh)", trimesh_arrays, scene_json)
+    lo, hi = vertices.min(0), vertices.max(0)
+    local = vertices - 0.5 * (lo + hi)
+    edges = np.cross(local[triangles[:, 1]] - local[triangles[:, 0]], local[triangles[:, 2]] - local[triangles[:, 0]])
+    triangles = triangles[np.linalg.norm(edges, axis=1) > 0]     # the loader drops degenerate triangles too
+    del edges
+    print(f"{len(triangles):,} triangles")
+    bvh = clock("BVH build", build_bvh, local, triangles)
+    leaf_vertices = local.astype(np.float32)[triangles[bvh.order]]
+    wide = clock("wide BVH (4 children)", collapse_wide, bvh, leaf_vertices, 4)
+    cpu = sum(clock.rows[k][0] for k in ("load (trimesh)", "BVH build", "wide BVH (4 children)"))
+    wall = sum(clock.rows[k][1] for k in ("load (trimesh)", "BVH build", "wide BVH (4 children)"))
+    print(f"{'load (trimesh) + build + wide':<34} {cpu:7.2f} s CPU {wall:7.2f} s wall")
+    print(f"binary nodes {bvh.node_count:,}, depth {bvh.max_depth}; wide nodes {wide.inner_nodes:,}, "
+          f"stack {wide.stack_needed}")
+    print(f"peak memory (this process, all steps) {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB")
+
+
+if __name__ == "__main__":
+    if len(sys.argv) not in (2, 3) or sys.argv[2:] not in ([], ["--toolkit-load"]):
+        print(f"usage: python {sys.argv[0]} SCENE_FOLDER [--toolkit-load] (the folder: scenes/tools/make_million.py's)",
+              file=sys.stderr)
+        raise SystemExit(2)
+    main(sys.argv[1], toolkit_load=sys.argv[2:] == ["--toolkit-load"])

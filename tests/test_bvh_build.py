@@ -1,0 +1,133 @@
+"""The compiled BVH build (toolkit/core/sah_build.py, wide_children.py) against the numpy one
+(toolkit/core/bvh.py): the same nodes, triangle order, depth and wide BVH, bit for bit, on the
+bundled scenes, on random triangles made to tie (rounded coordinates, coincident centroids) and
+on a UV sphere like the million-triangle scene's (scenes/tools/make_million.py)."""
+import functools
+import importlib.util
+
+import numpy as np
+import pytest
+
+from conftest import ROOT, scene_dirs
+from toolkit.core import bvh
+from toolkit.core.scene import load_scene
+
+spec = importlib.util.spec_from_file_location("make_million", ROOT / "scenes" / "tools" / "make_million.py")
+make_million = importlib.util.module_from_spec(spec)
+spec.loader.exec_module(make_million)
+
+
+def rebased(scene):
+    """The scene as DeviceScene hands it to the build: float64 vertices, centred, and triangles."""
+    lo, hi = scene.vertices.min(0), scene.vertices.max(0)
+    return scene.vertices - 0.5 * (lo + hi), scene.triangles
+
+
+def unshared(tri_vertices):
+    """(vertices, triangles) of (M, 3, 3) triangle vertices that share no vertex."""
+    return tri_vertices.reshape(-1, 3), np.arange(3 * len(tri_vertices)).reshape(-1, 3)
+
+
+def random_triangles(seed):
+    """Triangles of 1 to 2,000, some rounded to one decimal (equal bins, equal costs), some with
+    half of them on one triangle (coincident centroids: the build splits the list in half)."""
+    rng = np.random.default_rng(seed)
+    n = int(rng.integers(1, 2000))
+    tv = rng.random((n, 3, 3)) * rng.random(3) * 10
+    if seed % 3 == 0:
+        tv = np.round(tv, 1)
+    if seed % 5 == 0:
+        tv[: n // 2] = tv[0]
+    return unshared(tv)
+
+
+def sphere_triangles(around=120, rings=60):
+    vertices, triangles = make_million.uv_sphere(around, rings)
+    tv = vertices[triangles]
+    area = np.linalg.norm(np.cross(tv[:, 1] - tv[:, 0], tv[:, 2] - tv[:, 0]), axis=1)
+    return vertices, triangles[area > 0]     # the poles' degenerate triangles, as the loader drops them
+
+
+CASES = {p.name: (lambda p=p: rebased(load_scene(p))) for p in scene_dirs()}
+CASES.update({f"random{seed}": (lambda seed=seed: random_triangles(seed)) for seed in range(8)})
+CASES["one triangle"] = lambda: unshared(np.random.default_rng(1).random((1, 3, 3)))      # the root is a leaf
+CASES["six triangles"] = lambda: unshared(np.random.default_rng(2).random((6, 3, 3)))     # its children are
+CASES["sphere 120x60"] = sphere_triangles
+
+
+def assert_same(a, b):
+    for what, x, y in zip(("lo", "hi", "first", "count", "axis", "order", "depth"), a, b):
+        assert np.array_equal(np.asarray(x), np.asarray(y)), what
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_compiled_build_gives_numpy_tree(case):
+    vertices, triangles = CASES[case]()
+    assert_same(bvh._build_numpy(vertices[triangles], 4, 16), bvh._build_compiled(vertices, triangles, 4, 16))
+
+
+def test_a_build_in_steps_gives_the_same_tree(monkeypatch):
+    """The progress bar's steps (PROGRESS_STEP) stop and resume the build: any step gives one tree."""
+    sphere = sphere_triangles(60, 30)
+    whole = bvh._build_compiled(*sphere, 4, 16)
+    monkeypatch.setattr(bvh, "PROGRESS_STEP", 7)
+    assert_same(whole, bvh._build_compiled(*sphere, 4, 16))
+
+
+def test_a_build_that_runs_out_of_room_makes_more(monkeypatch):
+    """A state starts with room for some nodes and stack entries and doubles what runs out: from
+    room for one of each, the same tree."""
+    from toolkit.core import sah_build
+    sphere = sphere_triangles(60, 30)
+    whole = bvh._build_compiled(*sphere, 4, 16)
+    monkeypatch.setattr(sah_build, "NODE_ROOM", 0.0)
+    monkeypatch.setattr(sah_build, "STACK_ROOM", 1)
+    assert_same(whole, bvh._build_compiled(*sphere, 4, 16))
+
+
+@functools.lru_cache(maxsize=None)
+def tree(case):
+    return bvh.build_bvh(*CASES[case]())
+
+
+@pytest.mark.parametrize("width", [4, 8])
+@pytest.mark.parametrize("case", ["random0", "random7", "sphere 120x60"])
+def test_compiled_wide_children_are_pythons(case, width, monkeypatch):
+    nodes = tree(case).nodes
+    leaf = nodes["count"] > 0
+    monkeypatch.setattr(bvh, "COMPILED_FROM", 1 << 40)
+    python = bvh._wide_children(nodes, leaf, width)
+    monkeypatch.setattr(bvh, "COMPILED_FROM", 0)
+    compiled = bvh._wide_children(nodes, leaf, width)
+    for what, x, y in zip(("kids", "index_of", "depth", "stack"), python, compiled):
+        assert np.array_equal(x, y), what
+    assert (python[0][:, 1] >= 0).any(), "a wide node with children (the comparison is not vacuous)"
+    # What DeviceScene asks before it collapses (does the tree fit the stack at this width?).
+    assert bvh.wide_stack_needed(tree(case), width) == python[3].max()
+
+
+def test_build_bvh_takes_the_compiled_build_from_compiled_from(monkeypatch):
+    vertices, triangles = sphere_triangles(60, 30)
+    monkeypatch.setattr(bvh, "COMPILED_FROM", len(triangles))
+    calls = []
+    for name in ("_build_numpy", "_build_compiled"):
+        real = getattr(bvh, name)
+        monkeypatch.setattr(bvh, name, lambda *a, real=real, name=name: calls.append(name) or real(*a))
+    bvh.build_bvh(vertices, triangles)
+    bvh.build_bvh(vertices, triangles[:-1])
+    assert calls == ["_build_compiled", "_build_numpy"]
+
+
+def test_million_scene_script_writes_the_box_and_sphere(tmp_path):
+    """The benchmark scene at a small size: the box's 36 triangles and 2 x around x rings of the
+    sphere, less the 2 x around at its poles that collapse to lines (the loader drops them)."""
+    around, rings = 40, 20
+    with pytest.warns(UserWarning, match=f"dropped {2 * around} degenerate"):
+        scene = load_scene(make_million.write_million_scene(tmp_path, around, rings))
+    assert len(scene.triangles) == 36 + 2 * around * rings - 2 * around
+    sphere = scene.vertices[scene.triangles[36:]]
+    radius = np.linalg.norm(sphere - make_million.CENTER, axis=2)
+    assert np.allclose(radius, make_million.RADIUS)
+    # Counter-clockwise seen from outside: face normals point away from the centre.
+    normals = np.cross(sphere[:, 1] - sphere[:, 0], sphere[:, 2] - sphere[:, 0])
+    assert (np.einsum("ij,ij->i", normals, sphere.mean(1) - make_million.CENTER) > 0).all()
