@@ -1,0 +1,163 @@
+/* Connection records (value, pixel) summed per pixel on the device (host: toolkit/opencl/record_film.py).
+ *
+ * BDPT's connect phases write one record per connection, and a light-tracing (t = 1) record
+ * lands on any pixel: many work-items add to one pixel at once. Float atomics would make the
+ * sum depend on the order of the additions (the image's bits would change from run to run) and
+ * OpenCL 1.2 has none. Integer additions give the same bits in any order. So each record is
+ * rounded to a fixed point, a multiple of 2^-FILM_FRACTION_BITS (2^-48), and added with integer
+ * atomics into 128 bits per channel (FilmAccumulator, toolkit/core/layout.py says why 48 and 128):
+ * a record of 1e-6 is kept exactly, and 2^31 records of 1e14 still fit.
+ *
+ * Two ways to add 128 bits, the same bits in the end (tests/test_record_film.py):
+ *   FILM_WORD_BITS 64: two 64-bit words with atom_add (cl_khr_int64_base_atomics, most devices);
+ *   FILM_WORD_BITS 32: four 32-bit words with atomic_add (OpenCL 1.1's core, every device).
+ * A word that wraps around carries one into the next: atomic_add returns the word's old value,
+ * so the work-item whose addition wrapped it knows, and adds the carry itself. Every carry is
+ * added exactly once, so the words end as the exact sum modulo 2^128, whatever the order.
+ *
+ * At the end of a pass record_film_resolve rounds each sum to the nearest float (once, so the
+ * pass's pixel is within half an ulp of the exact sum of its rounded records), writes it for the
+ * host to read and zeroes the sums for the next pass. */
+#include "common.h"
+
+#if FILM_WORD_BITS == 64
+#pragma OPENCL EXTENSION cl_khr_int64_base_atomics : enable
+#endif
+
+/* Channel c's four words of pixel p. */
+HELPER volatile __global uint* channel_words(__global FilmAccumulator* film, int p, int c) {
+    return (volatile __global uint*)&film[p].red + 4 * c;
+}
+
+/* Two's complement negation of a 128-bit integer in four words (least significant first). */
+HELPER uint4 negated(uint4 w) {
+    w = ~w;
+    w.x += 1u;
+    if (w.x == 0u) { w.y += 1u; if (w.y == 0u) { w.z += 1u; if (w.z == 0u) w.w += 1u; } }
+    return w;
+}
+
+/* A record's value v (finite, |v| <= FILM_RECORD_LIMIT) in units of 2^-FILM_FRACTION_BITS, rounded
+ * to nearest, as 128 bits. |v| * FILM_SCALE is exact (a power of two) and below 2^96; it is split
+ * into 32-bit parts in float arithmetic, each step exact: the parts are the bits of one float's
+ * 24-bit mantissa. */
+HELPER uint4 fixed_point(float v) {
+    float s = rint(fabs(v) * FILM_SCALE);
+    float high = floor(s * 0x1p-64f);
+    float rest = s - high * 0x1p64f;
+    float middle = floor(rest * 0x1p-32f);
+    float low = rest - middle * 0x1p32f;
+    uint4 w = (uint4)(convert_uint(low), convert_uint(middle), convert_uint(high), 0u);
+    return v < 0.0f ? negated(w) : w;
+}
+
+#if FILM_WORD_BITS == 64
+/* words += x (mod 2^128) as two 64-bit atomics; a wrapped low word carries into the high one. */
+HELPER void atomic_add_128(volatile __global uint* words, uint4 x) {
+    volatile __global ulong* w = (volatile __global ulong*)words;
+    ulong low = upsample(x.y, x.x), high = upsample(x.w, x.z);
+    if (low != 0ul) {
+        ulong old = atom_add(&w[0], low);
+        high += (old + low < old) ? 1ul : 0ul;     /* this addition wrapped the low word */
+    }
+    if (high != 0ul) atom_add(&w[1], high);
+}
+
+HELPER uint4 load_128(volatile __global uint* words) {
+    volatile __global ulong* w = (volatile __global ulong*)words;
+    ulong low = w[0], high = w[1];
+    return (uint4)((uint)low, (uint)(low >> 32), (uint)high, (uint)(high >> 32));
+}
+
+HELPER void clear_128(volatile __global uint* words) {
+    volatile __global ulong* w = (volatile __global ulong*)words;
+    w[0] = 0ul;
+    w[1] = 0ul;
+}
+#else
+/* words += x (mod 2^128) as 32-bit atomics, word by word, each carry added with the next word. */
+HELPER void atomic_add_128(volatile __global uint* words, uint4 x) {
+    uint part[4] = {x.x, x.y, x.z, x.w};
+    uint carry = 0u;
+    for (int k = 0; k < 4; ++k) {
+        uint add = part[k] + carry;
+        carry = add < part[k] ? 1u : 0u;            /* part + carry wrapped (to 0: nothing to add) */
+        if (add != 0u) {
+            uint old = atomic_add(&words[k], add);
+            carry += old + add < old ? 1u : 0u;     /* this addition wrapped word k */
+        }
+    }
+}
+
+HELPER uint4 load_128(volatile __global uint* words) {
+    return (uint4)(words[0], words[1], words[2], words[3]);
+}
+
+HELPER void clear_128(volatile __global uint* words) {
+    for (int k = 0; k < 4; ++k) words[k] = 0u;
+}
+#endif
+
+/* The 128-bit sum w (units of 2^-FILM_FRACTION_BITS) rounded to the nearest float: the 64 bits
+ * from its highest nonzero word down go to convert_float_rte; a one in their last bit stands for
+ * any nonzero bit below them (a "sticky" bit, far below float's 24 bits), so the rounding of a
+ * tie is decided as if every bit were there. */
+HELPER float fixed_to_float(uint4 w) {
+    bool negative = (w.w >> 31) != 0u;
+    if (negative) w = negated(w);
+    ulong window;
+    int shift;
+    if (w.w != 0u) {
+        window = upsample(w.w, w.z) | ((w.y | w.x) != 0u ? 1ul : 0ul);
+        shift = 64;
+    } else if (w.z != 0u) {
+        window = upsample(w.z, w.y) | (w.x != 0u ? 1ul : 0ul);
+        shift = 32;
+    } else {
+        window = upsample(w.y, w.x);
+        shift = 0;
+    }
+    float magnitude = ldexp(convert_float_rte(window), shift - FILM_FRACTION_BITS);
+    return negative ? -magnitude : magnitude;
+}
+
+/* One work-item per record: record i adds its value (RGB; with `weighted`, the records of the
+ * STRATEGY_IMAGES kernels, RGB times the MIS weight in .w) to its pixel. A record of pixel -1 was
+ * left unwritten by its connect phase; one whose value is not finite or beyond FILM_RECORD_LIMIT
+ * is counted in its pixel's `dropped` (DroppedSamplesWarning reports it), never added. */
+__kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
+void record_film_add(__global const float4* record_value, __global const int* record_pixel, const int count,
+                     const int weighted, const int pixels, __global FilmAccumulator* film)
+{
+    int i = get_global_id(0);
+    if (i >= count) return;
+    int p = record_pixel[i];
+    if (p < 0 || p >= pixels) return;
+    float4 v = record_value[i];
+    float3 value = weighted ? v.xyz * v.w : v.xyz;
+    if (!all_finite(value) || max3(fabs(value)) > FILM_RECORD_LIMIT) {
+        atomic_inc(&film[p].dropped);
+        return;
+    }
+    /* black channels (most of a dark scene's records) add nothing */
+    if (value.x != 0.0f) atomic_add_128(channel_words(film, p, 0), fixed_point(value.x));
+    if (value.y != 0.0f) atomic_add_128(channel_words(film, p, 1), fixed_point(value.y));
+    if (value.z != 0.0f) atomic_add_128(channel_words(film, p, 2), fixed_point(value.z));
+}
+
+/* One work-item per pixel, after a pass's last record_film_add: out[p] = (the pass's RGB sums,
+ * rounded to float, and in .w the records dropped there); the pixel's sums start again at zero. */
+__kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
+void record_film_resolve(__global FilmAccumulator* film, const int pixels, __global float4* out)
+{
+    int p = get_global_id(0);
+    if (p >= pixels) return;
+    float4 sums;
+    sums.x = fixed_to_float(load_128(channel_words(film, p, 0)));
+    sums.y = fixed_to_float(load_128(channel_words(film, p, 1)));
+    sums.z = fixed_to_float(load_128(channel_words(film, p, 2)));
+    sums.w = (float)film[p].dropped;
+    out[p] = sums;
+    for (int c = 0; c < 3; ++c) clear_128(channel_words(film, p, c));
+    film[p].dropped = 0u;
+}
