@@ -6,7 +6,10 @@
  * OpenCL 1.2 has none. Integer additions give the same bits in any order. So each record is
  * rounded to a fixed point, a multiple of 2^-FILM_FRACTION_BITS (2^-48), and added with integer
  * atomics into 128 bits per channel (FilmAccumulator, toolkit/core/layout.py says why 48 and 128):
- * a record of 1e-6 is kept exactly, and 2^31 records of 1e14 still fit.
+ * a record of 1e-6 is kept exactly, and 2^31 records of 1e14 still fit. Records are counted in
+ * units of 2^unit_exponent, a power of two near the scene's brightest light (the host's choice),
+ * so a scene 1e6 times darker or brighter keeps the same precision: scaling by a power of two
+ * is exact, and its image is the same bits scaled.
  *
  * Two ways to add 128 bits, the same bits in the end (tests/test_record_film.py):
  *   FILM_WORD_BITS 64: two 64-bit words with atom_add (cl_khr_int64_base_atomics, most devices);
@@ -124,17 +127,17 @@ HELPER float fixed_to_float(uint4 w) {
 /* One work-item per record: record i adds its value (RGB; with `weighted`, the records of the
  * STRATEGY_IMAGES kernels, RGB times the MIS weight in .w) to its pixel. A record of pixel -1 was
  * left unwritten by its connect phase; one whose value is not finite or beyond FILM_RECORD_LIMIT
- * is counted in its pixel's `dropped` (DroppedSamplesWarning reports it), never added. */
+ * units is counted in its pixel's `dropped` (DroppedSamplesWarning reports it), never added. */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
 void record_film_add(__global const float4* record_value, __global const int* record_pixel, const int count,
-                     const int weighted, const int pixels, __global FilmAccumulator* film)
+                     const int weighted, const int unit_exponent, const int pixels, __global FilmAccumulator* film)
 {
     int i = get_global_id(0);
     if (i >= count) return;
     int p = record_pixel[i];
     if (p < 0 || p >= pixels) return;
     float4 v = record_value[i];
-    float3 value = weighted ? v.xyz * v.w : v.xyz;
+    float3 value = ldexp(weighted ? v.xyz * v.w : v.xyz, -unit_exponent);   /* in units of 2^unit_exponent */
     if (!all_finite(value) || max3(fabs(value)) > FILM_RECORD_LIMIT) {
         atomic_inc(&film[p].dropped);
         return;
@@ -148,14 +151,15 @@ void record_film_add(__global const float4* record_value, __global const int* re
 /* One work-item per pixel, after a pass's last record_film_add: out[p] = (the pass's RGB sums,
  * rounded to float, and in .w the records dropped there); the pixel's sums start again at zero. */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
-void record_film_resolve(__global FilmAccumulator* film, const int pixels, __global float4* out)
+void record_film_resolve(__global FilmAccumulator* film, const int unit_exponent, const int pixels,
+                         __global float4* out)
 {
     int p = get_global_id(0);
     if (p >= pixels) return;
     float4 sums;
-    sums.x = fixed_to_float(load_128(channel_words(film, p, 0)));
-    sums.y = fixed_to_float(load_128(channel_words(film, p, 1)));
-    sums.z = fixed_to_float(load_128(channel_words(film, p, 2)));
+    sums.x = ldexp(fixed_to_float(load_128(channel_words(film, p, 0))), unit_exponent);
+    sums.y = ldexp(fixed_to_float(load_128(channel_words(film, p, 1))), unit_exponent);
+    sums.z = ldexp(fixed_to_float(load_128(channel_words(film, p, 2))), unit_exponent);
     sums.w = (float)film[p].dropped;
     out[p] = sums;
     for (int c = 0; c < 3; ++c) clear_128(channel_words(film, p, c));

@@ -10,16 +10,16 @@ import pyopencl as cl
 import pytest
 
 from toolkit.core.layout import FILM_FRACTION_BITS, FILM_RECORD_LIMIT
-from toolkit.opencl.record_film import RecordFilm, film_path, film_word_bits
+from toolkit.opencl.record_film import RecordFilm, film_path, film_word_bits, unit_exponent_for
 
 EPS = 2.0 ** -24     # float32's unit roundoff
 WORDS = (32, 64)
 
 
-def device_sums(queue, values, pixels, npix, word_bits, weighted=False, batches=1):
+def device_sums(queue, values, pixels, npix, word_bits, weighted=False, batches=1, unit_exponent=0):
     """(RGB sums (npix, 3), dropped (npix,)) of records `values` (n, 4) float32 at `pixels` (n,) int32,
     added in `batches` launches (as a pass's connect phases add theirs)."""
-    film = RecordFilm(queue, npix, word_bits=word_bits)
+    film = RecordFilm(queue, npix, word_bits=word_bits, unit_exponent=unit_exponent)
     buffers = []
     for part in np.array_split(np.arange(len(values)), batches):
         v = cl.Buffer(queue.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
@@ -128,7 +128,7 @@ def test_unwritten_non_finite_and_too_large_records_are_counted_not_added(queue,
     pixels[5] = -1                                  # left unwritten by its connect phase
     values[6, 1] = np.nan                           # pixel 2
     values[7, 0] = np.inf                           # pixel 3
-    values[9, 2] = np.float32(FILM_RECORD_LIMIT) * 2   # pixel 1: beyond what the film holds
+    values[9, 2] = np.float32(FILM_RECORD_LIMIT) * 2   # pixel 1: beyond what the film holds (unit 1)
     values[13, 2] = np.float32(FILM_RECORD_LIMIT)      # pixel 1: the largest it holds, kept
     got, dropped = device_sums(queue, values, pixels, 4, word_bits)
     assert dropped.tolist() == [0, 1, 1, 1]
@@ -150,6 +150,18 @@ def test_weighted_records_multiply_by_their_weight_in_float32(queue, word_bits):
     product = values.copy()
     product[:, :3] *= values[:, 3:]
     assert np.array_equal(got.view(np.uint32), exact_sums(product, pixels, 5).view(np.uint32))
+
+
+@pytest.mark.parametrize("exponent", [-20, 20])
+def test_records_in_units_of_a_power_of_two_give_the_same_bits_scaled(queue, exponent):
+    """A scene 2^20 times darker or brighter (its film's unit_exponent_for follows its brightest
+    light): its records, all scaled by 2^exponent, sum to the same bits scaled by 2^exponent."""
+    values, pixels = extremes(3000, 5, 6)
+    unit = device_sums(queue, values, pixels, 5, 64)[0]
+    scaled = device_sums(queue, values * np.float32(2.0 ** exponent), pixels, 5, 64,
+                         unit_exponent=unit_exponent_for(2.0 ** exponent))[0]
+    assert np.array_equal(scaled, unit * np.float32(2.0 ** exponent))
+    assert unit_exponent_for(2.0 ** exponent) == exponent + 1 and unit_exponent_for(17.0) == 5
 
 
 def test_resolve_starts_the_next_pass_at_zero(queue):

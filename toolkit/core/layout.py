@@ -323,11 +323,12 @@ LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)   # Rec. 709 luminance of linear RG
 # A ray leaving a surface starts the scene's epsilon plus this many float32 ulps of its largest
 # coordinate off it (cl/scene.h: ray_offset); the host's surface rays (peers/embree.py) do the same.
 RAY_OFFSET_ULPS = 64.0
-# The record film's fixed point (cl/record_film.cl): a record is rounded to a multiple of 2^-48,
-# so a float32 record of 2^-25 (3e-8) or more is kept exactly (1e-6 has its last bit at 2^-43).
-# A channel's 128 bits hold sums below 2^79; a pass adds fewer than 2^31 records to a pixel, so
-# a record up to 2^47 (1.4e14) never overflows it. A larger one is dropped and counted, as a
-# non-finite one is (a connection that large is a bug: a pdf near zero).
+# The record film's fixed point (cl/record_film.cl), in units of a power of two near the scene's
+# brightest light: a record is rounded to a multiple of 2^-48 units, so one of 2^-25 units (3e-8)
+# or more is kept exactly (1e-6 has its last bit at 2^-43). A channel's 128 bits hold sums below
+# 2^79; a pass adds fewer than 2^31 records to a pixel, so a record up to 2^47 units (1.4e14)
+# never overflows it. A larger one is dropped and counted, as a non-finite one is (a connection
+# 1e14 times brighter than the brightest light is a bug: a pdf near zero).
 FILM_FRACTION_BITS = 48
 FILM_RECORD_LIMIT = 2.0 ** 47
 

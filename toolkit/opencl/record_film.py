@@ -28,14 +28,23 @@ def film_path(device):
     return f"exact 128-bit fixed-point sums with 32-bit atomics, carried across four words (no {INT64_ATOMICS})"
 
 
+def unit_exponent_for(brightest):
+    """The film's unit for a scene whose brightest emission is `brightest`: the exponent of the
+    power of two at or above it (a record far brighter than any light is a bug, FILM_RECORD_LIMIT)."""
+    return int(np.frexp(float(brightest))[1]) if brightest > 0 else 0
+
+
 class RecordFilm:
     """The records of one pass, summed per pixel on `queue`'s device, for an image of `pixels`
     pixels: `add` each batch of records as it is written, `resolve` once the pass is done."""
 
-    def __init__(self, queue, pixels, local_size=program.LOCAL_SIZE, sources=None, word_bits=None):
+    def __init__(self, queue, pixels, local_size=program.LOCAL_SIZE, sources=None, word_bits=None, unit_exponent=0):
         """`sources`: where the build finds cl/'s files (program.Sources; None: cl/). `word_bits`:
-        32 or 64 (None: the device's, film_word_bits); both give the same image."""
+        32 or 64 (None: the device's, film_word_bits); both give the same image. `unit_exponent`:
+        records are counted in units of 2^unit_exponent (unit_exponent_for: near the brightest
+        light), so the film's precision follows the scene's brightness."""
         self.queue, self.pixels, self.local_size = queue, int(pixels), local_size
+        self.unit_exponent = np.int32(unit_exponent)
         self.word_bits = film_word_bits(queue.device) if word_bits is None else int(word_bits)
         if self.word_bits not in (32, 64):
             raise ValueError(f"word_bits must be 32 or 64, got {word_bits!r}")
@@ -54,13 +63,14 @@ class RecordFilm:
         RGB and a weight in .w that multiplies it), `pixels` one of int (-1: no record there)."""
         if count:
             program.launch(self.queue, self.add_kernel, count, values, pixels, np.int32(count), np.int32(bool(weighted)),
-                           np.int32(self.pixels), self.sums, local_size=self.local_size)
+                           self.unit_exponent, np.int32(self.pixels), self.sums, local_size=self.local_size)
 
     def resolve(self):
         """Queue the pass's image and its read, and start the next pass at zero: returns (the host's
         (pixels, 4) float32 array: RGB sums and, in column 3, the records dropped at each pixel;
         the read's event). Nothing waits: wait for the event before reading the array."""
-        program.launch(self.queue, self.resolve_kernel, self.pixels, self.sums, np.int32(self.pixels), self.image,
+        program.launch(self.queue, self.resolve_kernel, self.pixels, self.sums, self.unit_exponent, np.int32(self.pixels),
+                       self.image,
                        local_size=self.local_size)
         result = np.empty((self.pixels, 4), np.float32)
         return result, cl.enqueue_copy(self.queue, result, self.image, is_blocking=False)
