@@ -4,6 +4,7 @@ records in Python integers, rounded once to float32. The device must give exactl
 with 64-bit atomics and with 32-bit ones, in any order of the records; a record that is not
 finite or beyond FILM_RECORD_LIMIT is counted at its pixel, never added."""
 from fractions import Fraction
+from types import SimpleNamespace
 
 import numpy as np
 import pyopencl as cl
@@ -177,5 +178,10 @@ def test_resolve_starts_the_next_pass_at_zero(queue):
 
 
 def test_the_device_says_which_way_it_adds(queue):
+    """64-bit words where the device has cl_khr_int64_base_atomics, else 32-bit ones; `devices` says which."""
     assert film_word_bits(queue.device) in WORDS
     assert ("64-bit atomics" in film_path(queue.device)) == (film_word_bits(queue.device) == 64)
+    without = SimpleNamespace(extensions="cl_khr_global_int32_base_atomics cl_khr_int64_extended_atomics")
+    with_them = SimpleNamespace(extensions="cl_khr_fp64 cl_khr_int64_base_atomics")
+    assert film_word_bits(without) == 32 and "32-bit atomics, carried" in film_path(without)
+    assert film_word_bits(with_them) == 64 and "with 64-bit atomics" in film_path(with_them)

@@ -348,7 +348,7 @@ SCENE_PARAM_NAMES = [f"scene_{name}" for name, _ in SCENE_ARGS]
 CONNECT_ARGS = [("firsts", "__global const int*"),            # a scan of per-slot record counts
                 ("slots", "__global const BdptSlot*"),        # the sample pool
                 ("eye_vertices", "__global const BdptVertex*"), ("light_vertices", "__global const BdptVertex*"),
-                ("record_value", "__global float4*"),          # connection records: RGB and, in .w, a weight for the host
+                ("record_value", "__global float4*"),          # connection records: RGB (.w: STRATEGY_IMAGES' MIS weight)
                 ("record_pixel", "__global int*"),             # and their target pixel (-1: none)
                 ("lane_counts", "__global LaneCounts*")]       # the SIMD counters
 

@@ -52,25 +52,38 @@ class RecordFilm:
                               directory=sources)
         self.add_kernel = program.kernel(built, "record_film_add")
         self.resolve_kernel = program.kernel(built, "record_film_resolve")
-        padded = program.padded(self.pixels, local_size)
-        context = queue.context
-        self.sums = cl.Buffer(context, cl.mem_flags.READ_WRITE, FILM_ACCUMULATOR.dtype.itemsize * padded)
-        self.image = cl.Buffer(context, cl.mem_flags.READ_WRITE, 16 * padded)
-        cl.enqueue_fill_buffer(queue, self.sums, np.uint32(0), 0, FILM_ACCUMULATOR.dtype.itemsize * padded)
+        self._sums = self._image = None    # the device memory, made at the first use
+
+    @property
+    def sums(self):
+        """FilmAccumulator[pixels]: the pass's sums so far, zero at the start."""
+        if self._sums is None:
+            size = FILM_ACCUMULATOR.dtype.itemsize * program.padded(self.pixels, self.local_size)
+            self._sums = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, size)
+            cl.enqueue_fill_buffer(self.queue, self._sums, np.uint32(0), 0, size)
+        return self._sums
+
+    @property
+    def image(self):
+        """float4[pixels]: the last resolved pass."""
+        if self._image is None:
+            self._image = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
+                                    16 * program.padded(self.pixels, self.local_size))
+        return self._image
 
     def add(self, values, pixels, count, weighted=False):
         """Queue the addition of `count` records: `values` a buffer of float4 (RGB; with `weighted`,
         RGB and a weight in .w that multiplies it), `pixels` one of int (-1: no record there)."""
         if count:
-            program.launch(self.queue, self.add_kernel, count, values, pixels, np.int32(count), np.int32(bool(weighted)),
-                           self.unit_exponent, np.int32(self.pixels), self.sums, local_size=self.local_size)
+            program.launch(self.queue, self.add_kernel, count, values, pixels, np.int32(count),
+                           np.int32(bool(weighted)), self.unit_exponent, np.int32(self.pixels), self.sums,
+                           local_size=self.local_size)
 
     def resolve(self):
         """Queue the pass's image and its read, and start the next pass at zero: returns (the host's
         (pixels, 4) float32 array: RGB sums and, in column 3, the records dropped at each pixel;
         the read's event). Nothing waits: wait for the event before reading the array."""
-        program.launch(self.queue, self.resolve_kernel, self.pixels, self.sums, self.unit_exponent, np.int32(self.pixels),
-                       self.image,
-                       local_size=self.local_size)
+        program.launch(self.queue, self.resolve_kernel, self.pixels, self.sums, self.unit_exponent,
+                       np.int32(self.pixels), self.image, local_size=self.local_size)
         result = np.empty((self.pixels, 4), np.float32)
         return result, cl.enqueue_copy(self.queue, result, self.image, is_blocking=False)
