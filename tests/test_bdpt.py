@@ -248,3 +248,25 @@ def test_a_scene_a_million_times_darker_or_brighter_gives_the_same_bits_scaled(c
                               count_simd=False).image
     unit = image(1.0)
     assert np.array_equal(image(2.0 ** exponent), unit * 2.0 ** exponent)
+
+
+@pytest.mark.parametrize("technique", ["bdpt_naive_connect", "bdpt_parallel_connect"])
+def test_a_non_finite_record_is_dropped_and_reported_never_in_the_image(cornell_box, technique, monkeypatch):
+    """A NaN planted in the first record of every connect phase (on the device, before the sink
+    adds it): each is counted and reported (DroppedSamplesWarning), and the image stays finite."""
+    from toolkit.api import DroppedSamplesWarning
+    from toolkit.techniques import bdpt_base
+    planted, add = [], bdpt_base.ImageSink.add
+
+    def add_with_a_nan(sink, connections):
+        if connections.count:
+            queue = connections.queue
+            cl.enqueue_copy(queue, connections.value_buffer, np.float32([np.nan, 1.0, 1.0, 1.0]))
+            cl.enqueue_copy(queue, connections.pixel_buffer, np.int32([0]))
+            planted.append(1)
+        add(sink, connections)
+    monkeypatch.setattr(bdpt_base.ImageSink, "add", add_with_a_nan)
+    with pytest.warns(DroppedSamplesWarning):
+        r = toolkit.render(cornell_box, technique=technique, spp=2, seed=1, resolution=(12, 8), count_simd=False)
+    assert len(planted) > 1 and r.stats["nonfinite_samples"] == len(planted)
+    assert np.isfinite(r.image).all() and r.image.sum() > 0
