@@ -101,6 +101,30 @@ HELPER void clear_128(volatile __global uint* words) {
 }
 #endif
 
+/* a + b (mod 2^128) in registers: each word's carry goes into the next. */
+HELPER uint4 add_128(uint4 a, uint4 b) {
+    uint4 s;
+    uint carry;
+    s.x = a.x + b.x;
+    carry = s.x < a.x ? 1u : 0u;
+    s.y = a.y + b.y + carry;
+    carry = (carry ? s.y <= a.y : s.y < a.y) ? 1u : 0u;
+    s.z = a.z + b.z + carry;
+    carry = (carry ? s.z <= a.z : s.z < a.z) ? 1u : 0u;
+    s.w = a.w + b.w + carry;
+    return s;
+}
+
+HELPER bool is_zero_128(uint4 w) { return (w.x | w.y | w.z | w.w) == 0u; }
+
+/* A run of records on pixel p (none where p < 0), summed per channel, into the film. */
+HELPER void add_run(__global FilmAccumulator* film, int p, uint4 red, uint4 green, uint4 blue) {
+    if (p < 0) return;
+    if (!is_zero_128(red)) atomic_add_128(channel_words(film, p, 0), red);
+    if (!is_zero_128(green)) atomic_add_128(channel_words(film, p, 1), green);
+    if (!is_zero_128(blue)) atomic_add_128(channel_words(film, p, 2), blue);
+}
+
 /* The 128-bit sum w (units of 2^-FILM_FRACTION_BITS) rounded to the nearest float: the 64 bits
  * from its highest nonzero word down go to convert_float_rte; a one in their last bit stands for
  * any nonzero bit below them (a "sticky" bit, far below float's 24 bits), so the rounding of a
@@ -124,28 +148,39 @@ HELPER float fixed_to_float(uint4 w) {
     return negative ? -magnitude : magnitude;
 }
 
-/* One work-item per record: record i adds its value (RGB; with `weighted`, the records of the
- * STRATEGY_IMAGES kernels, RGB times the MIS weight in .w) to its pixel. A record of pixel -1 was
+/* Each work-item adds FILM_RECORDS_PER_ITEM consecutive records: each its value (RGB; with
+ * `weighted`, the records of the STRATEGY_IMAGES kernels, RGB times the MIS weight in .w) to its
+ * pixel. A sample's connections are consecutive and most land on its own pixel, so a run of
+ * records on one pixel is summed in registers first, then added with one atomic per word: integer
+ * sums are exact, so this changes no bit of the result, only how many atomics contend for a pixel. A record of pixel -1 was
  * left unwritten by its connect phase; one whose value is not finite or beyond FILM_RECORD_LIMIT
  * units is counted in its pixel's `dropped` (DroppedSamplesWarning reports it), never added. */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
 void record_film_add(__global const float4* record_value, __global const int* record_pixel, const int count,
                      const int weighted, const int unit_exponent, const int pixels, __global FilmAccumulator* film)
 {
-    int i = get_global_id(0);
-    if (i >= count) return;
-    int p = record_pixel[i];
-    if (p < 0 || p >= pixels) return;
-    float4 v = record_value[i];
-    float3 value = ldexp(weighted ? v.xyz * v.w : v.xyz, -unit_exponent);   /* in units of 2^unit_exponent */
-    if (!all_finite(value) || max3(fabs(value)) > FILM_RECORD_LIMIT) {
-        atomic_inc(&film[p].dropped);
-        return;
+    int first = get_global_id(0) * FILM_RECORDS_PER_ITEM;
+    int run = -1;                       /* the pixel of the run summed so far, -1: none yet */
+    uint4 red = (uint4)(0u), green = (uint4)(0u), blue = (uint4)(0u);
+    for (int i = first; i < min(first + FILM_RECORDS_PER_ITEM, count); ++i) {
+        int p = record_pixel[i];
+        if (p < 0 || p >= pixels) continue;
+        float4 v = record_value[i];
+        float3 value = ldexp(weighted ? v.xyz * v.w : v.xyz, -unit_exponent);   /* in units of 2^unit_exponent */
+        if (!all_finite(value) || max3(fabs(value)) > FILM_RECORD_LIMIT) {
+            atomic_inc(&film[p].dropped);
+            continue;
+        }
+        if (p != run) {                 /* a new run: the last one goes to the film */
+            add_run(film, run, red, green, blue);
+            run = p;
+            red = green = blue = (uint4)(0u);
+        }
+        red = add_128(red, fixed_point(value.x));
+        green = add_128(green, fixed_point(value.y));
+        blue = add_128(blue, fixed_point(value.z));
     }
-    /* black channels (most of a dark scene's records) add nothing */
-    if (value.x != 0.0f) atomic_add_128(channel_words(film, p, 0), fixed_point(value.x));
-    if (value.y != 0.0f) atomic_add_128(channel_words(film, p, 1), fixed_point(value.y));
-    if (value.z != 0.0f) atomic_add_128(channel_words(film, p, 2), fixed_point(value.z));
+    add_run(film, run, red, green, blue);
 }
 
 /* One work-item per pixel, after a pass's last record_film_add: out[p] = (the pass's RGB sums,

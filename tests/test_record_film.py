@@ -113,6 +113,20 @@ def test_the_same_bits_with_either_word_size_and_in_any_order(queue):
 
 
 @pytest.mark.parametrize("word_bits", WORDS)
+def test_runs_of_records_on_one_pixel_sum_exactly(queue, word_bits):
+    """A sample's records are consecutive and mostly on its pixel: a work-item sums such a run in
+    registers before its atomics (FILM_RECORDS_PER_ITEM). Runs of every length, signed values
+    (carries and borrows inside the registers' sums), against the exact sums."""
+    npix = 9
+    values, _ = extremes(4000, npix, 12)
+    values[1::4, :3] *= -1.0
+    pixels = np.sort(np.random.default_rng(13).integers(0, npix, 4000)).astype(np.int32)
+    pixels[::37] = (pixels[::37] + 1) % npix              # runs broken here and there
+    got, _ = device_sums(queue, values, pixels, npix, word_bits, batches=3)
+    assert np.array_equal(got.view(np.uint32), exact_sums(values, pixels, npix).view(np.uint32))
+
+
+@pytest.mark.parametrize("word_bits", WORDS)
 def test_opposite_records_cancel_to_exactly_zero(queue, word_bits):
     values, pixels = extremes(3000, 3, 8)
     both = np.concatenate([values, -values])

@@ -330,6 +330,7 @@ RAY_OFFSET_ULPS = 64.0
 # never overflows it. A larger one is dropped and counted, as a non-finite one is (a connection
 # 1e14 times brighter than the brightest light is a bug: a pdf near zero).
 FILM_FRACTION_BITS = 48
+FILM_RECORDS_PER_ITEM = 8   # consecutive records one work-item adds (a run on one pixel: one atomic)
 FILM_RECORD_LIMIT = 2.0 ** 47
 
 # The scene as kernel arguments, in order: SCENE_PARAMS (kernel parameters), SCENE_INIT (the
@@ -371,6 +372,7 @@ def c_constants():
     lines.append(f"#define FILM_FRACTION_BITS {FILM_FRACTION_BITS}")
     lines.append(f"#define FILM_SCALE {_c_literal(2.0 ** FILM_FRACTION_BITS)}")
     lines.append(f"#define FILM_RECORD_LIMIT {_c_literal(FILM_RECORD_LIMIT)}")
+    lines.append(f"#define FILM_RECORDS_PER_ITEM {FILM_RECORDS_PER_ITEM}")
     lines.append("/* The scene as kernel parameters, and the SceneView (cl/scene.h) made of them. */")
     scene = list(zip(SCENE_ARGS, SCENE_PARAM_NAMES))
     lines.append("#define SCENE_PARAMS " + ", ".join(f"{t} {param}" for (_, t), param in scene))

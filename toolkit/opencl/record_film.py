@@ -10,7 +10,7 @@ BDPT's connect phases today, Metropolis's splats later.
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.layout import FILM_ACCUMULATOR
+from toolkit.core.layout import FILM_ACCUMULATOR, FILM_RECORDS_PER_ITEM
 from toolkit.opencl import program
 
 INT64_ATOMICS = "cl_khr_int64_base_atomics"
@@ -75,7 +75,8 @@ class RecordFilm:
         """Queue the addition of `count` records: `values` a buffer of float4 (RGB; with `weighted`,
         RGB and a weight in .w that multiplies it), `pixels` one of int (-1: no record there)."""
         if count:
-            program.launch(self.queue, self.add_kernel, count, values, pixels, np.int32(count),
+            items = -(-count // FILM_RECORDS_PER_ITEM)
+            program.launch(self.queue, self.add_kernel, items, values, pixels, np.int32(count),
                            np.int32(bool(weighted)), self.unit_exponent, np.int32(self.pixels), self.sums,
                            local_size=self.local_size)
 
