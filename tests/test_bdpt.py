@@ -270,3 +270,23 @@ def test_a_non_finite_record_is_dropped_and_reported_never_in_the_image(cornell_
         r = toolkit.render(cornell_box, technique=technique, spp=2, seed=1, resolution=(12, 8), count_simd=False)
     assert len(planted) > 1 and r.stats["nonfinite_samples"] == len(planted)
     assert np.isfinite(r.image).all() and r.image.sum() > 0
+
+
+@pytest.mark.parametrize("technique", ["bdpt_naive_connect", "bdpt_parallel_connect"])
+def test_the_host_reads_a_pixel_per_pass_not_the_records(cornell_box, technique, monkeypatch):
+    """The records stay on the device (toolkit/opencl/record_film.py): besides the walk's few
+    bytes of counters, the host reads one float4 per pixel per pass, read once each pass. Before,
+    every record came back (93 to 306 bytes per sample, results/gpu.md)."""
+    width, height, spp = 24, 16, 4
+    reads, copy = [], cl.enqueue_copy
+
+    def counting(queue, dest, src, **kwargs):
+        if isinstance(dest, np.ndarray):
+            reads.append(dest.nbytes)
+        return copy(queue, dest, src, **kwargs)
+    monkeypatch.setattr(cl, "enqueue_copy", counting)
+    toolkit.render(cornell_box, technique=technique, spp=spp, seed=2, resolution=(width, height),
+                   count_simd=False, technique_options={"pass_spp": 1})
+    image_reads = [n for n in reads if n == 16 * width * height]
+    assert len(image_reads) == spp                          # one per pass
+    assert all(n <= 64 for n in reads if n != 16 * width * height), sorted(reads)[-5:]
