@@ -15,9 +15,9 @@ Light-tracing (t = 1) contributions land on other pixels: every connection write
 the pass's image there (toolkit/opencl/record_film.py: exact integer sums, no float atomics),
 mlt's reads its records back.
 """
-from functools import cached_property
 import numbers
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import pyopencl as cl
