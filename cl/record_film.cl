@@ -32,6 +32,12 @@ HELPER volatile __global uint* channel_words(__global FilmAccumulator* film, int
     return (volatile __global uint*)&film[p].red + 4 * c;
 }
 
+/* The carry out of sum = a + b (+ a carry in): from the top bits alone (it is 1 where a and b
+ * both have it, or either has it and the sum does not). Bit arithmetic, not a comparison
+ * turned into 0 or 1: Oclgrind 21.10 gives 255 for `x < y ? 1u : 0u`. */
+HELPER uint carry_out(uint a, uint b, uint sum) { return ((a & b) | ((a | b) & ~sum)) >> 31; }
+HELPER ulong carry_out_64(ulong a, ulong b, ulong sum) { return ((a & b) | ((a | b) & ~sum)) >> 63; }
+
 /* Two's complement negation of a 128-bit integer in four words (least significant first). */
 HELPER uint4 negated(uint4 w) {
     w = ~w;
@@ -51,7 +57,8 @@ HELPER uint4 fixed_point(float v) {
     float middle = floor(rest * 0x1p-32f);
     float low = rest - middle * 0x1p32f;
     uint4 w = (uint4)(convert_uint(low), convert_uint(middle), convert_uint(high), 0u);
-    return v < 0.0f ? negated(w) : w;
+    if (v < 0.0f) w = negated(w);
+    return w;
 }
 
 #if FILM_WORD_BITS == 64
@@ -61,7 +68,7 @@ HELPER void atomic_add_128(volatile __global uint* words, uint4 x) {
     ulong low = upsample(x.y, x.x), high = upsample(x.w, x.z);
     if (low != 0ul) {
         ulong old = atom_add(&w[0], low);
-        high += (old + low < old) ? 1ul : 0ul;     /* this addition wrapped the low word */
+        high += carry_out_64(old, low, old + low);   /* this addition wrapped the low word */
     }
     if (high != 0ul) atom_add(&w[1], high);
 }
@@ -84,10 +91,10 @@ HELPER void atomic_add_128(volatile __global uint* words, uint4 x) {
     uint carry = 0u;
     for (int k = 0; k < 4; ++k) {
         uint add = part[k] + carry;
-        carry = add < part[k] ? 1u : 0u;            /* part + carry wrapped (to 0: nothing to add) */
+        carry = carry_out(part[k], carry, add);     /* part + carry wrapped (to 0: nothing to add) */
         if (add != 0u) {
             uint old = atomic_add(&words[k], add);
-            carry += old + add < old ? 1u : 0u;     /* this addition wrapped word k */
+            carry += carry_out(old, add, old + add);   /* this addition wrapped word k */
         }
     }
 }
@@ -101,17 +108,21 @@ HELPER void clear_128(volatile __global uint* words) {
 }
 #endif
 
+/* a + b + *carry in one 32-bit word; *carry becomes the carry out. */
+HELPER uint add_with_carry(uint a, uint b, uint* carry) {
+    uint sum = a + b + *carry;
+    *carry = carry_out(a, b, sum);
+    return sum;
+}
+
 /* a + b (mod 2^128) in registers: each word's carry goes into the next. */
 HELPER uint4 add_128(uint4 a, uint4 b) {
+    uint carry = 0u;
     uint4 s;
-    uint carry;
-    s.x = a.x + b.x;
-    carry = s.x < a.x ? 1u : 0u;
-    s.y = a.y + b.y + carry;
-    carry = (carry ? s.y <= a.y : s.y < a.y) ? 1u : 0u;
-    s.z = a.z + b.z + carry;
-    carry = (carry ? s.z <= a.z : s.z < a.z) ? 1u : 0u;
-    s.w = a.w + b.w + carry;
+    s.x = add_with_carry(a.x, b.x, &carry);
+    s.y = add_with_carry(a.y, b.y, &carry);
+    s.z = add_with_carry(a.z, b.z, &carry);
+    s.w = add_with_carry(a.w, b.w, &carry);
     return s;
 }
 
@@ -129,23 +140,26 @@ HELPER void add_run(__global FilmAccumulator* film, int p, uint4 red, uint4 gree
  * from its highest nonzero word down go to convert_float_rte; a one in their last bit stands for
  * any nonzero bit below them (a "sticky" bit, far below float's 24 bits), so the rounding of a
  * tie is decided as if every bit were there. */
+HELPER ulong sticky(uint bits) { return ((ulong)bits + 0xfffffffful) >> 32; }   /* 1 where bits != 0 */
+
 HELPER float fixed_to_float(uint4 w) {
     bool negative = (w.w >> 31) != 0u;
     if (negative) w = negated(w);
     ulong window;
     int shift;
     if (w.w != 0u) {
-        window = upsample(w.w, w.z) | ((w.y | w.x) != 0u ? 1ul : 0ul);
+        window = upsample(w.w, w.z) | sticky(w.y | w.x);
         shift = 64;
     } else if (w.z != 0u) {
-        window = upsample(w.z, w.y) | (w.x != 0u ? 1ul : 0ul);
+        window = upsample(w.z, w.y) | sticky(w.x);
         shift = 32;
     } else {
         window = upsample(w.y, w.x);
         shift = 0;
     }
     float magnitude = ldexp(convert_float_rte(window), shift - FILM_FRACTION_BITS);
-    return negative ? -magnitude : magnitude;
+    if (negative) magnitude = -magnitude;
+    return magnitude;
 }
 
 /* Each work-item adds FILM_RECORDS_PER_ITEM consecutive records: each its value (RGB; with
@@ -161,12 +175,15 @@ void record_film_add(__global const float4* record_value, __global const int* re
 {
     int first = get_global_id(0) * FILM_RECORDS_PER_ITEM;
     int run = -1;                       /* the pixel of the run summed so far, -1: none yet */
+    float unit = ldexp(1.0f, -unit_exponent);   /* exact: a power of two (Oclgrind's vector ldexp is not) */
     uint4 red = (uint4)(0u), green = (uint4)(0u), blue = (uint4)(0u);
     for (int i = first; i < min(first + FILM_RECORDS_PER_ITEM, count); ++i) {
         int p = record_pixel[i];
         if (p < 0 || p >= pixels) continue;
         float4 v = record_value[i];
-        float3 value = ldexp(weighted ? v.xyz * v.w : v.xyz, -unit_exponent);   /* in units of 2^unit_exponent */
+        float3 value = v.xyz;
+        if (weighted) value *= v.w;
+        value *= unit;                  /* in units of 2^unit_exponent */
         if (!all_finite(value) || max3(fabs(value)) > FILM_RECORD_LIMIT) {
             atomic_inc(&film[p].dropped);
             continue;
