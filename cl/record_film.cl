@@ -47,17 +47,30 @@ HELPER uint4 negated(uint4 w) {
 }
 
 /* A record's value v (finite, |v| <= FILM_RECORD_LIMIT) in units of 2^-FILM_FRACTION_BITS, rounded
- * to nearest, as 128 bits. |v| * FILM_SCALE is exact (a power of two) and below 2^96; it is split
- * into 32-bit parts in float arithmetic, each step exact: the parts are the bits of one float's
- * 24-bit mantissa. */
+ * to nearest (ties to even), as 128 bits. Read from the float's own bits, in integer arithmetic
+ * only: |v| = m * 2^(e - 150) with m its 24-bit mantissa, so |v| * 2^48 = m * 2^shift. A left
+ * shift places m in the words exactly; a right shift (records below 2^-25) rounds. */
 HELPER uint4 fixed_point(float v) {
-    float s = rint(fabs(v) * FILM_SCALE);
-    float high = floor(s * 0x1p-64f);
-    float rest = s - high * 0x1p64f;
-    float middle = floor(rest * 0x1p-32f);
-    float low = rest - middle * 0x1p32f;
-    uint4 w = (uint4)(convert_uint(low), convert_uint(middle), convert_uint(high), 0u);
-    if (v < 0.0f) w = negated(w);
+    uint bits = as_uint(v);
+    int e = (int)((bits >> 23) & 0xffu);
+    if (e == 0) return (uint4)(0u);                   /* zero, or below 2^-126: far below 2^-48 */
+    uint m = (bits & 0x7fffffu) | 0x800000u;
+    int shift = e - 150 + FILM_FRACTION_BITS;
+    uint4 w = (uint4)(0u);
+    if (shift < 0) {
+        if (shift < -24) return (uint4)(0u);          /* below half a unit */
+        uint s = (uint)(-shift);
+        /* round half to even: add half a unit less one, plus the kept part's last bit */
+        w.x = (m + ((1u << (s - 1u)) - 1u) + ((m >> s) & 1u)) >> s;
+    } else {
+        ulong x = (ulong)m << (shift & 31);           /* at most 55 bits: two words */
+        uint low = (uint)x, high = (uint)(x >> 32);
+        int k = shift >> 5;                           /* shift <= 72 (FILM_RECORD_LIMIT): k <= 2 */
+        if (k == 0) { w.x = low; w.y = high; }
+        else if (k == 1) { w.y = low; w.z = high; }
+        else { w.z = low; w.w = high; }
+    }
+    if (bits >> 31) w = negated(w);
     return w;
 }
 

@@ -87,6 +87,22 @@ def test_records_from_1e_minus_6_to_1e6_sum_exactly_then_round_once(queue, word_
 
 
 @pytest.mark.parametrize("word_bits", WORDS)
+def test_records_below_the_fixed_points_last_bit_round_to_nearest_even(queue, word_bits):
+    """Records from 1e-18 to 1e-6 (below 2^-25 a float has bits beyond 2^-48, which are rounded
+    off), and exact ties: half a unit (2^-49) rounds to 0, one and a half to 2, 1.25 units to 1."""
+    rng = np.random.default_rng(14)
+    values = np.zeros((3000, 4), np.float32)
+    values[:, :3] = 10.0 ** rng.uniform(-18, -6, (3000, 3))
+    values[:3, :3] = np.float32([[2.0 ** -49, 3 * 2.0 ** -49, 5 * 2.0 ** -50]]) * np.float32([[1], [-1], [1]])
+    pixels = rng.integers(0, 4, 3000).astype(np.int32)
+    pixels[:3] = [3, 3, 2]
+    got, _ = device_sums(queue, values, pixels, 4, word_bits)
+    assert np.array_equal(got.view(np.uint32), exact_sums(values, pixels, 4).view(np.uint32))
+    ties, _ = device_sums(queue, values[:1], np.int32([0]), 1, word_bits)
+    assert ties[0].tolist() == [0.0, 2.0 ** -47, 2.0 ** -48]
+
+
+@pytest.mark.parametrize("word_bits", WORDS)
 def test_a_pixel_of_only_1e_minus_6_and_one_of_only_1e6(queue, word_bits):
     """The extremes alone, 4,096 records each: 4096 * 1e-6 and 4096 * 1e6 within half an ulp."""
     values = np.zeros((8192, 4), np.float32)
