@@ -32,7 +32,7 @@ from toolkit.techniques import TECHNIQUES, VARIANTS, get_technique
 GPU_MODELS = {
     "nvidia": dict(name="NVIDIA H200 (offline model)", vendor="NVIDIA Corporation", vendor_id=NVIDIA_VENDOR_ID,
                    platform="NVIDIA CUDA", max_compute_units=132, global_mem_size=141 * 2**30,
-                   max_mem_alloc_size=35 * 2**30, extensions="cl_nv_device_attribute_query cl_khr_int64_base_atomics",
+                   max_mem_alloc_size=35 * 2**30, extensions="cl_nv_device_attribute_query",
                    compute_capability_major_nv=9, compute_capability_minor_nv=0),
     "amd": dict(name="AMD Instinct MI210 (offline model)", vendor="Advanced Micro Devices, Inc.",
                 vendor_id=AMD_VENDOR_ID, platform="AMD Accelerated Parallel Processing", max_compute_units=104,
