@@ -87,6 +87,8 @@ def test_devices_lists_devices_and_the_pick():
     assert "OpenCL devices" in result.stdout
     assert "0:0" in result.stdout
     assert "The toolkit would pick:" in result.stdout
+    # which way each device sums BDPT's records (toolkit/opencl/record_film.py: film_path)
+    assert "BDPT's film (connection records summed per pixel on the device): exact 128-bit" in result.stdout
 
 
 @pytest.mark.parametrize("args,complaint", [

@@ -43,7 +43,8 @@ def test_the_host_code_gives_every_program_with_a_gpus_defines():
     for vendor in gpu_programs.GPU_MODELS:
         builds = host_builds(vendor)
         names = {build.name for build in builds}
-        assert {cls.source for cls in TECHNIQUES.values()} | {"compact.cl", "film_reduce.cl"} == names
+        shared = {"compact.cl", "film_reduce.cl", "record_film.cl"}
+        assert {cls.source for cls in TECHNIQUES.values()} | shared == names
         for build in builds:
             assert not any(o.startswith(("-DBUILTINS_ARE_CALLS", "-DMLT_CHAIN_MAJOR")) for o in build.options), build.options
             if "-DBVH_WIDE=1" in build.options:
@@ -155,7 +156,7 @@ def test_every_kernel_builds_for_both_gpus(subset_report):
     assert report["passed"], offline_report.format_report(report)
     for target in offline_build.TARGETS:
         built = {row["kernel"] for row in report["kernels"] if row["target"] == target.key and row["ok"]}
-        for name in {cls.source for cls in TECHNIQUES.values()} | {"compact.cl", "film_reduce.cl"}:
+        for name in {cls.source for cls in TECHNIQUES.values()} | {"compact.cl", "film_reduce.cl", "record_film.cl"}:
             assert declared_kernels(name) <= built, (target.key, name, declared_kernels(name) - built)
     naive = {row["target"]: row for row in report["kernels"] if row["kernel"] == "pt_naive_render"}
     assert naive["amdgcn"]["vgprs"] > 0 and naive["amdgcn"]["waves_per_simd"] in range(1, 9)

@@ -1,7 +1,8 @@
 """The film: per-pixel sums in float64 on the host, and a standard-error estimate.
 
 A float32 accumulator stops growing after ~1e7 additions of similar values, so the device
-only sums one pass (with a compensated sum: cl/film_reduce.cl, or BDPT's records on the host);
+only sums one pass (with a compensated sum: cl/film_reduce.cl; BDPT's records as exact
+integers: cl/record_film.cl);
 the passes add up here in float64. Every sample is an independent estimate of its pixel, so the
 standard error is sqrt(sample variance / n).
 """

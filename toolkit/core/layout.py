@@ -234,7 +234,21 @@ RECORDS = [BVH_NODE, *WIDE_NODES.values(), TRI_GROUP, TRIANGLE, MATERIAL, LIGHT,
            HIT_RECORD, BDPT_VERTEX, SUBPATH, LANE_COUNTS, BDPT_SLOT, BDPT_PASS, BDPT_STEP, BDPT_REGENERATION,
            MLT_CHAIN, MLT_ITERATION]
 RECORDS += [PT_PASS, PT_REGENERATION]   # the path tracers' kernel arguments
-RECORDS += [FILM_PIXEL]
+
+# One pixel of the film that sums connection records on the device (cl/record_film.cl: BDPT's
+# records, the light tracer's t = 1 splats). Each colour channel is an exact integer sum in units
+# of 2^-FILM_FRACTION_BITS, 128 bits in two's complement, as four 32-bit words (least significant
+# first): integer additions give the same bits in any order, so no float atomics are needed.
+FILM_ACCUMULATOR = Record("FilmAccumulator", [
+    ("red", "uint4"),
+    ("green", "uint4"),         # the channels follow each other: channel c's words at 4 * c
+    ("blue", "uint4"),
+    ("dropped", "uint"),        # records left out: not finite, or beyond FILM_RECORD_LIMIT
+    ("pad0", "uint"),
+    ("pad1", "uint"),
+    ("pad2", "uint"),
+], "A pixel's exact sums of one pass of connection records, 64 bytes.")
+RECORDS += [FILM_PIXEL, FILM_ACCUMULATOR]
 
 SOA_RECORDS = [PATH_STATE, SHADOW_RAY, HIT_RECORD, SUBPATH]
 
@@ -309,6 +323,15 @@ LUMINANCE_WEIGHTS = (0.2126, 0.7152, 0.0722)   # Rec. 709 luminance of linear RG
 # A ray leaving a surface starts the scene's epsilon plus this many float32 ulps of its largest
 # coordinate off it (cl/scene.h: ray_offset); the host's surface rays (peers/embree.py) do the same.
 RAY_OFFSET_ULPS = 64.0
+# The record film's fixed point (cl/record_film.cl), in units of a power of two near the scene's
+# brightest light: a record is rounded to a multiple of 2^-48 units, so one of 2^-25 units (3e-8)
+# or more is kept exactly (1e-6 has its last bit at 2^-43). A channel's 128 bits hold sums below
+# 2^79; a pass adds fewer than 2^31 records to a pixel, so a record up to 2^47 units (1.4e14)
+# never overflows it. A larger one is dropped and counted, as a non-finite one is (a connection
+# 1e14 times brighter than the brightest light is a bug: a pdf near zero).
+FILM_FRACTION_BITS = 48
+FILM_RECORDS_PER_ITEM = 8   # consecutive records one work-item adds (a run on one pixel: one atomic)
+FILM_RECORD_LIMIT = 2.0 ** 47
 
 # The scene as kernel arguments, in order: SCENE_PARAMS (kernel parameters), SCENE_INIT (the
 # SceneView made of them) and DeviceScene.args() (the host's values) all come from this list.
@@ -326,7 +349,7 @@ SCENE_PARAM_NAMES = [f"scene_{name}" for name, _ in SCENE_ARGS]
 CONNECT_ARGS = [("firsts", "__global const int*"),            # a scan of per-slot record counts
                 ("slots", "__global const BdptSlot*"),        # the sample pool
                 ("eye_vertices", "__global const BdptVertex*"), ("light_vertices", "__global const BdptVertex*"),
-                ("record_value", "__global float4*"),          # connection records: RGB and, in .w, a weight for the host
+                ("record_value", "__global float4*"),          # connection records: RGB (.w: STRATEGY_IMAGES' MIS weight)
                 ("record_pixel", "__global int*"),             # and their target pixel (-1: none)
                 ("lane_counts", "__global LaneCounts*")]       # the SIMD counters
 
@@ -346,6 +369,10 @@ def c_constants():
     lines.append("#ifdef BVH_WIDE\n#define BVH_WORD float4\n#else\n#define BVH_WORD BvhNode\n#endif")
     lines += [f"#define LUMINANCE_{c} {_c_literal(w)}" for c, w in zip("RGB", LUMINANCE_WEIGHTS)]
     lines.append(f"#define RAY_OFFSET_ULPS {_c_literal(RAY_OFFSET_ULPS)}")
+    lines.append(f"#define FILM_FRACTION_BITS {FILM_FRACTION_BITS}")
+    lines.append(f"#define FILM_SCALE {_c_literal(2.0 ** FILM_FRACTION_BITS)}")
+    lines.append(f"#define FILM_RECORD_LIMIT {_c_literal(FILM_RECORD_LIMIT)}")
+    lines.append(f"#define FILM_RECORDS_PER_ITEM {FILM_RECORDS_PER_ITEM}")
     lines.append("/* The scene as kernel parameters, and the SceneView (cl/scene.h) made of them. */")
     scene = list(zip(SCENE_ARGS, SCENE_PARAM_NAMES))
     lines.append("#define SCENE_PARAMS " + ", ".join(f"{t} {param}" for (_, t), param in scene))

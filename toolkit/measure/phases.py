@@ -39,6 +39,8 @@ KERNEL_PHASES = {
     "scan_add_block_offsets": ("scan", (), ()),
     "compact_scatter": ("compact (scatter)", (), ()),
     "film_reduce": ("film: sum per pixel", (), ()),
+    "record_film_add": ("film: add records", (), ()),
+    "record_film_resolve": ("film: sum per pixel", (), ()),
 }
 HOST = "(host, transfers)"   # the render's wall time that no kernel accounts for
 

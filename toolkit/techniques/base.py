@@ -32,7 +32,7 @@ class Technique:
     family = None    # "pt" (path tracing) or "bdpt" (bidirectional): what a technique's samples are
     # Work-items per launch we aim for: enough to fill a GPU, small enough to read back often.
     target_batch = 1 << 18
-    _collecting = None   # (film, host sums, read event, samples per pixel) of the pass collect queued last
+    _collecting = None   # (read event, what adds the pass to the film once read) of the pass queued last
     film_reduction = None   # the FilmReduction of collect, made at its first pass
 
     def __init__(self, queue, device_scene, warp_width=None, count_simd=True, extra_defines=None,
@@ -147,17 +147,26 @@ class Technique:
         if self.film_reduction is None:
             self.film_reduction = FilmReduction(self.queue, self.local_size, self.sources.toolkit_only())
         result, done = self.film_reduction.reduce(buffer, pixels, n // pixels, self.clamp)
+        self.collect_later(done, lambda: self.add_pixel_sums(film, result, n // pixels))
+
+    def collect_later(self, done, add_to_film):
+        """A pass's sums are being read (event `done`): `add_to_film()` adds them once read, at
+        the next pass's collect_later or at finish_collect, while the device runs the next pass."""
         self.queue.flush()    # start the queued work now, not at the next wait
         self.finish_collect()
-        self._collecting = (film, result, done, n // pixels)
+        self._collecting = (done, add_to_film)
 
     def finish_collect(self):
-        """Add the pixel sums of the pass whose read collect queued (if any) to its film."""
+        """Add the sums of the pass whose read collect_later queued (if any) to its film."""
         pending, self._collecting = self._collecting, None
         if pending is None:
             return
-        film, result, done, samples = pending
+        done, add_to_film = pending
         done.wait()
+        add_to_film()
+
+    def add_pixel_sums(self, film, result, samples):
+        """A path-tracing pass's FilmPixel sums (`samples` per pixel), read back, into `film`."""
         missing = int(result["missing"].sum())
         if missing:
             raise RuntimeError(f"{self.name}: {missing} of {samples * len(result)} samples were never written "

@@ -2,53 +2,37 @@
 phase, bdpt_evaluator.py) whose connect phases hand their records to an image.
 
 One pass: every sample of its budget goes through the evaluator; each connect phase's records
-(pixel, value) go to an ImageSink, which adds them up per pixel in float64 (no float atomics
-on the device). So a pass is an image, and the standard error comes from independent passes.
+(pixel, value) go to an ImageSink, which adds them to the pass's image on the device
+(toolkit/opencl/record_film.py: exact integer sums, so no float atomics and the same bits in any
+order). The host reads the pass's image, one pass behind, and the film adds it in float64. A
+sample's light-tracing records land on other pixels than its own, so a pixel has no per-sample
+values to square: a pass is an image, and the standard error comes from independent passes
+(Film.add_pass).
 Option `pool_size`: the samples in flight (default: the device's, toolkit/opencl/work_sizes.py: 4,096
 on a CPU); each stores MAX_VERTICES eye and light vertices.
 """
 import numpy as np
 
+from toolkit.opencl.record_film import RecordFilm, unit_exponent_for
 from toolkit.techniques.base import pixel_count
-from toolkit.techniques.bdpt_evaluator import BdptEvaluator, BdptPoolTechnique, per_pixel_sums
+from toolkit.techniques.bdpt_evaluator import BdptEvaluator, BdptPoolTechnique
 from toolkit.techniques.strategy_images import StrategyImages, strategy_count
 
 
 class ImageSink:
-    """Where a BDPT pass's connections go: their sum per pixel (float64), and with per-strategy
-    images (`strategy_images`, a StrategyImages) each record to its strategy's image too."""
+    """Where a BDPT pass's connections go: their sum per pixel on the device (`film`, a
+    RecordFilm), and with per-strategy images (`strategy_images`, a StrategyImages) each record
+    to its strategy's image too (read back: a measurement, not the render's path)."""
 
-    def __init__(self, pixels, strategy_images=None):
-        self.image = np.zeros((pixels, 3))   # (pixels, 3) float64 sum of the connections
+    def __init__(self, film, strategy_images=None):
+        self.film = film
         self.strategy_images = strategy_images
-        self.nonfinite = 0                   # records dropped for a NaN or infinite value
 
     def add(self, connections):
-        values, pixels = connections.values, connections.pixels
-        if connections.strategy is not None:   # records of (unweighted value, MIS weight)
-            self.strategy_images.add(values, pixels, connections.strategy)
-            values = weighted(values, pixels)
-        self.image += self.per_pixel(values, pixels)
-
-    def per_pixel(self, values, pixels):
-        """Records (value, pixel) added per pixel in float64; non-finite ones are counted and dropped."""
-        ok = pixels >= 0
-        v, p = values[ok, :3], pixels[ok]
-        sums = per_pixel_sums(v, p, len(self.image))
-        if np.isfinite(sums).all():      # a non-finite record would show in its pixel's sum
-            return sums
-        finite = np.isfinite(v).all(1)
-        self.nonfinite += int((~finite).sum())
-        return per_pixel_sums(v[finite], p[finite], len(self.image))
-
-
-def weighted(values, pixels):
-    """Records of the STRATEGY_IMAGES kernels, (unweighted value, MIS weight), weighted as the
-    normal kernels write them (in float32)."""
-    out = values.copy()
-    used = pixels >= 0      # the others are unwritten memory
-    out[used, :3] *= values[used, 3:]
-    return out
+        weighted = connections.strategy is not None   # records of (unweighted value, MIS weight)
+        if weighted:
+            self.strategy_images.add(connections.values, connections.pixels, connections.strategy)
+        self.film.add(connections.value_buffer, connections.pixel_buffer, connections.count, weighted)
 
 
 class BdptTechnique(BdptPoolTechnique):
@@ -60,6 +44,7 @@ class BdptTechnique(BdptPoolTechnique):
         (toolkit.render(..., strategy_images=...)), with images for paths up to that many edges."""
         self.strategy_max_edges = strategy_max_edges
         self.strategy_images = None     # StrategyImages of the passes so far, when built for them
+        self._record_film = None        # where the passes' records are summed (record_film)
         defines = {}
         if strategy_max_edges:
             defines.update(STRATEGY_IMAGES=True, STRATEGY_MAX_EDGES=strategy_max_edges,
@@ -74,10 +59,23 @@ class BdptTechnique(BdptPoolTechnique):
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         p = self.bdpt.start_pass(camera, seed, sample_base, pixel_count(camera) * spp)
-        image = ImageSink(p.pixels, self.strategy_pass(camera, p.budget))
-        self.bdpt.evaluate(p, image)
-        film.add_pass(image.image.reshape(int(camera["height"]), int(camera["width"]), 3) / spp, spp,
-                      nonfinite=image.nonfinite)
+        records = self.record_film(p.pixels)
+        self.bdpt.evaluate(p, ImageSink(records, self.strategy_pass(camera, p.budget)))
+        sums, done = records.resolve()       # the pass's image, read while the next pass runs
+        shape = (int(camera["height"]), int(camera["width"]), 3)
+        self.collect_later(done, lambda: film.add_pass(sums[:, :3].astype(np.float64).reshape(shape) / spp, spp,
+                                                       nonfinite=int(sums[:, 3].sum())))
+
+    def begin_render(self, camera, seed, spp):
+        super().begin_render(camera, seed, spp)
+        self._record_film = None    # a render stopped by an error may have left records in it
+
+    def record_film(self, pixels):
+        """The RecordFilm of an image of `pixels` pixels, made at its first pass."""
+        if self._record_film is None or self._record_film.pixels != pixels:
+            self._record_film = RecordFilm(self.queue, pixels, self.local_size, self.sources.toolkit_only(),
+                                           unit_exponent=unit_exponent_for(self.scene.scene.emission_of.max()))
+        return self._record_film
 
     def strategy_pass(self, camera, budget):
         """Per-strategy images (None unless built for them): the pass's samples count towards them."""

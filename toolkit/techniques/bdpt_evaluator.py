@@ -11,11 +11,13 @@ One pass, read like the talk's slides:
             connect their subpaths (the connect phase), hand the records to the sink,
             then regenerate them.
 Light-tracing (t = 1) contributions land on other pixels: every connection writes a record
-(pixel, value) and the host adds the records up per pixel in float64 (no float atomics on
-the device).
+(pixel, value) on the device, and the sink decides where it goes: bdpt's ImageSink adds it to
+the pass's image there (toolkit/opencl/record_film.py: exact integer sums, no float atomics),
+mlt's reads its records back.
 """
 import numbers
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 import pyopencl as cl
@@ -94,9 +96,13 @@ class PassState:
 
 @dataclass
 class Connections:
-    """The records of one connect phase, read back: what a sink adds up."""
-    values: np.ndarray               # (n, 4) float32: RGB, and with STRATEGY_IMAGES the MIS weight (RGB unweighted)
-    pixels: np.ndarray               # (n,) int32: the pixel each record lands on; -1: none (memory left unwritten)
+    """The records of one connect phase, on the device: what a sink adds up. The next connect
+    phase reuses their buffers, so a sink uses them in `add`; `values` and `pixels` read them
+    back (at their first use), for a sink that keeps them on the host."""
+    count: int = 0                   # records
+    value_buffer: cl.Buffer = None   # float4[count]: RGB, and with STRATEGY_IMAGES the MIS weight (RGB unweighted)
+    pixel_buffer: cl.Buffer = None   # int[count]: the pixel each record lands on; -1: none (memory left unwritten)
+    queue: cl.CommandQueue = None    # where they are read from
     strategy: np.ndarray = None      # (n,) each record's strategy (strategy_index), with STRATEGY_IMAGES
     slots: np.ndarray = None         # BdptSlot[pool] as connected (sample ids, vertex counts), if the phase reads them
     slot_records: np.ndarray = None  # (pool,) records each slot wrote, consecutive in slot order, likewise
@@ -104,7 +110,17 @@ class Connections:
     @classmethod
     def none(cls):
         """A connect phase without records (no sample had terminated)."""
-        return cls(np.zeros((0, 4), np.float32), np.zeros(0, np.int32))
+        return cls()
+
+    @cached_property
+    def values(self):
+        """(n, 4) float32, read back."""
+        return read_buffer(self.queue, self.value_buffer, np.empty((self.count, 4), np.float32))
+
+    @cached_property
+    def pixels(self):
+        """(n,) int32, read back."""
+        return read_buffer(self.queue, self.pixel_buffer, np.empty(self.count, np.int32))
 
 
 @dataclass
@@ -293,14 +309,11 @@ class BdptEvaluator:
         return tuple(out)
 
 
-def read_records(ctx, value_buffer, pixel_buffer, n):
-    """n connection records (values (n, 4) float32, pixels (n,) int32) from the device."""
-    values = np.empty((n, 4), np.float32)
-    pixels = np.empty(n, np.int32)
-    if n:
-        cl.enqueue_copy(ctx.queue, values, value_buffer)
-        cl.enqueue_copy(ctx.queue, pixels, pixel_buffer)
-    return values, pixels
+def read_buffer(queue, buffer, out):
+    """`out` filled from the start of `buffer` (nothing read when it is empty)."""
+    if out.size:
+        cl.enqueue_copy(queue, out, buffer)
+    return out
 
 
 def scan_slot_counts(ctx, p, kernel, label):

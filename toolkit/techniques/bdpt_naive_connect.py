@@ -7,7 +7,7 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.core.simd import PhaseCounter
-from toolkit.techniques.bdpt_evaluator import Connections, connect_args, read_records, record_buffers, scan_slot_counts
+from toolkit.techniques.bdpt_evaluator import Connections, connect_args, record_buffers, scan_slot_counts
 from toolkit.core.bdpt_indices import (naive_record_count, naive_splat_record, naive_strategy_record,
                                        naive_sum_record, strategy_count, strategy_index)
 from toolkit.techniques.bdpt_base import BdptTechnique
@@ -36,7 +36,7 @@ class NaiveConnect:
         ctx.kernels.launch("bdpt_naive_connect", pool, **ctx.kernels.scene_args(), cam=p.camera, pool=np.int32(pool),
                     splats=np.int32(splats), **connect_args(p, firsts, values, pixels, p.pool.lane_counts))
         self.count_connect(p)
-        connections = Connections(*read_records(ctx, values, pixels, n))
+        connections = Connections(n, values, pixels, ctx.queue)
         if self.strategy_max_edges:
             connections.strategy = self.record_strategies(pool, ctx.memory.read_ints(counts, pool))
         return connections

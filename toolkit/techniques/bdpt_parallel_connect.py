@@ -6,7 +6,7 @@ import numpy as np
 
 from toolkit.core.bdpt_indices import connection_strategy
 from toolkit.core.layout import BDPT_SLOT
-from toolkit.techniques.bdpt_evaluator import Connections, connect_args, read_records, record_buffers, scan_slot_counts
+from toolkit.techniques.bdpt_evaluator import Connections, connect_args, record_buffers, scan_slot_counts
 from toolkit.techniques.strategy_images import strategy_index
 from toolkit.techniques.bdpt_base import BdptTechnique
 
@@ -34,7 +34,7 @@ class ParallelConnect:
                     total=np.int32(total), pool=np.int32(pool), **connect_args(p, firsts, values, pixels, lanes))
         if ctx.recorder.on:
             ctx.recorder.simd.add_stream_step("connect", total)
-        connections = Connections(*read_records(ctx, values, pixels, total))
+        connections = Connections(total, values, pixels, ctx.queue)
         if self.read_slots:
             connections.slot_records = ctx.memory.read_ints(counts, pool)
             connections.slots = ctx.memory.read_structs(BDPT_SLOT, p.pool.slots, pool)

@@ -33,7 +33,7 @@ class StrategyImages:
         used = pixels >= 0      # the others are unwritten memory
         values, pixels, index = values[used], pixels[used], index[used]
         weighted = values[:, :3] * values[:, 3:]                          # float32, as on the device
-        ok = np.isfinite(values).all(1) & np.isfinite(weighted).all(1)    # as ImageSink.per_pixel drops them
+        ok = np.isfinite(values).all(1) & np.isfinite(weighted).all(1)    # as the image drops them (cl/record_film.cl)
         values, weighted, pixels, index = values[ok], weighted[ok].astype(np.float64), pixels[ok], index[ok]
         unweighted = values[:, :3].astype(np.float64)
         shape = self.luminance_sq.shape                 # (strategies, pixels)

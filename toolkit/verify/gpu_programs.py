@@ -23,6 +23,7 @@ from toolkit.opencl.builds import Builds
 from toolkit.opencl.device_model import AMD_VENDOR_ID, NVIDIA_VENDOR_ID
 from toolkit.opencl.device_scene import DeviceScene
 from toolkit.opencl.film_reduce import FilmReduction
+from toolkit.opencl.record_film import RecordFilm
 from toolkit.techniques import TECHNIQUES, VARIANTS, get_technique
 
 # The GPUs the offline build compiles for, as the host would see them through OpenCL: the
@@ -36,7 +37,8 @@ GPU_MODELS = {
     "amd": dict(name="AMD Instinct MI210 (offline model)", vendor="Advanced Micro Devices, Inc.",
                 vendor_id=AMD_VENDOR_ID, platform="AMD Accelerated Parallel Processing", max_compute_units=104,
                 global_mem_size=64 * 2**30, max_mem_alloc_size=48 * 2**30,
-                extensions="cl_amd_device_attribute_query", simd_per_compute_unit_amd=4, wavefront_width_amd=64),
+                extensions="cl_amd_device_attribute_query cl_khr_int64_base_atomics", simd_per_compute_unit_amd=4,
+                wavefront_width_amd=64),
 }
 
 # Both ways the host builds the kernels: with the SIMD counters (render's API default, compare)
@@ -117,6 +119,8 @@ def host_builds(vendor, scenes=None, techniques=None, counters=COUNT_SIMD):
                         tech = cls(queue, device_scene, count_simd=count_simd, **options)
                         if tech.family == "pt":   # the path tracers' collect builds it at the first pass
                             FilmReduction(queue, tech.local_size)
+                        if tech.family == "bdpt":   # BDPT's first pass builds its film
+                            RecordFilm(queue, 1, tech.local_size)
                     except (AttributeError, TypeError) as error:
                         raise RuntimeError(f"recording the programs of {current_use[0]} without a device failed: "
                                            f"its host code now calls OpenCL at construction ({error}); give "

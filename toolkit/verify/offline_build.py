@@ -43,12 +43,19 @@ class Target:
     arch: str         # what the output must be for
 
 
+# The extensions a GPU's driver reports that the kernels use (64-bit atomics: cl/record_film.cl),
+# which clang enables for these targets only when told. libclc has no 64-bit atom_add for nvptx64
+# (NVIDIA's driver has), so the NVIDIA model builds record_film.cl's 32-bit path
+# (gpu_programs.GPU_MODELS) and the AMD one its 64-bit path: each path built for one GPU.
+GPU_EXTENSIONS = ("-Xclang", "-cl-ext=+cl_khr_int64_base_atomics")
+
 TARGETS = (
     Target("nvptx64", "nvidia", "NVIDIA sm_90 (nvptx64)",
            ("-target", "nvptx64-nvidia-nvcl", "-Xclang", "-target-cpu", "-Xclang", "sm_90"),
            "nvptx64--nvidiacl.bc", "sm_90"),
     Target("amdgcn", "amd", "AMD gfx90a (amdgcn)",
-           ("-target", "amdgcn-amd-amdhsa", "-mcpu=gfx90a", "-nogpulib"), "amdgcn--amdhsa.bc", "gfx90a"),
+           ("-target", "amdgcn-amd-amdhsa", "-mcpu=gfx90a", "-nogpulib", *GPU_EXTENSIONS), "amdgcn--amdhsa.bc",
+           "gfx90a"),
 )
 
 # The compilers tried, newest libclc first; Debian's clang-16 and libclc-16 are what .ci/run installs.
