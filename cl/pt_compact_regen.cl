@@ -41,8 +41,8 @@
  * budget (consecutive pixels), as many as fit in the stream's `stream_size` entries.
  * Every work-item reads only last_counts; work-item 0 alone writes this step's record (its length,
  * the next sample, and compaction's counters set to zero), so no work-item reads what another
- * writes. alive[i] is set to "entry i holds a path" for the whole stream: multi-pass compaction's
- * in-place extension reads it (immediate compaction's shade packs the survivors instead). */
+ * writes. A new entry's alive flag is set: multi-pass compaction's in-place extension reads the
+ * flags (gather set the survivors'); immediate compaction's shade packs the survivors instead. */
 __kernel void pt_compact_regen_generate(const Camera cam, const PtPass pass_args, const int stream_size,
                                         __global const PtStep* last_counts, __global PtStep* counts,
                                         __global void* stream, __global int* alive)
@@ -58,11 +58,11 @@ __kernel void pt_compact_regen_generate(const Camera cam, const PtPass pass_args
         counts->survivors = 0;
         counts->shadow_rays = 0;
     }
-    alive[gid] = gid < survivors + count;
     if (gid < survivors || gid >= survivors + count) return;
     PathState p;
     path_start_sample(&p, &cam, first_id + gid - survivors, pass_args.sample_base, pass_args.seed);
     path_state_store(path_state_soa(stream, pass_args.capacity), gid, &p);
+    alive[gid] = 1;
 }
 
 /* Trace: the closest hit of each stream entry's ray, into the hit stream (HitRecord, layout.h). */
@@ -135,14 +135,17 @@ __kernel void pt_compact_regen_shadow(SCENE_PARAMS, const PtPass pass_args, __gl
 }
 
 /* Move the survivors listed in `indices` (from the scan; *survivors of them, the scan's total)
- * to the start of `next_stream`, and count them in the step's record. */
+ * to the start of `next_stream`, count them in the step's record, and set the alive flags of the
+ * launch's entries to what the next stream holds (regeneration adds its new entries). The scan
+ * and the scatter have read the flags already; gather reads only `indices`. */
 __kernel void pt_compact_regen_gather(const PtPass pass_args, __global const int* survivors,
                                       __global const int* indices, __global void* stream, __global void* next_stream,
-                                      __global PtStep* counts)
+                                      __global PtStep* counts, __global int* alive)
 {
     int gid = get_global_id(0);
     int count = *survivors;
     if (gid == 0) counts->survivors = count;
+    alive[gid] = gid < count;    /* every launched work-item: the flags buffer is padded like the launch */
     if (gid >= count) return;
     PathState p = path_state_load(path_state_soa(stream, pass_args.capacity), indices[gid]);
     path_state_store(path_state_soa(next_stream, pass_args.capacity), gid, &p);

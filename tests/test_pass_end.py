@@ -1,7 +1,7 @@
 """PassEnd (toolkit/techniques/pass_end.py): the host learns that a stream technique's pass is over
 from reads of the device's counts that it queued `lag` steps before, one every `every` steps,
-never from one it has to wait for at once. A stand-in for the device memory records when each read is queued and when its
-result is asked for; the pass is over after step `last`."""
+never from one it has to wait for at once. A stand-in for the device memory records when each
+read is queued and when its result is asked for; the pass is over after step `last`."""
 import pytest
 
 from toolkit.techniques.pass_end import PassEnd

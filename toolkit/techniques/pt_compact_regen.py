@@ -38,7 +38,7 @@ class StreamBuffers:
     hits: cl.Buffer          # HitRecord x capacity: each path's closest hit, from trace to shade
     shadow_rays: cl.Buffer   # ShadowRay x capacity: the shadow rays a step queued, packed (immediate compaction)
     lane_counts: cl.Buffer   # LaneCounts per path: what it did in an extension step (COUNT_SIMD)
-    alive: cl.Buffer         # int per path: 1 where the stream holds a path that is alive (multi-pass compaction's flags)
+    alive: cl.Buffer         # int per path: 1 where the stream holds a live path (multi-pass compaction's flags)
     shadow_steps: cl.Buffer  # int per queued shadow ray: the BVH nodes it visited (COUNT_SIMD)
     counts: cl.Buffer        # PtStep: this step's counts (its length, survivors, shadow rays, next sample)
     last_counts: cl.Buffer   # PtStep: the last step's, from which regeneration starts this step's
@@ -147,11 +147,11 @@ class PtCompactRegen(Technique):
                      counts=mem.counts, stream=mem.stream, hits=mem.hits, next_stream=mem.next_stream,
                      shadow_rays=mem.shadow_rays, radiance=mem.radiance, lane_counts=mem.lane_counts)
             return
-        # Multi-pass: the entries that hold a live path (alive, set by regeneration) take the step in place.
+        # Multi-pass: the entries that hold a live path (alive: set by gather and regeneration) take the step in place.
         self.extend_in_place(pass_args, paths, mem.stream, mem.alive, mem.hits, mem.radiance, mem.lane_counts)
         indices, survivors = self.compactor.compact_on_device(mem.alive, paths, out=mem.indices)
-        k.launch("pt_compact_regen_gather", paths, pass_args=pass_args, survivors=survivors,
-                 indices=indices, stream=mem.stream, next_stream=mem.next_stream, counts=mem.counts)
+        k.launch("pt_compact_regen_gather", paths, pass_args=pass_args, survivors=survivors, indices=indices,
+                 stream=mem.stream, next_stream=mem.next_stream, counts=mem.counts, alive=mem.alive)
 
     def trace_shadow_rays(self, pass_args, paths, mem):
         """The shadow rays the step queued (counts.shadow_rays of them; immediate compaction only:
