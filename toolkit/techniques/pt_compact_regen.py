@@ -12,9 +12,10 @@ work-group in local memory, one atomic per group); "multipass" extends in place
 (extend_in_place_trace and _shade, shared with pt_inplace_regen), then labels, scans and gathers.
 The counts stay on the device: each step's PtStep record (toolkit/core/layout.py) holds the
 stream's length, what compaction counted and the next sample to start; every kernel is launched
-over the whole stream and a work-item past the count returns at once. The host never reads a
+over the whole stream and a work-item past the count returns at once. The host never waits for a
 count to launch the next step: it reads a step's record now and then, behind the device, to
-learn that the pass is over (pass_end.py). With the SIMD counters on it reads every step's.
+learn that the pass is over (pass_end.py); in the final drain such a read also bounds the
+launches (the stream only shrinks). With the SIMD counters on it reads every step's.
 Option `stream_size`: the paths in the stream (default: the device's, toolkit/opencl/work_sizes.py:
 32,768 on a CPU).
 """
