@@ -160,3 +160,29 @@ def test_a_compactor_keeps_its_scratch_memory(monkeypatch, queue):
                 assert compactor.compact_indices(flags, length, method, out=out)[1] == len(range(0, length, 3))
             assert compactor.exclusive_scan(flags, length, out=out)[1] == len(range(0, length, 3))
     assert summary(traffic.events)["allocs"] == 0
+
+
+@pytest.mark.parametrize("technique", ["bdpt_naive_connect", "bdpt_parallel_connect"])
+def test_a_bdpt_walk_step_never_waits_for_a_count(monkeypatch, cornell_box, technique):
+    """BDPT's walk keeps its streams' lengths on the device and reads its counters behind the walk
+    (bdpt_evaluator.py): between two walk steps the host waits for nothing, unless a connect
+    phase came between them (it waits for the terminated slots and the streams' lengths)."""
+    cls, options = get_technique(technique)
+    queue = get_queue()
+    tech = cls(queue, DeviceScene(queue, cornell_box), count_simd=False, pool_size=128, **options)
+    with monkeypatch.context() as patch:
+        traffic = Traffic(patch)
+        film = tech.render(16, 16, 4, seed=3)
+    assert int(film.count.min()) == int(film.count.max()) == 4
+    steps, current = [], []
+    for kind, what in traffic.events:
+        if kind == "launch" and what == "bdpt_extend":
+            steps.append(current)
+            current = []
+        current.append((kind, what))
+    walking = [s for s in steps if ("launch", "bdpt_mark_terminated") not in s]
+    connecting = len(steps) - len(walking)
+    assert len(walking) > 10 and connecting >= 2     # a pool of 128: several connect phases
+    assert all(summary(s)["blocking_reads"] == 0 for s in walking)
+    # Each walk step queues one read of the counters (20 bytes), not waited for at once.
+    assert all(summary(s)["reads"] <= 1 for s in walking)

@@ -188,8 +188,7 @@ BDPT_PASS = Record("BdptPass", [
 ], "What every BDPT kernel of one pass shares.")
 
 BDPT_STEP = Record("BdptStep", [
-    ("light_path", "int"),      # 1: this launch extends the light stream, 0: the eye stream
-    ("length", "int"),          # subpaths in the stream
+    ("light_path", "int"),      # 1: this launch extends the light stream, 0: the eye stream (its length: WalkCounter)
 ], "One random-walk step over one stream (bdpt_extend).")
 
 BDPT_REGENERATION = Record("BdptRegeneration", [
@@ -271,10 +270,13 @@ class SlotState(IntEnum):
 
 
 class WalkCounter(IntEnum):
-    """Indices into the random walk's counter buffer, read by the host once per step."""
+    """Indices into the random walk's counter buffer: the streams' lengths stay on the device, and
+    the host reads the buffer behind the walk (bdpt_evaluator.py), not before each step."""
     EYE_SURVIVORS = 0       # eye subpaths written to the next eye stream
     LIGHT_SURVIVORS = 1     # light subpaths written to the next light stream
     TERMINATED_SAMPLES = 2  # samples whose second subpath ended since the last regeneration
+    EYE_LENGTH = 3          # subpaths in the eye stream: the last step's survivors, then the regenerated
+    LIGHT_LENGTH = 4        # the same for the light stream
 
 
 class WideChild(IntEnum):
