@@ -142,13 +142,18 @@ HELPER bool subpath_extend(const SceneView* scene, Subpath* p, BdptSampler* rng,
     return subpath_roulette(p, rng, k, light_path) && !is_black(p->beta.xyz);
 }
 
-/* The walk's counters, one int buffer that the host reads once per step (one wait, not three):
- * counters[EYE_SURVIVORS], [LIGHT_SURVIVORS], [TERMINATED_SAMPLES] (WalkCounter in toolkit/core/layout.py).
+/* The walk's counters, one int buffer on the device (WalkCounter in toolkit/core/layout.py):
+ * counters[EYE_LENGTH], [LIGHT_LENGTH] the streams' lengths, which each step reads;
+ * counters[EYE_SURVIVORS], [LIGHT_SURVIVORS], [TERMINATED_SAMPLES] what it counts. The host copies
+ * the survivors onto the lengths on the device after a step, and reads the buffer behind the walk,
+ * so it never waits for a count before the next launch.
  * A slot's `live` counts its subpaths still walking (SlotState in toolkit/core/layout.py):
  * SLOT_BOTH_WALKING after regeneration, SLOT_ONE_WALKING, SLOT_TERMINATED when both have
  * ended (it waits for its connections), SLOT_IDLE when the pass's budget left it empty. */
 
-/* One random-walk step over a compacted subpath stream (eye or light). Survivors are packed
+/* One random-walk step over a compacted subpath stream (eye or light) of counters[EYE_ or
+ * LIGHT_LENGTH] subpaths; the launch may cover more (a bound the host knows), and a work-group
+ * wholly past the length leaves at once. Survivors are packed
  * into `next_stream` and counted in counters[EYE_ or LIGHT_SURVIVORS]; a subpath that ends records
  * its vertex count, and the sample whose second subpath this was counts as terminated.
  * `stream` and `next_stream` are Subpath structures of arrays of pass_args.capacity records (layout.h). */
@@ -159,7 +164,9 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
                  BDPT_SAMPLER_PARAM)
 {
     int gid = get_global_id(0);
-    const int light_path = walk_step.light_path, length = walk_step.length;
+    const int light_path = walk_step.light_path, length = counters[light_path ? LIGHT_LENGTH : EYE_LENGTH];
+    /* All the group's work-items leave together, so none waits at a barrier the others skip. */
+    if (get_group_id(0) * get_local_size(0) >= length) return;
     __local int scratch[COMPACT_SCRATCH_INTS];
     __local uint stage[LOCAL_SIZE * VERTEX_WORDS];
     __local int dest[LOCAL_SIZE];

@@ -24,17 +24,53 @@
  *   the scan                     toolkit/opencl/compaction.py (multi-pass compaction)
  *   pt_compact_regen_gather      here (multi-pass compaction)
  * Every stream is a structure of arrays of pass_args.capacity records in one buffer (layout.h);
- * `pass_args` (PtPass) holds what every kernel of the pass shares. */
+ * `pass_args` (PtPass) holds what every kernel of the pass shares.
+ *
+ * The counts stay on the device (pbrt-v4's work queues do the same): each step's PtStep record
+ * (layout.h) holds the stream's length, the survivors and queued shadow rays that compaction
+ * counts, and the next sample to start. Every kernel is launched over the whole stream
+ * (stream_size work-items) and a work-item past the step's count returns at once, so the host
+ * never waits for a count before the next launch; it reads a step's record only now and then,
+ * to learn that the pass is over (toolkit/techniques/pass_end.py). */
 #include "path.h"
 #include "compact.h"
 #include "extend_in_place.h"
 
+/* Regenerate at the end of the stream: the last step left last_counts->survivors paths packed at
+ * its start; entries survivors .. survivors + count - 1 start the next `count` samples of the
+ * budget (consecutive pixels), as many as fit in the stream's `stream_size` entries.
+ * Every work-item reads only last_counts; work-item 0 alone writes this step's record (its length,
+ * the next sample, and compaction's counters set to zero), so no work-item reads what another
+ * writes. A new entry's alive flag is set: multi-pass compaction's in-place extension reads the
+ * flags (gather set the survivors'); immediate compaction's shade packs the survivors instead. */
+__kernel void pt_compact_regen_generate(const Camera cam, const PtPass pass_args, const int stream_size,
+                                        __global const PtStep* last_counts, __global PtStep* counts,
+                                        __global void* stream, __global int* alive)
+{
+    int gid = get_global_id(0);
+    if (gid >= stream_size) return;
+    int survivors = last_counts->survivors, first_id = last_counts->next_sample;
+    int count = min(stream_size - survivors, pass_args.budget - first_id);
+    if (gid == 0) {
+        counts->length = survivors + count;
+        counts->started = count;
+        counts->next_sample = first_id + count;
+        counts->survivors = 0;
+        counts->shadow_rays = 0;
+    }
+    if (gid < survivors || gid >= survivors + count) return;
+    PathState p;
+    path_start_sample(&p, &cam, first_id + gid - survivors, pass_args.sample_base, pass_args.seed);
+    path_state_store(path_state_soa(stream, pass_args.capacity), gid, &p);
+    alive[gid] = 1;
+}
+
 /* Trace: the closest hit of each stream entry's ray, into the hit stream (HitRecord, layout.h). */
-__kernel void pt_compact_regen_trace(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
+__kernel void pt_compact_regen_trace(SCENE_PARAMS, const PtPass pass_args, __global const PtStep* counts,
                                      __global void* stream, __global void* hits, __global LaneCounts* lane_counts)
 {
     int gid = get_global_id(0);
-    if (gid >= stream_length) return;
+    if (gid >= counts->length) return;
     SceneView scene = SCENE_INIT;
     LaneCounters count = {0, 0, 0};
     path_trace_entry(&scene, path_state_soa(stream, pass_args.capacity), hit_record_soa(hits, pass_args.capacity),
@@ -46,46 +82,48 @@ __kernel void pt_compact_regen_trace(SCENE_PARAMS, const PtPass pass_args, const
 
 /* Shade the hits that trace found + immediate compaction: survivors are written packed into
  * `next_stream`, and the shadow rays they prepared packed into the shadow queue;
- * counters[STREAM_PATHS] and counters[STREAM_SHADOW_RAYS] count them (StreamCounter,
- * toolkit/core/layout.py). */
+ * counts->survivors and counts->shadow_rays count them (PtStep, layout.h). */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
-void pt_compact_regen_shade(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
+void pt_compact_regen_shade(SCENE_PARAMS, const PtPass pass_args, __global PtStep* counts,
                              __global void* stream, __global void* hits, __global void* next_stream,
-                             __global void* shadow_rays, volatile __global int* counters, __global float4* radiance,
-                             __global LaneCounts* lane_counts)
+                             __global void* shadow_rays, __global float4* radiance, __global LaneCounts* lane_counts)
 {
     int gid = get_global_id(0);
+    int length = counts->length;
+    /* A work-group wholly past the stream's length leaves at once: all its work-items together,
+     * so none of them waits at a barrier the others skip. */
+    if (get_group_id(0) * get_local_size(0) >= length) return;
     __local int scratch[COMPACT_SCRATCH_INTS];
     PathState p;
     ShadowRay ray;
     ray.slot = -1;
     bool alive = false;
-    /* No early return: every work-item of the group must reach the compaction barriers. */
-    if (gid < stream_length) {
+    /* No early return past this point: every work-item of the group must reach the compaction barriers. */
+    if (gid < length) {
         SceneView scene = SCENE_INIT;
         p = path_state_load(path_state_soa(stream, pass_args.capacity), gid);
         HitRecord hit = hit_record_load(hit_record_soa(hits, pass_args.capacity), gid);
         alive = path_shade_deferred(&scene, &p, hit, pass_args.seed, &ray);
         if (!alive) path_finish(radiance, &p);
     }
-    int slot = immediate_compact_slot(alive, scratch, &counters[STREAM_PATHS]);
+    int slot = immediate_compact_slot(alive, scratch, &counts->survivors);
     if (slot >= 0) path_state_store(path_state_soa(next_stream, pass_args.capacity), slot, &p);
-    int queued = immediate_compact_slot(ray.slot >= 0, scratch, &counters[STREAM_SHADOW_RAYS]);
+    int queued = immediate_compact_slot(ray.slot >= 0, scratch, &counts->shadow_rays);
     if (queued >= 0) shadow_ray_store(shadow_ray_soa(shadow_rays, pass_args.capacity), queued, &ray);
 #if COUNT_SIMD
     /* trace wrote this lane's record; the shadow ray was queued, traced by pt_compact_regen_shadow */
-    if (gid < stream_length) lane_counts[gid].shadow_rays = ray.slot >= 0;
+    if (gid < length) lane_counts[gid].shadow_rays = ray.slot >= 0;
 #endif
 }
 
 /* Trace the queued shadow rays; an unoccluded one adds its contribution to its sample.
  * A sample has at most one shadow ray per iteration, so no two work-items add to one slot. */
-__kernel void pt_compact_regen_shadow(SCENE_PARAMS, const PtPass pass_args, const int queued,
+__kernel void pt_compact_regen_shadow(SCENE_PARAMS, const PtPass pass_args, __global const PtStep* counts,
                                       __global void* shadow_rays, __global float4* radiance,
                                       __global int* shadow_steps)
 {
     int gid = get_global_id(0);
-    if (gid >= queued) return;
+    if (gid >= counts->shadow_rays) return;
     SceneView scene = SCENE_INIT;
     ShadowRay ray = shadow_ray_load(shadow_ray_soa(shadow_rays, pass_args.capacity), gid);
     LaneCounters count = {0, 0, 0};
@@ -96,24 +134,19 @@ __kernel void pt_compact_regen_shadow(SCENE_PARAMS, const PtPass pass_args, cons
 #endif
 }
 
-/* Move the survivors listed in `indices` (from the scan) to the start of `next_stream`. */
-__kernel void pt_compact_regen_gather(const PtPass pass_args, const int count, __global const int* indices,
-                                      __global void* stream, __global void* next_stream)
+/* Move the survivors listed in `indices` (from the scan; *survivors of them, the scan's total)
+ * to the start of `next_stream`, count them in the step's record, and set the alive flags of the
+ * launch's entries to what the next stream holds (regeneration adds its new entries). The scan
+ * and the scatter have read the flags already; gather reads only `indices`. */
+__kernel void pt_compact_regen_gather(const PtPass pass_args, __global const int* survivors,
+                                      __global const int* indices, __global void* stream, __global void* next_stream,
+                                      __global PtStep* counts, __global int* alive)
 {
     int gid = get_global_id(0);
+    int count = *survivors;
+    if (gid == 0) counts->survivors = count;
+    alive[gid] = gid < count;    /* every launched work-item: the flags buffer is padded like the launch */
     if (gid >= count) return;
     PathState p = path_state_load(path_state_soa(stream, pass_args.capacity), indices[gid]);
     path_state_store(path_state_soa(next_stream, pass_args.capacity), gid, &p);
-}
-
-/* Regenerate at the end of the stream: entries r.base .. r.base + r.count - 1 start samples
- * r.first_id .. r.first_id + r.count - 1 (consecutive pixels; PtRegeneration, layout.h). */
-__kernel void pt_compact_regen_generate(const Camera cam, const PtPass pass_args, const PtRegeneration r,
-                                        __global void* stream)
-{
-    int gid = get_global_id(0);
-    if (gid >= r.count) return;
-    PathState p;
-    path_start_sample(&p, &cam, r.first_id + gid, pass_args.sample_base, pass_args.seed);
-    path_state_store(path_state_soa(stream, pass_args.capacity), r.base + gid, &p);
 }

@@ -55,6 +55,25 @@ def check(method, out, mask, local_size=L):
 
 # -- sizes, densities, edge cases -----------------------------------------------------------
 
+@pytest.mark.parametrize("n", [1, 64, 65, 4097])
+def test_multipass_compaction_on_device_leaves_the_count_there(queue, compactor, n, monkeypatch):
+    """compact_on_device (what pt_compact_regen's multi-pass compaction calls every step) reads
+    nothing back: the survivors' count is in a device buffer for the kernels queued next."""
+    mask = (np.random.default_rng(n).random(n) < 0.4).astype(np.int32)
+    flags = cl_array.to_device(queue, mask)
+    out = cl.Buffer(queue.context, cl.mem_flags.READ_WRITE, 4 * n)
+    reads, real_copy = [], cl.enqueue_copy
+    with monkeypatch.context() as patch:
+        patch.setattr(cl, "enqueue_copy", lambda *args, **kwargs: reads.append(args) or real_copy(*args, **kwargs))
+        buffer, count = compactor.compact_on_device(flags.data, n, out=out)
+    assert reads == [] and buffer is out and compactor.last_stats["count"] is None
+    survivors, indices = np.empty(1, np.int32), np.empty(n, np.int32)
+    cl.enqueue_copy(queue, survivors, count)
+    cl.enqueue_copy(queue, indices, out)
+    assert survivors[0] == mask.sum()
+    np.testing.assert_array_equal(indices[:survivors[0]], np.flatnonzero(mask))
+
+
 @pytest.mark.parametrize("method", METHODS)
 def test_empty_stream_compacts_to_nothing(compactor, method):
     out = compactor.compact_numpy(np.zeros(0, bool), method)

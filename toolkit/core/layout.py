@@ -126,11 +126,14 @@ PT_PASS = Record("PtPass", [
     ("capacity", "int"),        # records each path stream holds (a multiple of 4); pt_naive has no stream: 0
 ], "What every path-tracing kernel of one pass shares.")
 
-PT_REGENERATION = Record("PtRegeneration", [
-    ("count", "int"),           # new samples, in consecutive stream entries
-    ("first_id", "int"),        # id of the first new sample (the others follow: consecutive pixels)
-    ("base", "int"),            # the stream entry of the first (the stream's length before)
-], "One regeneration at the end of pt_compact_regen's stream.")
+PT_STEP = Record("PtStep", [
+    ("length", "int"),          # paths this step extends: the last step's survivors, then the regenerated
+    ("started", "int"),         # samples this step's regeneration started (at the end of the stream)
+    ("survivors", "int"),       # paths that continue, packed into the next stream (compaction's counter)
+    ("shadow_rays", "int"),     # shadow rays the step queued (immediate compaction's second counter)
+    ("next_sample", "int"),     # id of the next sample of the budget to start, after this step's regeneration
+], "One step of pt_compact_regen's stream, counted on the device: regeneration writes it from the last "
+   "step's, the step's kernels read its length, compaction counts into it; the host reads it only now and then.")
 
 BDPT_VERTEX = Record("BdptVertex", [
     ("pos", "float4"),       # position; .w unused
@@ -185,8 +188,7 @@ BDPT_PASS = Record("BdptPass", [
 ], "What every BDPT kernel of one pass shares.")
 
 BDPT_STEP = Record("BdptStep", [
-    ("light_path", "int"),      # 1: this launch extends the light stream, 0: the eye stream
-    ("length", "int"),          # subpaths in the stream
+    ("light_path", "int"),      # 1: this launch extends the light stream, 0: the eye stream (its length: WalkCounter)
 ], "One random-walk step over one stream (bdpt_extend).")
 
 BDPT_REGENERATION = Record("BdptRegeneration", [
@@ -233,7 +235,7 @@ FILM_PIXEL = Record("FilmPixel", [
 RECORDS = [BVH_NODE, *WIDE_NODES.values(), TRI_GROUP, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY,
            HIT_RECORD, BDPT_VERTEX, SUBPATH, LANE_COUNTS, BDPT_SLOT, BDPT_PASS, BDPT_STEP, BDPT_REGENERATION,
            MLT_CHAIN, MLT_ITERATION]
-RECORDS += [PT_PASS, PT_REGENERATION]   # the path tracers' kernel arguments
+RECORDS += [PT_PASS, PT_STEP]   # the path tracers' kernel arguments and stream counts
 
 # One pixel of the film that sums connection records on the device (cl/record_film.cl: BDPT's
 # records, the light tracer's t = 1 splats). Each colour channel is an exact integer sum in units
@@ -282,16 +284,13 @@ class SlotState(IntEnum):
 
 
 class WalkCounter(IntEnum):
-    """Indices into the random walk's counter buffer, read by the host once per step."""
+    """Indices into the random walk's counter buffer: the streams' lengths stay on the device, and
+    the host reads the buffer behind the walk (bdpt_evaluator.py), not before each step."""
     EYE_SURVIVORS = 0       # eye subpaths written to the next eye stream
     LIGHT_SURVIVORS = 1     # light subpaths written to the next light stream
     TERMINATED_SAMPLES = 2  # samples whose second subpath ended since the last regeneration
-
-
-class StreamCounter(IntEnum):
-    """Indices into pt_compact_regen's counter buffer (lengths of the streams it writes)."""
-    PATHS = 0           # surviving paths, packed into the next stream
-    SHADOW_RAYS = 1     # queued shadow rays
+    EYE_LENGTH = 3          # subpaths in the eye stream: the last step's survivors, then the regenerated
+    LIGHT_LENGTH = 4        # the same for the light stream
 
 
 class WideChild(IntEnum):
@@ -308,7 +307,7 @@ class MltMode(IntEnum):
 
 
 NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"),
-                (WalkCounter, ""), (StreamCounter, "STREAM_"), (MltMode, "MLT_")]
+                (WalkCounter, ""), (MltMode, "MLT_")]
 
 # ---- single constants --------------------------------------------------------------------
 

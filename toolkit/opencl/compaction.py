@@ -29,8 +29,9 @@ class Compactor:
     """Compacts streams of alive flags into streams of the alive indices on `queue`'s device.
 
     ``last_stats`` describes the last call (for the SIMD counters and for teaching): the
-    method, the stream length ``n``, the number of survivors ``count``, the number of
-    work-groups and of kernel launches it took.
+    method, the stream length ``n``, the number of survivors ``count`` (None after
+    compact_on_device: the count stayed on the device), the number of work-groups and of kernel
+    launches it took.
 
     `local_size` is the work-group size its kernels are built for (LOCAL_SIZE) and launched with;
     a technique passes its own. Immediate compaction's output order depends on it (the groups),
@@ -87,6 +88,23 @@ class Compactor:
                            "work_groups": -(-n // self.local_size), "launches": self._launches}
         return out, count
 
+    def compact_on_device(self, alive_flags, n, out):
+        """The multi-pass compaction of compact_indices without reading the count back: `alive_flags`
+        and `out` are buffers of at least n int32. Returns ``(out, count)``, `count` a one-int buffer
+        on the device that holds the number of survivors until this compactor's next call: the
+        kernels queued next read it (a launch over the whole stream whose work-items past the count
+        return at once), so the host never waits for it."""
+        flags, n = self._device_flags(alive_flags, n)
+        if out.size < _INT * n:
+            raise ValueError(f"out holds {out.size // _INT} ints, the stream needs {n}")
+        if n == 0:
+            raise ValueError("compact_on_device needs a stream of at least one item")
+        self._launches = 0
+        count = self._multipass_on_device(flags, n, out)
+        self.last_stats = {"method": "multipass", "n": n, "count": None,
+                           "work_groups": -(-n // self.local_size), "launches": self._launches}
+        return out, count
+
     def reserve(self, n):
         """Allocate now the scratch memory that compacting or scanning streams of up to n items
         needs (else the first call of each larger size allocates it): a technique calls this
@@ -131,10 +149,14 @@ class Compactor:
         return _read_int(self.queue, counter)
 
     def _multipass(self, flags, n, out):
+        return _read_int(self.queue, self._multipass_on_device(flags, n, out))
+
+    def _multipass_on_device(self, flags, n, out):
+        """Scan and scatter; returns the one-int buffer that holds the count."""
         offsets = self._buffer("offsets", n)
         total = self._scan(flags, offsets, n, as_flags=True)
         self._launch(self._kernels["compact_scatter"], n, flags, np.int32(n), offsets, out)
-        return _read_int(self.queue, total)
+        return total
 
     def _scan(self, src, dst, n, as_flags, level=0):
         """Exclusive scan src -> dst of n ints; returns a one-int buffer holding the total.

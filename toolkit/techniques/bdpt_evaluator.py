@@ -10,6 +10,11 @@ One pass, read like the talk's slides:
         when enough samples have terminated (default 60%):
             connect their subpaths (the connect phase), hand the records to the sink,
             then regenerate them.
+The streams' lengths stay on the device (WalkCounter): a walk step reads them there, and the host
+reads the counters behind the walk, LAG steps late (toolkit/techniques/pass_end.py), so it never
+waits for a count before a launch; it learns that enough samples have terminated a few steps late
+(with the SIMD counters on, at once: it reads every step's counters). It waits only at a connect
+phase, for the terminated slots and the streams' lengths that regeneration appends to.
 Light-tracing (t = 1) contributions land on other pixels: every connection writes a record
 (pixel, value) on the device, and the sink decides where it goes: bdpt's ImageSink adds it to
 the pass's image there (toolkit/opencl/record_film.py: exact integer sums, no float atomics),
@@ -31,6 +36,7 @@ from toolkit.opencl.work_sizes import checked_size
 from toolkit.techniques.base import Technique, pixel_count
 from toolkit.techniques.device_memory import DeviceMemory
 from toolkit.techniques.kernels import Kernels
+from toolkit.techniques.pass_end import LAG
 from toolkit.techniques.simd_recorder import SimdRecorder
 
 
@@ -56,12 +62,11 @@ class SubpathStream:
     current: cl.Buffer
     spare: cl.Buffer
     vertices: cl.Buffer       # BdptVertex[pool][MAX_VERTICES]: every vertex stored so far
-    length: int = 0
+    length: int = 0           # at least the subpaths in the stream (their count is on the device): what a step launches
 
-    def advance(self, survivors):
+    def advance(self):
         """After a step: the survivors, compacted into `spare`, are the stream."""
-        if self.length:
-            self.current, self.spare, self.length = self.spare, self.current, int(survivors)
+        self.current, self.spare = self.spare, self.current
 
 
 @dataclass
@@ -73,7 +78,7 @@ class SamplePool:
     light: SubpathStream
     slots: cl.Buffer          # BdptSlot[size]: live state, sample id and vertex counts of each slot
     terminated: cl.Buffer     # int[size]: 1 where a sample waits for its connections (compaction flags)
-    counters: cl.Buffer       # int[len(WalkCounter)]: survivors of each stream, terminated samples
+    counters: cl.Buffer       # int[len(WalkCounter)]: each stream's length and survivors, terminated samples
     lane_counts: cl.Buffer    # LaneCounts[size]: one walk step or connect phase (COUNT_SIMD)
     all_slots: cl.Buffer      # 0 .. size - 1: the slot list of the first regeneration
 
@@ -88,6 +93,7 @@ class PassState:
     sampler_args: dict = field(default_factory=dict)  # by name: the random-number kernels' extra (BDPT_SAMPLER_PARAM)
     next_id: int = 0          # next sample to start
     in_flight: int = 0        # slots whose sample is not connected yet
+    reads: list = field(default_factory=list)   # the walk's counters, read behind it (oldest first)
 
     @property
     def pixels(self):
@@ -182,11 +188,17 @@ class BdptEvaluator:
         """Every sample of the pass's budget, through the pool; `sink.add` gets each connect phase's records."""
         self.regenerate(p, p.pool.all_slots, p.pool.size)        # every slot starts a sample
         while p.in_flight > 0:
-            terminated = self.walk(p)                             # one vertex more on every subpath
-            if terminated >= self.regenerate_fraction * p.in_flight or p.pool.eye.length == p.pool.light.length == 0:
+            counters = self.walk(p)                               # one vertex more on every subpath
+            if counters is not None and self.enough_terminated(p, counters):
                 slots, count = self.terminated_slots(p)           # postponed regeneration:
                 sink.add(self.connect(p, count))                  #   connect the terminated samples,
                 self.regenerate(p, slots, count)                  #   then start new ones in their slots
+
+    def enough_terminated(self, p, counters):
+        """Whether the walk's `counters` (a step's, maybe some steps old) say it is time to connect:
+        the share regenerate_fraction of the samples in flight has terminated, or every one has."""
+        return (counters[WalkCounter.TERMINATED_SAMPLES] >= self.regenerate_fraction * p.in_flight
+                or counters[WalkCounter.EYE_LENGTH] == counters[WalkCounter.LIGHT_LENGTH] == 0)
 
     # --- the stages of a pass, one kernel each ---------------------------------------------
 
@@ -200,7 +212,7 @@ class BdptEvaluator:
         args = BDPT_PASS.record(seed=seed, sample_base=sample_base, pool=pool.size, capacity=pool.capacity,
                                 chains=vector_stride)
         cl.enqueue_fill_buffer(ctx.queue, pool.counters, np.int32(0), 0, 4 * len(WalkCounter))
-        pool.eye.length = pool.light.length = 0
+        pool.eye.length = pool.light.length = 0     # the streams' lengths: 0 here and on the device
         # every slot "terminated", nothing to connect
         self.last_pass = PassState(pool, camera, args, budget, dict(sampler_args or {}), in_flight=pool.size)
         return self.last_pass
@@ -225,7 +237,8 @@ class BdptEvaluator:
 
     def regenerate(self, p, slots, count):
         """bdpt_regenerate: the `count` terminated slots listed in `slots` start the next
-        samples of the budget (the rest go idle); the new subpaths join the end of the streams."""
+        samples of the budget (the rest go idle); the new subpaths join the end of the streams,
+        whose lengths the host knows here (terminated_slots read them)."""
         ctx = self.ctx
         fresh = min(count, p.budget - p.next_id)
         if count:
@@ -235,39 +248,64 @@ class BdptEvaluator:
                         pass_args=p.args, r=r, slot_list=slots, eye_stream=p.pool.eye.current,
                         light_stream=p.pool.light.current, eye_vertices=p.pool.eye.vertices,
                         light_vertices=p.pool.light.vertices, slots=p.pool.slots, **p.sampler_args)
-        cl.enqueue_fill_buffer(ctx.queue, p.pool.counters, np.int32(0), 4 * WalkCounter.TERMINATED_SAMPLES, 4)
         p.pool.eye.length += fresh
         p.pool.light.length += fresh
         p.next_id += fresh
         p.in_flight += fresh - count
+        counters = p.pool.counters     # the new lengths on the device, and no sample terminated since
+        for index, value in ((WalkCounter.TERMINATED_SAMPLES, 0), (WalkCounter.EYE_LENGTH, p.pool.eye.length),
+                             (WalkCounter.LIGHT_LENGTH, p.pool.light.length)):
+            cl.enqueue_fill_buffer(ctx.queue, counters, np.int32(value), 4 * index, 4)
+        p.reads.clear()                # reads queued before this say nothing of the samples now in flight
         if ctx.recorder.on and fresh:
             ctx.recorder.simd.add_stream_step("generate", fresh)
 
     def walk(self, p):
-        """One random-walk step of both streams (bdpt_extend, compacted at once); returns the
-        samples that have terminated since the last regeneration."""
-        cl.enqueue_fill_buffer(self.ctx.queue, p.pool.counters, np.int32(0), 0, 4 * WalkCounter.TERMINATED_SAMPLES)
+        """One random-walk step of both streams (bdpt_extend, compacted at once). Returns the walk's
+        counters (WalkCounter) as read LAG steps ago, or None while no read is that old; with the
+        SIMD counters on, this step's, read at once."""
+        ctx = self.ctx
+        counters = p.pool.counters
+        cl.enqueue_fill_buffer(ctx.queue, counters, np.int32(0), 0, 4 * WalkCounter.TERMINATED_SAMPLES)
         for stream in (p.pool.eye, p.pool.light):
             if stream.length:
                 self.extend(p, stream)
-        counters = self.ctx.memory.read_ints(p.pool.counters, len(WalkCounter))
-        p.pool.eye.advance(counters[WalkCounter.EYE_SURVIVORS])
-        p.pool.light.advance(counters[WalkCounter.LIGHT_SURVIVORS])
-        return int(counters[WalkCounter.TERMINATED_SAMPLES])
+        # The survivors are the streams' next lengths: copied on the device (two ints, one copy).
+        cl.enqueue_copy(ctx.queue, counters, counters, byte_count=8, src_offset=4 * WalkCounter.EYE_SURVIVORS,
+                        dst_offset=4 * WalkCounter.EYE_LENGTH)
+        if ctx.recorder.on:
+            return self.lengths_known(p, ctx.memory.read_ints(counters, len(WalkCounter)))
+        p.reads.append(ctx.memory.read_later(counters, (np.int32, len(WalkCounter))))
+        if len(p.reads) <= LAG:
+            return None
+        return self.lengths_known(p, p.reads.pop(0).result())
+
+    def lengths_known(self, p, counters):
+        """The streams can hold no more subpaths than a read of the counters says (they only shrink
+        until the next regeneration): later steps launch over that many."""
+        p.pool.eye.length = min(p.pool.eye.length, int(counters[WalkCounter.EYE_LENGTH]))
+        p.pool.light.length = min(p.pool.light.length, int(counters[WalkCounter.LIGHT_LENGTH]))
+        return counters
 
     def extend(self, p, stream):
-        """bdpt_extend: one vertex more on every subpath of `stream`, survivors into its spare."""
+        """bdpt_extend: one vertex more on every subpath of `stream` (the launch covers
+        stream.length, the kernel reads the length on the device), survivors into its spare."""
         ctx = self.ctx
-        step = BDPT_STEP.record(light_path=stream.is_light, length=stream.length)
+        step = BDPT_STEP.record(light_path=stream.is_light)
         ctx.kernels.launch("bdpt_extend", stream.length, **ctx.kernels.scene_args(), cam=p.camera,
                     pass_args=p.args, walk_step=step, stream=stream.current, next_stream=stream.spare,
                     counters=p.pool.counters, vertices=stream.vertices, slots=p.pool.slots,
                     lane_counts=p.pool.lane_counts, **p.sampler_args)
         self.count_walk_step(p, stream)
+        stream.advance()
 
     def terminated_slots(self, p):
-        """bdpt_mark_terminated, then compaction: (the list of terminated slots, its length)."""
+        """bdpt_mark_terminated, then compaction: (the list of terminated slots, its length). The
+        host waits here, once per connect phase, for that length and for the streams' lengths."""
         ctx = self.ctx
+        counters = ctx.memory.read_ints(p.pool.counters, len(WalkCounter))
+        p.pool.eye.length = int(counters[WalkCounter.EYE_LENGTH])
+        p.pool.light.length = int(counters[WalkCounter.LIGHT_LENGTH])
         ctx.kernels.launch("bdpt_mark_terminated", p.pool.size, pool=np.int32(p.pool.size),
                     slots=p.pool.slots, flags=p.pool.terminated)
         listed = ctx.memory.reused(("terminated_list", p.pool.size), lambda: ctx.memory.int_buffer(p.pool.size))

@@ -47,6 +47,10 @@ class DeviceMemory:
         return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
                          LANE_COUNTS.dtype.itemsize * self.padded(max(n, 1)))
 
+    def record_buffer(self, record):
+        """One record of layout `record` (toolkit/core/layout.py) on the device: counts the kernels keep."""
+        return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, record.dtype.itemsize)
+
     def soa_buffer(self, record, n):
         """A stream of n records as a structure of arrays in one buffer; its capacity (what the
         kernels take with it) is n padded to the local size: see stream_capacity()."""
@@ -65,8 +69,28 @@ class DeviceMemory:
             cl.enqueue_copy(self.queue, out, buffer, src_offset=offset)
         return out
 
+    def read_later(self, buffer, dtype):
+        """One value of `dtype` (a numpy dtype, or a record's) from the start of `buffer`, read behind
+        the kernels queued so far without waiting for them: a PendingRead, whose result() waits
+        when the host needs it."""
+        return PendingRead(self.queue, np.zeros(1, dtype), buffer)
+
     def read_ints(self, buffer, n, columns=1):
         out = np.empty((n, columns) if columns > 1 else n, np.int32)
         if n:
             cl.enqueue_copy(self.queue, out, buffer)
         return out
+
+
+class PendingRead:
+    """A read queued behind the kernels before it that the host has not waited for yet: it goes on
+    queueing work, and waits (result()) only when it needs the values, by which time a device that
+    runs behind the host has long done it."""
+
+    def __init__(self, queue, out, buffer):
+        self.out = out
+        self.event = cl.enqueue_copy(queue, out, buffer, is_blocking=False)
+
+    def result(self):
+        self.event.wait()
+        return self.out[0]

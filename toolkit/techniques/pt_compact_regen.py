@@ -10,6 +10,12 @@ Kernel: cl/pt_compact_regen.cl. The stream has a fixed size; one iteration:
 With compaction="immediate" the compaction is fused into the shade kernel (one scan per
 work-group in local memory, one atomic per group); "multipass" extends in place
 (extend_in_place_trace and _shade, shared with pt_inplace_regen), then labels, scans and gathers.
+The counts stay on the device: each step's PtStep record (toolkit/core/layout.py) holds the
+stream's length, what compaction counted and the next sample to start; every kernel is launched
+over the whole stream and a work-item past the count returns at once. The host never waits for a
+count to launch the next step: it reads a step's record now and then, behind the device, to
+learn that the pass is over (pass_end.py); in the final drain such a read also bounds the
+launches (the stream only shrinks). With the SIMD counters on it reads every step's.
 Option `stream_size`: the paths in the stream (default: the device's, toolkit/opencl/work_sizes.py:
 32,768 on a CPU).
 """
@@ -19,9 +25,10 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.opencl.compaction import Compactor
-from toolkit.core.layout import HIT_RECORD, PATH_STATE, PT_PASS, PT_REGENERATION, SHADOW_RAY, StreamCounter
+from toolkit.core.layout import HIT_RECORD, PATH_STATE, PT_PASS, PT_STEP, SHADOW_RAY
 from toolkit.opencl.work_sizes import checked_size
 from toolkit.techniques.base import Technique, pixel_count
+from toolkit.techniques.pass_end import PassEnd
 
 
 @dataclass
@@ -32,21 +39,25 @@ class StreamBuffers:
     hits: cl.Buffer          # HitRecord x capacity: each path's closest hit, from trace to shade
     shadow_rays: cl.Buffer   # ShadowRay x capacity: the shadow rays a step queued, packed (immediate compaction)
     lane_counts: cl.Buffer   # LaneCounts per path: what it did in an extension step (COUNT_SIMD)
-    alive: cl.Buffer         # int per path: 1 where it survived the step (multi-pass compaction's flags)
+    alive: cl.Buffer         # int per path: 1 where the stream holds a live path (multi-pass compaction's flags)
     shadow_steps: cl.Buffer  # int per queued shadow ray: the BVH nodes it visited (COUNT_SIMD)
-    counters: cl.Buffer      # int per StreamCounter: the survivors and queued shadow rays of a step (immediate)
+    counts: cl.Buffer        # PtStep: this step's counts (its length, survivors, shadow rays, next sample)
+    last_counts: cl.Buffer   # PtStep: the last step's, from which regeneration starts this step's
     indices: cl.Buffer       # int per path: the survivors' indices from the scan (multi-pass; None: immediate)
     radiance: cl.Buffer = None   # float4 per sample of the pass (DeviceMemory.output_buffer): set by each pass
 
     def swap(self):
-        """After a step: the survivors, packed into next_stream, are the stream."""
+        """After a step: the survivors, packed into next_stream, are the stream, and its counts the last step's."""
         self.stream, self.next_stream = self.next_stream, self.stream
+        self.counts, self.last_counts = self.last_counts, self.counts
 
 
 class PtCompactRegen(Technique):
     name = "pt_compact_regen"
     family = "pt"
     source = "pt_compact_regen.cl"
+
+    reads_every = 4      # steps between the host's looks at the device's counts (counters off: pass_end.py)
 
     def __init__(self, *args, compaction="immediate", stream_size=None, **kwargs):
         checked_size("stream_size", stream_size)     # its range now, before the build; the device's memory after
@@ -68,40 +79,47 @@ class PtCompactRegen(Technique):
             hits=m.soa_buffer(HIT_RECORD, size),
             shadow_rays=m.soa_buffer(SHADOW_RAY, size), lane_counts=m.lane_counts_buffer(size),
             alive=m.int_buffer(size), shadow_steps=m.int_buffer(size),
-            counters=m.int_buffer(len(StreamCounter)), indices=self.compacted_indices(size))
+            counts=m.record_buffer(PT_STEP), last_counts=m.record_buffer(PT_STEP), indices=self.compacted_indices(size))
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         budget = pixel_count(camera) * spp
         size = min(self.stream_size, budget)
         mem = self.memory.reused(("streams", size), lambda: self.stream_buffers(size))
         mem.radiance = self.memory.output_buffer(budget)
+        self.memory.fill_ints(mem.last_counts, 0)     # an empty stream; the pass's first sample comes next
         pass_args = PT_PASS.record(seed=seed, sample_base=sample_base, budget=budget,
                                    capacity=self.memory.stream_capacity(size))
-        length, next_id = 0, 0
+        # The pass is over once the stream is empty and every sample has started.
+        end = PassEnd(self.memory, PT_STEP.dtype, lambda counts: counts["survivors"] == 0
+                      and counts["next_sample"] == budget, every=self.reads_every, at_least=-(-budget // size))
+        paths = size    # stream entries each launch covers: the whole stream, until a read bounds its length
         while True:
             # Regenerate: fill the end of the stream with the next samples of the budget.
-            count = min(size - length, budget - next_id)
-            if count > 0:
-                self.kernels.launch("pt_compact_regen_generate", count, cam=camera, pass_args=pass_args,
-                                    r=PT_REGENERATION.record(count=count, first_id=next_id, base=length),
-                                    stream=mem.stream)
-                length += count
-                next_id += count
-                self.count_generate(count, size, draining=next_id == budget)
-            if length == 0:
-                break   # budget spent and the stream has drained
+            self.regenerate(camera, pass_args, size, paths, mem)
             # Extend every path by one vertex (trace, then shade), then compact the survivors into next_stream.
-            survivors, queued = self.extend_and_compact(pass_args, length, mem)
-            self.count_extend_and_compact(mem.lane_counts, length, size, draining=next_id == budget)
+            self.extend_and_compact(pass_args, paths, mem)
             # Trace the queued shadow rays: a packed stream of its own.
-            if queued:
-                self.kernels.launch("pt_compact_regen_shadow", queued, **self.kernels.scene_args(),
-                                    pass_args=pass_args, queued=np.int32(queued), shadow_rays=mem.shadow_rays,
-                                    radiance=mem.radiance, shadow_steps=mem.shadow_steps)
-                self.count_shadow(mem.shadow_steps, queued)
+            self.trace_shadow_rays(pass_args, paths, mem)
             mem.swap()
-            length = survivors
+            if self.count_simd:
+                counts = self.count_step(mem, size, budget)   # this step's counts, read at once
+                if counts is None:
+                    break   # the step found the stream empty: budget spent and drained
+            elif end.reached(mem.last_counts):
+                break   # a step some time ago left nothing to do: the steps since did nothing
+            else:
+                counts = end.latest     # a step's counts, some steps old (None before the first read)
+            paths = self.paths_at_most(counts, size, budget)
         self.collect(film, mem.radiance, budget)
+
+    @staticmethod
+    def paths_at_most(counts, size, budget):
+        """The most paths the stream can hold from the next step on, from a step's `counts` read
+        some steps ago: once every sample of the budget has started, the stream only shrinks, so
+        that step's survivors bound every later step's length; before, the whole stream (`size`)."""
+        if counts is None or int(counts["next_sample"]) < budget:
+            return size
+        return max(1, int(counts["survivors"]))    # at least one: a launch (and a scan) of none is no launch
 
     def compacted_indices(self, size):
         """Multi-pass compaction's output (the survivors' indices) and the compactor's scratch
@@ -111,46 +129,57 @@ class PtCompactRegen(Technique):
         self.compactor.reserve(size)
         return self.memory.int_buffer(size)
 
-    def extend_and_compact(self, pass_args, length, mem):
-        """Extend the `length` paths of mem.stream; returns (the survivors, now packed at the start
-        of mem.next_stream; the queued shadow rays)."""
+    def regenerate(self, camera, pass_args, size, paths, mem):
+        """Entries past the last step's survivors start the next samples of the budget, as many as
+        fit in the stream's `size`; the step's record counts them (the device decides how many).
+        The launch covers the first `paths` entries (a bound of the stream's length, paths_at_most)."""
+        self.kernels.launch("pt_compact_regen_generate", paths, cam=camera, pass_args=pass_args,
+                            stream_size=np.int32(size), last_counts=mem.last_counts, counts=mem.counts,
+                            stream=mem.stream, alive=mem.alive)
+
+    def extend_and_compact(self, pass_args, paths, mem):
+        """Extend the paths of mem.stream (counts.length of its first `paths` entries); the survivors
+        are packed at the start of mem.next_stream, and counted in counts.survivors."""
         k = self.kernels
         if self.compaction == "immediate":
-            k.launch("pt_compact_regen_trace", length, **k.scene_args(), pass_args=pass_args,
-                     stream_length=np.int32(length), stream=mem.stream, hits=mem.hits, lane_counts=mem.lane_counts)
-            cl.enqueue_fill_buffer(self.queue, mem.counters, np.int32(0), 0, 4 * len(StreamCounter))
-            k.launch("pt_compact_regen_shade", length, **k.scene_args(), pass_args=pass_args,
-                     stream_length=np.int32(length), stream=mem.stream, hits=mem.hits, next_stream=mem.next_stream,
-                     shadow_rays=mem.shadow_rays, counters=mem.counters, radiance=mem.radiance,
-                     lane_counts=mem.lane_counts)
-            lengths = self.memory.read_ints(mem.counters, len(StreamCounter))
-            return int(lengths[StreamCounter.PATHS]), int(lengths[StreamCounter.SHADOW_RAYS])
-        cl.enqueue_fill_buffer(self.queue, mem.alive, np.int32(1), 0, 4 * length)   # every path in the stream is live
-        self.extend_in_place(pass_args, length, mem.stream, mem.alive, mem.hits, mem.radiance, mem.lane_counts)
-        indices, survivors = self.compactor.compact_indices(mem.alive, length, method="multipass", out=mem.indices)
-        if survivors:
-            k.launch("pt_compact_regen_gather", survivors, pass_args=pass_args, count=np.int32(survivors),
-                     indices=indices, stream=mem.stream, next_stream=mem.next_stream)
-        return survivors, 0
+            k.launch("pt_compact_regen_trace", paths, **k.scene_args(), pass_args=pass_args,
+                     counts=mem.counts, stream=mem.stream, hits=mem.hits, lane_counts=mem.lane_counts)
+            k.launch("pt_compact_regen_shade", paths, **k.scene_args(), pass_args=pass_args,
+                     counts=mem.counts, stream=mem.stream, hits=mem.hits, next_stream=mem.next_stream,
+                     shadow_rays=mem.shadow_rays, radiance=mem.radiance, lane_counts=mem.lane_counts)
+            return
+        # Multi-pass: the entries that hold a live path (alive: set by gather and regeneration) take the step in place.
+        self.extend_in_place(pass_args, paths, mem.stream, mem.alive, mem.hits, mem.radiance, mem.lane_counts)
+        indices, survivors = self.compactor.compact_on_device(mem.alive, paths, out=mem.indices)
+        k.launch("pt_compact_regen_gather", paths, pass_args=pass_args, survivors=survivors, indices=indices,
+                 stream=mem.stream, next_stream=mem.next_stream, counts=mem.counts, alive=mem.alive)
 
-    # --- SIMD counting: one hook per stage, no-ops unless count_simd ----------------------
+    def trace_shadow_rays(self, pass_args, paths, mem):
+        """The shadow rays the step queued (counts.shadow_rays of them; immediate compaction only:
+        multi-pass traces them inside its extension step)."""
+        if self.shadow_queue:
+            self.kernels.launch("pt_compact_regen_shadow", paths, **self.kernels.scene_args(), pass_args=pass_args,
+                                counts=mem.counts, shadow_rays=mem.shadow_rays, radiance=mem.radiance,
+                                shadow_steps=mem.shadow_steps)
 
-    def count_generate(self, count, size, draining):
-        """Regeneration fills `count` consecutive stream entries: every lane busy. Numbered as the
-        extension step that follows it; `draining`: it started the budget's last samples."""
-        if self.count_simd:
-            self.recorder.before_step("generate", count, capacity=size, draining=draining)
+    # --- SIMD counting: read every step's counts, no-op unless count_simd ---------------------
 
-    def count_extend_and_compact(self, lane_counts, length, size, draining):
-        """The extension step over the `length` paths of the stream, and their compaction;
-        `draining`: every sample of the budget has started (the final drain)."""
-        if self.count_simd:
-            self.recorder.extension_step(self.memory.read_lane_counts(lane_counts, length), capacity=size,
-                                         draining=draining, shadow_queue=self.shadow_queue)
-            self.recorder.simd.add_stream_step("compact", length)
-
-    def count_shadow(self, shadow_steps, queued):
-        """The packed queue of `queued` shadow rays: every lane busy, traversal loops per warp."""
-        if self.count_simd:
+    def count_step(self, mem, size, budget):
+        """The SIMD counters of the step just taken (its counts, now in mem.last_counts, read at once):
+        regeneration, extension and compaction, and the shadow queue. Returns the counts, or None
+        when the step found the stream empty (nothing is counted: the pass is over)."""
+        counts = self.memory.read_structs(PT_STEP, mem.last_counts, 1)[0]
+        length, started = int(counts["length"]), int(counts["started"])
+        if length == 0:
+            return None
+        draining = int(counts["next_sample"]) == budget   # every sample of the budget has started (the final drain)
+        if started > 0:   # regeneration fills `started` consecutive stream entries: every lane busy
+            self.recorder.before_step("generate", started, capacity=size, draining=draining)
+        self.recorder.extension_step(self.memory.read_lane_counts(mem.lane_counts, length), capacity=size,
+                                     draining=draining, shadow_queue=self.shadow_queue)
+        self.recorder.simd.add_stream_step("compact", length)
+        queued = int(counts["shadow_rays"])
+        if self.shadow_queue and queued:   # the packed shadow queue: every lane busy, traversal loops per warp
             self.recorder.simd.add_stream_step("shadow", queued)
-            self.recorder.traversal.add_warp_loops("shadow", self.memory.read_ints(shadow_steps, queued))
+            self.recorder.traversal.add_warp_loops("shadow", self.memory.read_ints(mem.shadow_steps, queued))
+        return counts

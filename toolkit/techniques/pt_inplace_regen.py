@@ -16,6 +16,7 @@ import pyopencl as cl
 from toolkit.core.layout import HIT_RECORD, PATH_STATE, PT_PASS
 from toolkit.opencl.work_sizes import checked_size
 from toolkit.techniques.base import Technique, pixel_count
+from toolkit.techniques.pass_end import PassEnd
 
 
 @dataclass
@@ -36,7 +37,7 @@ class PtInplaceRegen(Technique):
     family = "pt"
     source = "pt_inplace_regen.cl"
 
-    reads_every = 4      # iterations per blocking read of the "any path alive" flag (counters off)
+    reads_every = 4      # steps between the host's looks at the "any path alive" flag (counters off: pass_end.py)
 
     def __init__(self, *args, stream_size=None, **kwargs):
         checked_size("stream_size", stream_size)     # its range now, before the build; the device's memory after
@@ -60,39 +61,40 @@ class PtInplaceRegen(Technique):
         mem.radiance = self.memory.output_buffer(budget)
         pass_args = PT_PASS.record(seed=seed, sample_base=sample_base, budget=budget,
                                    capacity=self.memory.stream_capacity(slots))
-        # The host waits for the "any path alive" flag only every `reads_every` iterations: in
-        # between, the GPU runs on. Once every path has ended, the iterations issued before the
-        # next read find no work (every lane returns at once), so the image does not change.
-        reads_every = 1 if self.count_simd else self.reads_every
-        step = 0
+        # The pass is over once no slot holds a live path after a regeneration; the host learns it
+        # from a read behind the device (pass_end.py), so it never waits for the flag at a step.
+        end = PassEnd(self.memory, np.int32, lambda any_alive: any_alive == 0, every=self.reads_every,
+                      at_least=-(-budget // slots))
         while True:
             # Regenerate: every free slot starts the next sample of the budget, if one is left.
             cl.enqueue_fill_buffer(self.queue, mem.any_alive, np.int32(0), 0, 4)
             self.kernels.launch("pt_inplace_regen_regenerate", slots, cam=camera, pass_args=pass_args,
                                 slots=np.int32(slots), next_sample=mem.next_sample, paths=mem.paths, alive=mem.alive,
                                 any_alive=mem.any_alive, regenerated=mem.regenerated)
-            self.count_regenerate(mem.regenerated, slots, mem.next_sample, budget)
-            step += 1
-            if step % reads_every == 0 and not self.memory.read_ints(mem.any_alive, 1)[0]:
+            if self.count_simd and not self.count_regenerate(mem, slots, budget):
                 break   # budget spent and every path has ended
             # Extend: every slot with a live path traces one more vertex.
             self.extend_in_place(pass_args, slots, mem.paths, mem.alive, mem.hits, mem.radiance, mem.lane_counts)
-            self.count_extend(mem.lane_counts, slots, mem.next_sample, budget)
+            if self.count_simd:
+                self.count_extend(mem.lane_counts, slots, mem.next_sample, budget)
+            elif end.reached(mem.any_alive):
+                break   # a step some time ago found no live path: the steps since did nothing
         self.collect(film, mem.radiance, budget)
 
-    def count_regenerate(self, regenerated, slots, next_sample, budget):
+    def count_regenerate(self, mem, slots, budget):
         """The regeneration step: its lanes are the slots that started a sample, scattered over
         every warp. Numbered as the extension step that follows it (per iteration, for plots);
-        once the sample counter has passed the budget, it started the last samples or none."""
-        if self.count_simd:
-            draining = self.memory.read_ints(next_sample, 1)[0] >= budget
-            self.recorder.before_step("generate", self.memory.read_ints(regenerated, slots) > 0, capacity=slots,
-                                      draining=draining)
+        once the sample counter has passed the budget, it started the last samples or none.
+        Returns whether any slot holds a live path (read at once: with the counters on, the host
+        reads every step)."""
+        draining = self.memory.read_ints(mem.next_sample, 1)[0] >= budget
+        self.recorder.before_step("generate", self.memory.read_ints(mem.regenerated, slots) > 0, capacity=slots,
+                                  draining=draining)
+        return bool(self.memory.read_ints(mem.any_alive, 1)[0])
 
     def count_extend(self, lane_counts, slots, next_sample, budget):
         """The extension step; once the sample counter has passed the budget, nothing regenerates
         any more and the step belongs to the final drain."""
-        if self.count_simd:
-            draining = self.memory.read_ints(next_sample, 1)[0] >= budget
-            self.recorder.extension_step(self.memory.read_lane_counts(lane_counts, slots), capacity=slots,
-                                         draining=draining)
+        draining = self.memory.read_ints(next_sample, 1)[0] >= budget
+        self.recorder.extension_step(self.memory.read_lane_counts(lane_counts, slots), capacity=slots,
+                                     draining=draining)
