@@ -15,11 +15,16 @@ class ObjError(ValueError):
     pass
 
 
-def read_obj(path, earlier_vertices=0, earlier_triangles=0):
+# Lines the format ignores that carry what the toolkit does not model, in words (the loader names them).
+UNMODELLED = {"vn": "normals", "vt": "UVs", "usemtl": "materials", "mtllib": "materials"}
+
+
+def read_obj(path, earlier_vertices=0, earlier_triangles=0, unmodelled=None):
     """(vertices float64 (N,3), triangles int64 (M,3), zero-based). Polygons become fans.
     `earlier_vertices` / `earlier_triangles`: the counts of the scene's other meshes read before,
     so that LIMITS["scene.vertices"] and ["scene.triangles"] hold for the whole scene (an
-    InputError naming the line where a limit was passed)."""
+    InputError naming the line where a limit was passed). `unmodelled`: a set that gets the
+    words for the ignored lines that carry normals, UVs or materials."""
     vertices, triangles = array("d"), array("q")
     longest = LIMITS["mesh.line_length"][1]
     try:
@@ -38,6 +43,8 @@ def read_obj(path, earlier_vertices=0, earlier_triangles=0):
                     _within("scene.triangles", earlier_triangles + len(triangles) // 3 + len(fields) - 3, where,
                             "triangle")
                     triangles.extend(_fan(where, fields, line, len(vertices) // 3))
+                elif unmodelled is not None and fields[0] in UNMODELLED:
+                    unmodelled.add(UNMODELLED[fields[0]])
                 # vn, vt, o, g, s, usemtl ... are ignored by the format.
     except FileNotFoundError:
         raise ObjError(f"{path}: mesh file not found") from None

@@ -6,7 +6,7 @@ into the page is never joined to anything.
 """
 from pathlib import Path
 
-from toolkit.core.scene import SceneError, bundled_scene_dir, bundled_scene_names, load_scene
+from toolkit.core.scene import SceneError, bundled_scene_dir, bundled_scene_names, find_scene, load_scene
 from toolkit.core.validate import InputError
 
 
@@ -26,8 +26,7 @@ class SceneChoices:
         if not path.exists():
             if str(given) in self.paths:        # a bundled scene by name: `demo covered_lamp`
                 return str(given)
-            raise SceneError(f"{given}: no such scene folder (and no bundled scene of that name: "
-                             f"{', '.join(self.paths)})")
+            find_scene(given)                   # the error every command gives, naming the bundled scenes
         if path.is_file():
             folders = [path.parent]
         elif (path / "scene.json").is_file():
