@@ -116,17 +116,8 @@ def test_a_ply_quad_is_the_obj_floor_and_its_normals_and_colours_are_named_once(
     unmodelled = [str(w.message) for w in caught if "does not model" in str(w.message)]
     assert len(unmodelled) == 1 and "meshes/floor.ply: vertex normals, vertex colours" in unmodelled[0], unmodelled
     reference = load_scene(CORNELL)
-    # trimesh splits a quad as (0, 1, 2), (2, 3, 0), the OBJ reader as the fan (0, 1, 2), (0, 2, 3):
-    # the same triangles with the same winding, the corners of the second one rotated (FORMAT.md).
-    assert np.array_equal(winding_classes(scene), winding_classes(reference))
-
-
-def winding_classes(scene):
-    """Each triangle's corners rotated to start at the least corner: equal for the same triangle
-    wound the same way, different for the same triangle wound the other way."""
-    corners = scene.vertices[scene.triangles]
-    first = np.array([min(range(3), key=lambda i: tuple(c[i])) for c in corners])
-    return np.array([np.roll(c, -k, axis=0) for c, k in zip(corners, first)])
+    # A polygon is a fan from its first corner, as in OBJ (FORMAT.md): the same triangles, corner for corner.
+    assert np.array_equal(scene.vertices[scene.triangles], reference.vertices[reference.triangles])
 
 
 def test_obj_normals_uvs_and_materials_are_named_in_a_warning(tmp_path):
@@ -234,6 +225,13 @@ def test_a_file_that_is_not_the_format_its_name_says_is_refused(tmp_path, name, 
 ], ids=["ply", "ply-point-cloud", "stl", "off"])
 def test_an_empty_mesh_is_refused(tmp_path, name, data, problem):
     fails_as(tmp_path, name, data, problem)
+
+
+def test_a_text_mesh_over_its_size_limit_is_refused_before_parsing(tmp_path, monkeypatch):
+    from toolkit.core.validate import LIMITS
+    monkeypatch.setitem(LIMITS, "mesh.text_bytes", (1, 64, "test"))
+    off = b"OFF\n3 1 0\n-1 -1 1\n1 -1 1\n1 -1 -1\n3 0 1 2\n" + b"# padding\n" * 4
+    fails_as(tmp_path, "long.off", off, f"size of a text mesh file (bytes) {len(off)} is outside 1 .. 64")
 
 
 def test_a_gltf_that_names_another_file_is_refused_and_the_file_is_not_read(tmp_path):

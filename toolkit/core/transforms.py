@@ -68,8 +68,9 @@ MATRIX_OF = {"translate": translate, "scale": scale, "rotate": rotate, "matrix":
 def compose(operations):
     """The 4x4 matrix of a list of operations, the first applied first: T_n ... T_1."""
     m = np.eye(4)
-    for name, *values in operations:
-        m = np.asarray(MATRIX_OF[name](*values), np.float64) @ m
+    with np.errstate(over="ignore", invalid="ignore"):     # an overflow is refused by `checked`, in words
+        for name, *values in operations:
+            m = np.asarray(MATRIX_OF[name](*values), np.float64) @ m
     return m
 
 
@@ -92,7 +93,8 @@ def place_mesh(m, vertices, triangles, where):
     """(vertices, triangles) moved by the checked matrix `m`: points through it, and the triangles
     re-wound (v0, v2, v1) where it mirrors, so each emits to the side of its transformed normal.
     A point that leaves float64's range is an InputError naming `where`."""
-    moved = vertices @ m[:3, :3].T + m[:3, 3]
+    with np.errstate(over="ignore", invalid="ignore"):     # refused below, in words
+        moved = vertices @ m[:3, :3].T + m[:3, 3]
     if not np.all(np.isfinite(moved)):
         raise InputError(f"{where}: the transform takes a vertex outside the range of numbers (infinite)")
     if np.linalg.det(m[:3, :3]) < 0:
