@@ -234,6 +234,38 @@ def test_a_text_mesh_over_its_size_limit_is_refused_before_parsing(tmp_path, mon
     fails_as(tmp_path, "long.off", off, f"size of a text mesh file (bytes) {len(off)} is outside 1 .. 64")
 
 
+def gltf_placing(floor_nodes):
+    """The Cornell box's floor (2 triangles) as a glTF with embedded buffers, its mesh placed by the
+    nodes `floor_nodes` makes (a list of glTF node objects; the scene shows node 0)."""
+    import base64
+    positions = np.array(FLOOR_ROWS, np.float32).tobytes()
+    indices = np.array([0, 1, 2, 0, 2, 3], np.uint32).tobytes()
+    data = "data:application/octet-stream;base64," + base64.b64encode(positions + indices).decode()
+    return json.dumps({
+        "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": floor_nodes,
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
+        "buffers": [{"uri": data, "byteLength": 72}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 24}],
+        "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
+                       "min": [-1, -1, -1], "max": [1, -1, 1]},
+                      {"bufferView": 1, "componentType": 5125, "count": 6, "type": "SCALAR"}]}).encode()
+
+
+def test_a_gltf_with_embedded_buffers_is_the_obj_floor(tmp_path):
+    box = copy_of(CORNELL, tmp_path)
+    (box / "meshes" / "floor.gltf").write_bytes(gltf_placing([{"mesh": 0}]))
+    use_mesh(box, FLOOR, "meshes/floor.gltf")
+    scene, reference = load_scene(box), load_scene(CORNELL)
+    assert np.array_equal(scene.vertices[scene.triangles], reference.vertices[reference.triangles])
+
+
+def test_a_gltf_whose_nodes_place_a_mesh_too_often_is_refused_before_reading(tmp_path, monkeypatch):
+    from toolkit.core.validate import LIMITS
+    monkeypatch.setitem(LIMITS, "scene.triangles", (1, 1000, "test"))   # a file of a few KB, not of 100 MB
+    nodes = [{"children": list(range(1, 502))}] + [{"mesh": 0}] * 501        # the floor 501 times: 1002 triangles
+    fails_as(tmp_path, "many.gltf", gltf_placing(nodes), "more than the scene has room for")
+
+
 def test_a_gltf_that_names_another_file_is_refused_and_the_file_is_not_read(tmp_path):
     document = {"asset": {"version": "2.0"}, "buffers": [{"uri": "../../secret.bin", "byteLength": 36}]}
     fails_as(tmp_path, "outside.gltf", json.dumps(document).encode(), "refers to another file", "secret.bin")

@@ -170,21 +170,30 @@ def _glb(path, data, vertex_room, triangle_room):
     version, length, chunk_length, chunk_type = struct.unpack_from("<III4s", data, 4)
     if version != 2 or length != len(data) or chunk_type != b"JSON" or 20 + chunk_length > len(data):
         raise InputError(f"{path}: not a GLB 2.0 file whose header matches its size ({len(data)} bytes)")
-    return _gltf_json(path, data[20:20 + chunk_length], glb=True)
+    return _gltf_json(path, data[20:20 + chunk_length], vertex_room, triangle_room)
 
 
 def _gltf(path, data, vertex_room, triangle_room):
     _text_size(path, data)
-    return _gltf_json(path, data, glb=False)
+    return _gltf_json(path, data, vertex_room, triangle_room)
 
 
-def _gltf_json(path, text, glb):
+def _gltf_json(path, text, vertex_room, triangle_room):
     try:
         document = json.loads(text)
     except (ValueError, RecursionError) as error:
         raise InputError(f"{path}: not a glTF file (its JSON: {str(error)[:80]})") from None
     if not isinstance(document, dict) or not isinstance(document.get("asset"), dict):
         raise InputError(f"{path}: not a glTF file (no 'asset' object)")
+    try:
+        vertices, triangles = _gltf_counts(document)
+    except (TypeError, KeyError, IndexError, ValueError, AttributeError) as error:
+        raise InputError(f"{path}: not a valid glTF file (its meshes, accessors or nodes: "
+                         f"{type(error).__name__} {str(error)[:60]})") from None
+    if vertices > vertex_room or triangles > triangle_room:
+        raise InputError(f"{path}: the glTF file's meshes, each as often as its nodes place it, make {vertices} "
+                         f"vertices and {triangles} triangles: more than the scene has room for ({vertex_room} "
+                         f"vertices, {triangle_room} triangles)")
     for buffer in _list(document, "buffers") + _list(document, "images"):
         uri = buffer.get("uri") if isinstance(buffer, dict) else None
         if uri is not None and not (isinstance(uri, str) and uri.startswith("data:")):
@@ -202,6 +211,34 @@ def _gltf_json(path, text, glb):
     if "KHR_lights_punctual" in str(document.get("extensionsUsed", "")):
         found.add("lights")
     return sorted(found)
+
+
+def _gltf_counts(document):
+    """(vertices, triangles) that joining the glTF's meshes makes: each mesh as many times as the
+    nodes of its scene place it (a file of a few MB can place one big mesh a million times)."""
+    accessors = _list(document, "accessors")
+    meshes = []
+    for mesh in _list(document, "meshes"):
+        v = t = 0
+        for primitive in _list(mesh, "primitives"):
+            positions = accessors[primitive["attributes"]["POSITION"]]["count"]
+            v += int(positions)
+            if primitive.get("mode", 4) == 4:
+                t += int(accessors[primitive["indices"]]["count"] if "indices" in primitive else positions) // 3
+        meshes.append((v, t))
+    nodes = _list(document, "nodes")
+    scenes = _list(document, "scenes")
+    # The default scene's nodes; with no scene, every node may be shown.
+    roots = list(scenes[document.get("scene", 0)].get("nodes", [])) if scenes else list(range(len(nodes)))
+    # Each node the scene reaches, once (trimesh places a node once, however often it is listed).
+    reached, stack = set(), roots
+    while stack:
+        k = int(stack.pop())
+        if k not in reached:
+            reached.add(k)
+            stack.extend(nodes[k].get("children", []))
+    placed = [meshes[nodes[k]["mesh"]] for k in reached if "mesh" in nodes[k]] if nodes else meshes
+    return sum(v for v, _ in placed), sum(t for _, t in placed)
 
 
 def _list(document, key):
