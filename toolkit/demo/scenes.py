@@ -22,11 +22,9 @@ class SceneChoices:
 
     def add_given(self, given):
         """Add the command line's scene(s); returns the key to show first. SceneError if there is none."""
-        path = Path(given)
-        if not path.exists():
-            if str(given) in self.paths:        # a bundled scene by name: `demo covered_lamp`
-                return str(given)
-            find_scene(given)                   # the error every command gives, naming the bundled scenes
+        path = find_scene(given)        # the one resolver of every command: a path, or a bundled scene's name
+        if not Path(given).exists():    # a bundled scene by name (`demo covered_lamp`): listed already
+            return path.name
         if path.is_file():
             folders = [path.parent]
         elif (path / "scene.json").is_file():
