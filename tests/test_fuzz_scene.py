@@ -184,3 +184,41 @@ def test_random_transform(folder, transform, on_camera):
         doc["shapes"][0]["transform"] = transform
     (folder / "scene.json").write_text(json.dumps(doc))
     loads_or_scene_error(folder)
+
+
+# The OBJ reader's quick path ("v x y z", "f a b c") and careful path (the rest) give what a plain
+# reading of FORMAT.md gives: positions as float() reads them, faces as fans, 1-based or negative.
+def _plain_obj(text):
+    vertices, triangles = [], []
+    for line in text.splitlines():
+        fields = line.split("#", 1)[0].split()
+        if fields and fields[0] == "v":
+            vertices.append([float(x) for x in fields[1:4]])
+        elif fields and fields[0] == "f":
+            ids = [int(f.split("/")[0]) for f in fields[1:]]
+            ids = [i - 1 if i > 0 else len(vertices) + i for i in ids]
+            triangles += [[ids[0], ids[k], ids[k + 1]] for k in range(1, len(ids) - 1)]
+    return vertices, triangles
+
+
+@st.composite
+def valid_objs(draw):
+    count = draw(st.integers(3, 8))
+    coordinate = st.one_of(st.floats(-1e300, 1e300, allow_nan=False).map(repr), st.integers(-10, 10).map(str),
+                           st.sampled_from(["1e-320", "-0.0", "1_0"]))
+    lines = [" ".join(["v", *draw(st.lists(coordinate, min_size=3, max_size=4))]) for _ in range(count)]
+    corner = st.one_of(st.integers(1, count).map(str), st.integers(-count, -1).map(str),
+                       st.integers(1, count).map(lambda i: f"{i}/1/1"), st.integers(1, count).map(lambda i: f"{i}//2"))
+    lines += [" ".join(["f", *draw(st.lists(corner, min_size=3, max_size=6))]) for _ in range(draw(st.integers(1, 6)))]
+    return "\n".join(draw(st.permutations(lines[:count])) + lines[count:]) + "\n"
+
+
+@SETTINGS
+@given(text=valid_objs())
+def test_the_obj_reader_reads_what_the_format_says(tmp_path_factory, text):
+    from toolkit.core.obj import read_obj
+    path = tmp_path_factory.mktemp("obj") / "mesh.obj"
+    path.write_text(text)
+    vertices, triangles = read_obj(path)
+    plain_vertices, plain_triangles = _plain_obj(text)
+    assert vertices.tolist() == plain_vertices and triangles.tolist() == plain_triangles
