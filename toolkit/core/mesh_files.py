@@ -71,8 +71,8 @@ def _trimesh_read(path, data, kind):
             # 2-million-triangle PLY). No resolver: no file the mesh names is opened.
             loaded = trimesh.exchange.load.mesh_loaders[kind](io.BytesIO(data), file_type=kind, fix_texture=False)
             vertices, faces = loaded.get("vertices"), loaded.get("faces")
-        vertices = np.asarray(vertices if vertices is not None else np.zeros((0, 3)))
-        faces = _fans(np.asarray(faces if faces is not None else np.zeros((0, 3), np.int64)))
+        vertices = np.asarray(vertices if vertices is not None else np.zeros((0, 3)), np.float64)
+        faces = _fans(np.asarray(faces if faces is not None else np.zeros((0, 3)), np.int64))
     # trimesh's parsers raise whatever the bad bytes lead them to (ValueError, IndexError,
     # KeyError, struct.error, ...): any of them means this file cannot be read as `kind`.
     except Exception as error:       # noqa: BLE001 -- a third-party parser on untrusted bytes
@@ -112,7 +112,7 @@ def _checked(path, vertices, faces, vertex_room, triangle_room):
     if bad.any():
         raise InputError(f"{path}: vertex {int(np.flatnonzero(bad)[0])} has a NaN or infinite coordinate "
                          f"({int(bad.sum())} such vertices)")
-    return vertices.astype(np.float64), faces.astype(np.int64)
+    return vertices, faces
 
 
 # -- what each format is checked for before trimesh reads it -----------------------------------
