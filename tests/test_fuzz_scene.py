@@ -1,8 +1,9 @@
 """Fuzz the scene loader with hypothesis: random, malformed scene.json documents, OBJ files,
-PLY/STL/OFF/GLB files and transforms (1,250 per run, a few seconds: every example is a few small files). Each must load or raise the
-toolkit's own SceneError; any other exception (or a hang: the loader reads only small regular
-files) is a bug. Examples are derandomized so a failure reproduces; hypothesis prints the
-smallest failing example."""
+PLY/STL/OFF/GLB files and transforms (250 examples a test, a few seconds each: every example is
+a few small files). Each must load or raise the toolkit's own SceneError; any other exception
+(or a hang: the loader reads only small regular files) is a bug. Random valid OBJ files must read
+as a plain reading of FORMAT.md reads them. Examples are derandomized so a failure reproduces;
+hypothesis prints the smallest failing example."""
 import copy
 import json
 import os

@@ -55,7 +55,8 @@ def float32_exact_sphere(folder):
             f.append([int(x) - 1 for x in line.split()[1:4]])
     v = np.array(v, np.float32).astype(np.float64)
     (folder / "meshes" / "glass_sphere.obj").write_text(
-        "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in v.tolist()) + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in f))
+        "".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in v.tolist())
+        + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in f))
     return trimesh.Trimesh(v, np.array(f), process=False)
 
 
@@ -245,7 +246,8 @@ def gltf_placing(floor_nodes):
         "asset": {"version": "2.0"}, "scene": 0, "scenes": [{"nodes": [0]}], "nodes": floor_nodes,
         "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
         "buffers": [{"uri": data, "byteLength": 72}],
-        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48}, {"buffer": 0, "byteOffset": 48, "byteLength": 24}],
+        "bufferViews": [{"buffer": 0, "byteOffset": 0, "byteLength": 48},
+                        {"buffer": 0, "byteOffset": 48, "byteLength": 24}],
         "accessors": [{"bufferView": 0, "componentType": 5126, "count": 4, "type": "VEC3",
                        "min": [-1, -1, -1], "max": [1, -1, 1]},
                       {"bufferView": 1, "componentType": 5125, "count": 6, "type": "SCALAR"}]}).encode()
