@@ -312,3 +312,29 @@ def test_cli_render_of_a_bad_scene_exits_2_with_one_error_line(box, breakage):
     assert len(errors) == 1, result.stderr
     assert named in errors[0], errors[0]
     assert not (box / "out.exr").exists()
+
+
+# -- a bundled scene by its name, in every command --------------------------------------------
+
+def test_a_bundled_scene_loads_by_its_name_from_any_folder(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    assert load_scene("covered_lamp").path.resolve() == (ROOT / "scenes" / "covered_lamp" / "scene.json").resolve()
+
+
+def test_a_folder_of_that_name_here_wins_over_the_bundled_scene(tmp_path, monkeypatch):
+    shutil.copytree(CORNELL, tmp_path / "covered_lamp", ignore=shutil.ignore_patterns("*.exr"))
+    monkeypatch.chdir(tmp_path)
+    assert len(load_scene("covered_lamp").triangles) == len(load_scene(CORNELL).triangles)
+
+
+def test_an_unknown_name_lists_the_bundled_scenes(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    load_fails("cornell_bx", "cornell_bx: no such scene folder or scene file", "cornell_box, cornell_spheres")
+
+
+def test_cli_render_takes_a_bundled_scene_s_name(tmp_path):
+    """Before: `render cornell_spheres` said "scene file not found" while `demo cornell_spheres` worked."""
+    result = run_cli("render", "cornell_spheres", "--spp", "1", "--resolution", "8x8", "--technique", "pt_naive",
+                     "--out", str(tmp_path / "out.exr"), cwd=tmp_path)
+    assert result.returncode == 0, result.stderr
+    assert (tmp_path / "out.exr").is_file()

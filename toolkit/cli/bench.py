@@ -151,7 +151,7 @@ MAX_REPORT_BYTES = 16 << 20
 
 def cmd_bench_equal_time(args):
     finite_number("bench.equal_time", args.equal_time, "--equal-time")
-    scene = args.scene or "scenes/cornell_spheres"
+    scene = args.scene or "cornell_spheres"
     report = equal_time(scene, technique_list(args.techniques or ",".join(DEFAULT)), args.equal_time,
                         resolution=args.resolution or (32, 32), device=args.device, bvh=args.bvh)
     print(format_equal_time(report, args.equal_time))

@@ -122,4 +122,4 @@ LANES_BOTH.add_argument_group(KERNEL_OPTIONS).add_argument(
                       "on/off ratio")
 
 SCENE = _parent()
-SCENE.add_argument("scene", nargs="?", help="scene folder or scene.json (default: bundled cornell_box)")
+SCENE.add_argument("scene", nargs="?", help="scene folder, scene.json or a bundled scene's name (default: cornell_box)")

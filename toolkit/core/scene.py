@@ -12,7 +12,9 @@ import numpy as np
 
 from toolkit.core.images import read_exr
 from toolkit.core.layout import MATERIAL_TYPES
-from toolkit.core.obj import ObjError, read_obj
+from toolkit.core.mesh_files import read_mesh
+from toolkit.core.obj import ObjError
+from toolkit.core.transforms import camera_frame, checked, compose, operations_from_json, place_mesh
 from toolkit.core.package_data import data_dir
 from toolkit.core.validate import LIMITS, InputError, check_keys, finite_number, in_range, json_depth, \
     regular_file_inside, utf8_path, whole_number
@@ -24,8 +26,8 @@ MATERIAL_PARAMS = {"diffuse": {"reflectance"}, "mirror": {"reflectance"},
                    "dielectric": {"ior"}, "glossy": {"reflectance", "alpha"}}
 # The keys of each object in scene.json (a free-form "notes" is allowed in every one).
 TOP_KEYS = {"format", "camera", "materials", "shapes", "integrator"}
-CAMERA_KEYS = {"origin", "target", "up", "fov_deg", "fov_axis", "width", "height"}
-SHAPE_KEYS = {"mesh", "material", "emission"}
+CAMERA_KEYS = {"origin", "target", "up", "transform", "fov_deg", "fov_axis", "width", "height"}
+SHAPE_KEYS = {"mesh", "material", "emission", "transform"}
 INTEGRATOR_KEYS = {"max_depth", "rr_depth", "clamp"}
 # A depth the general kernel (features(general=True)) compares with where the scene sets no
 # limit: far beyond HARD_MAX_BOUNCES (cl/common.h), so the test is compiled in but never fires.
@@ -166,13 +168,19 @@ def _parse_camera(where, cam):
     if not isinstance(cam, dict):
         _fail(where, "'camera' must be an object")
     check_keys(where, cam, CAMERA_KEYS, "the camera")
-    for key in ("origin", "target", "up", "fov_deg", "width", "height"):
+    placement = ("transform",) if "transform" in cam else ("origin", "target", "up")
+    if "transform" in cam and {"origin", "target", "up"} & set(cam):
+        _fail(where, "the camera is placed either by origin, target and up or by a transform, not both")
+    for key in (*placement, "fov_deg", "width", "height"):
         if key not in cam:
             _fail(where, f"camera has no '{key}'")
+    if "transform" in cam:      # Mitsuba's sensor to_world: usually one look_at
+        origin, target, up = camera_frame(checked(compose(operations_from_json(
+            f"{where}: camera.transform", cam["transform"])), f"{where}: camera"), f"{where}: camera.transform")
+    else:
+        origin, target, up = (_vector(f"{where}: camera.{key}", cam[key]) for key in ("origin", "target", "up"))
     camera = Camera(
-        origin=_vector(f"{where}: camera.origin", cam["origin"]),
-        target=_vector(f"{where}: camera.target", cam["target"]),
-        up=_vector(f"{where}: camera.up", cam["up"]),
+        origin=origin, target=target, up=up,
         fov_deg=_number(f"{where}: camera.fov_deg", cam["fov_deg"], "camera.fov_deg"),
         fov_axis=cam.get("fov_axis", "x"),
         width=whole_number("camera.width", cam["width"], f"{where}: camera.width"),
@@ -228,8 +236,21 @@ def load_scene(path):
         raise SceneError(str(error)) from None
 
 
+def find_scene(given):
+    """Where the scene a command names is: `given` itself where it exists (a folder, its
+    scene.json), else the bundled scene of that name (`render cornell_spheres`), else a
+    SceneError. The one resolver of every command and of toolkit.render."""
+    path = utf8_path(given, "scene")
+    if path.exists() or path.is_symlink():
+        return path
+    if path.name == str(given) and path.name in bundled_scene_names():      # a bare name, not a path
+        return bundled_scene_dir(path.name)
+    raise SceneError(f"{path}: no such scene folder or scene file: not found here, nor among the bundled "
+                     f"scenes ({', '.join(bundled_scene_names())})")
+
+
 def _load_scene(path):
-    path = utf8_path(path, "scene")
+    path = find_scene(path)
     if path.is_dir():
         path = path / "scene.json"
     if not path.exists() and not path.is_symlink():
@@ -284,6 +305,7 @@ def _parse_shapes(where, path, shapes, index_of):
     if not isinstance(shapes, list) or not shapes:
         _fail(where, "'shapes' must be a non-empty list")
     vertices, triangles, material_of, emission_of = [], [], [], []
+    unmodelled = {}         # mesh file: what it holds that the toolkit does not model
     offset = 0
     for k, shape in enumerate(shapes):
         swhere = f"{where}: shapes[{k}]"
@@ -299,14 +321,24 @@ def _parse_shapes(where, path, shapes, index_of):
             in_range("shape.emission", float(e), f"{swhere}.emission component")
         try:
             regular_file_inside(path.parent / shape["mesh"], path.parent, "mesh", "mesh.bytes")
-            v, t = read_obj(path.parent / shape["mesh"], offset, sum(len(x) for x in triangles))   # checked above
+            v, t, ignored = read_mesh(path.parent / shape["mesh"], offset, sum(len(x) for x in triangles))
+            if "transform" in shape:     # absent: the file's numbers as they are, bit for bit
+                matrix = checked(compose(operations_from_json(f"{swhere}.transform", shape["transform"])),
+                                 f"{swhere} ({shape['mesh']})")
+                v, t = place_mesh(matrix, v, t, f"{swhere} ({shape['mesh']})")
         except (ObjError, InputError) as error:
-            raise SceneError(f"{swhere}: {error}") from None
+            raise SceneError(f"{swhere}: {error}" if not str(error).startswith(swhere) else str(error)) from None
+        if ignored:
+            unmodelled.setdefault(shape["mesh"], ignored)
         vertices.append(v)
         triangles.append(t + offset)
         offset += len(v)
         material_of.append(np.full(len(t), index_of[shape["material"]]))
         emission_of.append(np.repeat(emission[None], len(t), 0))
+    if unmodelled:      # named once for the scene, not silently used and not once per triangle
+        warnings.warn(f"{where}: ignored what the toolkit does not model: "
+                      + "; ".join(f"{mesh}: {', '.join(things)}" for mesh, things in unmodelled.items()),
+                      stacklevel=4)
     return (np.concatenate(vertices), np.concatenate(triangles), np.concatenate(material_of),
             np.concatenate(emission_of))
 

@@ -42,7 +42,11 @@ LIMITS = {
     "scene.triangles": (1, 1 << 24, "as read (the reader stops there), and after dropping degenerate ones"),
     "scene.vertices": (1, 1 << 26, "`v` lines of all meshes (the reader stops there): 3 per triangle leaves room "
                                    "for meshes that share no vertex"),
-    "mesh.bytes": (1, 1 << 31, "size of one OBJ file"),
+    "mesh.bytes": (1, 1 << 31, "size of one mesh file"),
+    # trimesh's text parsers hold every line as Python strings: measured 18 to 19 times the file in
+    # memory (an 80 MB ASCII PLY or OFF of 2 million triangles: 1.4 to 1.5 GB), so at most ~1.3 GB here.
+    "mesh.text_bytes": (1, 1 << 26, "size of one ASCII PLY, ASCII STL, OFF or glTF file (trimesh parses them in "
+                                    "memory); larger meshes: binary PLY, binary STL, GLB or OBJ"),
     "mesh.line_length": (0, 1 << 16, "characters of one line of an OBJ file"),
     "scene.json.bytes": (1, 1 << 24, "size of scene.json"),
     "scene.json.depth": (0, 16, "nesting of JSON objects and lists"),

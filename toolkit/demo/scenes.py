@@ -6,7 +6,7 @@ into the page is never joined to anything.
 """
 from pathlib import Path
 
-from toolkit.core.scene import SceneError, bundled_scene_dir, bundled_scene_names, load_scene
+from toolkit.core.scene import SceneError, bundled_scene_dir, bundled_scene_names, find_scene, load_scene
 from toolkit.core.validate import InputError
 
 
@@ -22,12 +22,9 @@ class SceneChoices:
 
     def add_given(self, given):
         """Add the command line's scene(s); returns the key to show first. SceneError if there is none."""
-        path = Path(given)
-        if not path.exists():
-            if str(given) in self.paths:        # a bundled scene by name: `demo covered_lamp`
-                return str(given)
-            raise SceneError(f"{given}: no such scene folder (and no bundled scene of that name: "
-                             f"{', '.join(self.paths)})")
+        path = find_scene(given)        # the one resolver of every command: a path, or a bundled scene's name
+        if not Path(given).exists():    # a bundled scene by name (`demo covered_lamp`): listed already
+            return path.name
         if path.is_file():
             folders = [path.parent]
         elif (path / "scene.json").is_file():
