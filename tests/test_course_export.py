@@ -102,6 +102,8 @@ def test_the_student_edition_holds_no_solution_body(editions):
     assert found_bodies(student) == {}
     assert not (student / "tests/fixtures").exists() and not (student / "docs/instructor_guide.md").exists()
     assert not [name for name, text in _texts(student / "docs") if "instructor_guide" in text]   # nor a link to it
+    assert not (student / "docs/gradescope.md").exists()   # the Gradescope page: the instructor's too
+    assert not [name for name, text in _texts(student / "docs") if "gradescope.md" in text or "\ngradescope\n" in text]
     assert "instructor_guide" in (instructor / "docs/course.md").read_text()
     quick_start = lambda readme: readme.split("## Quick start")[1].split("```")[1]   # the two commands
     assert quick_start((student / "README.md").read_text()) == quick_start((ROOT / "README.md").read_text())

@@ -62,6 +62,10 @@ def gradescope_root(tmp_path, zip_path, files=None):
             if mode:
                 (root / "source" / info.filename).chmod(stat.S_IMODE(mode))
     shutil.copy(root / "source" / "run_autograder", root / "run_autograder")
+    # The checks run as the user setup.sh makes (simd-grader) where the grader is root; here there
+    # is no such user, and this venv's Python is not another user's to run (test_the_worker_runs_as_...).
+    settings = json.loads((root / "source/autograder.json").read_text())
+    (root / "source/autograder.json").write_text(json.dumps(dict(settings, worker_user=None)))
     for name, content in (files or {}).items():
         path = root / "submission" / name
         path.parent.mkdir(parents=True, exist_ok=True)
@@ -117,7 +121,8 @@ def test_each_zip_holds_the_scripts_the_wheel_and_the_settings(zips):
                 assert checked.returncode == 0, checked.stderr
             settings = json.loads(z.read("autograder.json"))
             assert settings == {"assignment": name, "inputs": INPUTS, "hidden_visibility": "after_due_date",
-                                "time_limit": 10, "wheel": wheel}
+                                "time_limit": 10, "worker_user": "simd-grader", "wheel": wheel}
+            assert b"useradd --system --create-home --shell /usr/sbin/nologin simd-grader" in z.read("setup.sh")
             assert wheel.encode() in z.read("setup.sh")
             with zipfile.ZipFile(z.open(wheel)) as w:   # the toolkit with its reference solutions
                 replaces = ASSIGNMENTS[name].replaces
@@ -305,6 +310,31 @@ def test_the_macro_bomb(zips, tmp_path):
                                                                 "    int bomb = BOMB(1 +) 0; (void)bomb;")})
     assert results["score"] == 0
     assert all(t["output"].startswith("the kernel does not build: the compiler crashed") for t in results["tests"])
+
+
+@pytest.mark.skipif(os.geteuid() != 0, reason="only root can run the worker as another user")
+def test_the_worker_runs_as_the_unprivileged_user_and_cannot_write_the_graders_files(tmp_path):
+    """Where the grader is root (Gradescope's container), the worker's limits switch it to
+    Limits.user before it starts (limit_worker): its user id and groups are that user's, and a
+    folder of the grader's (results/) is not its to write. (A Python worker cannot be run so here:
+    this venv's interpreter lies in root's home. tests/gradescope_debootstrap.sh grades as the
+    user setup.sh makes.)"""
+    import pwd
+    from toolkit.grading.limits import Limits, limit_worker, worker_account, worker_environment
+    limits = Limits(user="nobody")
+    account = worker_account(limits)
+    results = tmp_path / "results"
+    results.mkdir()
+    run = subprocess.run(["sh", "-c", f"id -u; id -G; touch {results}/results.json"], capture_output=True, text=True,
+                         env=worker_environment(tmp_path, ROOT, account), cwd="/",
+                         preexec_fn=limit_worker(limits, 100, account))
+    uid, groups = run.stdout.split()[:2]
+    assert (int(uid), groups) == (pwd.getpwnam("nobody").pw_uid, str(account.pw_gid))
+    assert run.returncode != 0 and "Permission denied" in run.stderr and not list(results.iterdir())
+    env = worker_environment(tmp_path, ROOT, account)
+    assert env["HOME"] == account.pw_dir and env["USER"] == "nobody"
+    with pytest.raises(ValueError, match="does not exist"):
+        worker_account(Limits(user="no-such-user-here"))
 
 
 # --- results.json from a result ----------------------------------------------------------------

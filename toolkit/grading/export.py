@@ -35,7 +35,7 @@ from toolkit.grading.checks import ASSIGNMENTS
 STUDENT_TOP = ("setup.cfg", "pyproject.toml", ".gitignore", "toolkit", "cl", "scenes", "docs", "results", "tutorials")
 # Files of the checkout that only the instructor gets; and, in the docs' pages, the regions between
 # these marks (the links to them), which the student edition leaves out.
-INSTRUCTOR_ONLY = ("docs/instructor_guide.md",)
+INSTRUCTOR_ONLY = ("docs/instructor_guide.md", "docs/gradescope.md")
 INSTRUCTOR_REGION = re.compile(r"<!-- instructor-only -->.*?<!-- /instructor-only -->\n?", re.S)
 
 

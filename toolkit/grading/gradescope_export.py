@@ -1,7 +1,8 @@
 """`python -m toolkit course export DIR --gradescope`: one Gradescope autograder zip per assignment.
 
 Each DIR/<assignment>.zip holds, at its top (Gradescope unpacks it into /autograder/source/):
-  setup.sh         run once, as root, when Gradescope builds the image: Python, a virtual
+  setup.sh         run once, as root, when Gradescope builds the image: Python, gcc and libc6-dev
+                   (PoCL links every kernel with the system's linker, against libc), a virtual
                    environment at VENV with the toolkit installed from the wheel beside it (its
                    dependencies from the package index: PoCL, pyopencl, ...), then the reference
                    solution graded once there, which fails the build unless it scores 100 (and
@@ -11,7 +12,8 @@ Each DIR/<assignment>.zip holds, at its top (Gradescope unpacks it into /autogra
                    solutions the hidden checks compare with, never in the students' edition;
   autograder.json  the assignment, the hidden inputs' number (drawn now, the same for every
                    submission; `course grade --inputs N` grades again offline on the same
-                   inputs), who sees the hidden checks (`--hidden-visibility`), the time limit.
+                   inputs), who sees the hidden checks (`--hidden-visibility`), the time limit,
+                   and the unprivileged user (WORKER_USER, made by setup.sh) the checks run as.
 The zip is the instructor's: Gradescope never shows its files to students, and the number is in
 no result a student sees.
 """
@@ -36,24 +38,27 @@ from toolkit.grading.limits import check_time_limit
 from toolkit.grading.runner import TIME_LIMIT
 
 VENV = "/opt/simd-toolkit"   # where setup.sh installs the toolkit in the image
+WORKER_USER = "simd-grader"  # the unprivileged account setup.sh makes, that runs the students' kernels
 # What the wheel is built from: the files setup.cfg packages, and the files setup.cfg reads.
 WHEEL_SOURCES = ("setup.cfg", "pyproject.toml", "README.md", "toolkit/", "cl/", "scenes/", "tutorials/assignments/")
 
 SETUP_SH = """#!/usr/bin/env bash
-# Gradescope runs this once, as root, to build the autograder's image (Ubuntu): Python, the
-# toolkit from the wheel beside this file with its dependencies from the package index, then
-# the reference solution graded once, which fails the build unless it scores 100.
+# Gradescope runs this once, as root, to build the autograder's image (Ubuntu): Python, a
+# compiler's linker and libc for PoCL, the toolkit from the wheel beside this file with its
+# dependencies from the package index, then the reference solution graded once, which fails
+# the build unless it scores 100.
 # Written by `python -m toolkit course export DIR --gradescope`.
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 export DEBIAN_FRONTEND=noninteractive
-if ! python3 -c 'import venv, ensurepip' 2>/dev/null; then
-    apt-get update
-    apt-get install -y --no-install-recommends python3 python3-venv python3-pip ca-certificates
-fi
+# PoCL (pip's) links each kernel with the system's linker against libc and libgcc: gcc and libc6-dev
+apt-get update
+apt-get install -y --no-install-recommends python3 python3-venv python3-pip ca-certificates gcc libc6-dev
 python3 -m venv {venv}
 {venv}/bin/pip install --no-cache-dir --upgrade pip
 {venv}/bin/pip install --no-cache-dir "$here/{wheel}"
+# the students' kernels run as this user (its home keeps their kernel caches), never as root
+id -u {user} >/dev/null 2>&1 || useradd --system --create-home --shell /usr/sbin/nologin {user}
 # the reference solution, graded as a submission would be: the image works, the caches are warm
 check="$(mktemp -d)"
 mkdir -p "$check/source" "$check/submission" "$check/results"
@@ -104,7 +109,7 @@ def export_gradescope(target, names=None, hidden_visibility="after_due_date", in
         zips = []
         for name in names:
             settings = {"assignment": name, "inputs": inputs, "hidden_visibility": hidden_visibility,
-                        "time_limit": time_limit, "wheel": wheel.name}
+                        "time_limit": time_limit, "worker_user": WORKER_USER, "wheel": wheel.name}
             zips.append(write_atomically(target / f"{name}.zip",
                                          lambda tmp, s=settings: _write_zip(tmp, s, wheel)))
     return zips, inputs
@@ -134,7 +139,8 @@ def build_wheel(root, scratch):
 
 def _write_zip(path, settings, wheel):
     a = ASSIGNMENTS[settings["assignment"]]
-    scripts = {"setup.sh": SETUP_SH.format(venv=VENV, wheel=wheel.name, settings=SETTINGS, replaces=a.replaces),
+    scripts = {"setup.sh": SETUP_SH.format(venv=VENV, wheel=wheel.name, settings=SETTINGS, replaces=a.replaces,
+                                      user=WORKER_USER),
                "run_autograder": RUN_AUTOGRADER.format(venv=VENV)}
     with zipfile.ZipFile(path, "w", zipfile.ZIP_DEFLATED) as z:
         for name, text in scripts.items():

@@ -16,6 +16,7 @@ this process alone, whole or not at all, after the worker is gone; a file of tha
 submission, or one a kernel tried to write, is overwritten.
 """
 import json
+import os
 import sys
 import traceback
 from pathlib import Path
@@ -35,7 +36,8 @@ SHOWN_FILES = 10               # submitted files named in a message
 
 def read_settings(source):
     """The export's choices in `source`/autograder.json, checked: assignment, inputs,
-    hidden_visibility, time_limit. A ValueError says what is wrong (the zip is not ours, or edited)."""
+    hidden_visibility, time_limit (and worker_user, the account the checks run as where the grader
+    is root). A ValueError says what is wrong (the zip is not ours, or edited)."""
     try:
         settings = json.loads((Path(source) / SETTINGS).read_text())
     except (OSError, ValueError) as error:
@@ -47,6 +49,8 @@ def read_settings(source):
         raise ValueError(f"{SETTINGS}: the hidden inputs' number must be from 1 to {2**31 - 1}")
     check_visibility(settings.get("hidden_visibility"))
     check_time_limit(settings.get("time_limit"))
+    if not isinstance(settings.get("worker_user"), (str, type(None))):
+        raise ValueError(f"{SETTINGS}: worker_user must be a user's name or null")
     return settings
 
 
@@ -75,7 +79,14 @@ def find_file(submission, a):
                   + f"{wanted} Name your file {a.replaces} and submit again.")
 
 
-def grade_submission(root, settings, limits=Limits()):
+def worker_limits(settings):
+    """The worker's limits: as the settings' worker_user (setup.sh made it) where this runs as root,
+    as in Gradescope's container; as this user otherwise (a try on an instructor's machine)."""
+    user = settings.get("worker_user")
+    return Limits(user=user if user and os.geteuid() == 0 else None)
+
+
+def grade_submission(root, settings, limits=None):
     """(results.json's content, the grade's result or None) for the submission in `root`."""
     a = ASSIGNMENTS[settings["assignment"]]
     path, problem = find_file(Path(root) / "submission", a)
@@ -86,12 +97,14 @@ def grade_submission(root, settings, limits=Limits()):
                                     f"Write the assignment (its handout: tutorials/assignments/{a.name}/README.md), "
                                     f"check it with `python -m toolkit grade {a.name} --kernel cl/{a.replaces}` "
                                     "in your copy, and submit again."), None
+    if limits is None:
+        limits = worker_limits(settings)
     result = grade(a.name, path, time_limit=settings["time_limit"], limits=limits, inputs=settings["inputs"])
     result["file"] = a.replaces   # the student's name for it, not the container's path
     return results_json(result, settings["hidden_visibility"]), result
 
 
-def run(root, limits=Limits()):
+def run(root, limits=None):
     """Grade the submission in `root` and write `root`/results/results.json. Returns the exit status:
     0 whenever results.json was written, whatever the submission (Gradescope reads it either way)."""
     root = Path(root)
