@@ -13,7 +13,6 @@
 set -euo pipefail
 zip="$(realpath "$1")"
 rootfs="${2:-/tmp/gradescope-bookworm}"
-checkout="$(cd "$(dirname "$0")/.." && pwd)"
 [ "$(id -u)" = 0 ] || { echo "run as root (debootstrap and chroot)" >&2; exit 2; }
 step() { echo "== $1: $2 s"; }
 
@@ -50,17 +49,19 @@ chroot "$rootfs" /usr/bin/env -i PATH=/usr/sbin:/usr/bin:/sbin:/bin HOME=/root "
     "apt-get update -q >/dev/null && cd /autograder/source && bash ./setup.sh"
 step "setup.sh (apt-get update included)" $((SECONDS - start))
 
-assignment="$(python3 -c 'import json, sys; print(json.load(open(sys.argv[1]))["assignment"])' \
-              "$rootfs/autograder/source/autograder.json")"
-replaces="$(cd "$checkout" && python3 -c 'import sys; from toolkit.grading.checks import ASSIGNMENTS as A; print(A[sys.argv[1]].replaces)' "$assignment")"
-stub="$(cd "$checkout" && python3 -c 'import sys; from toolkit.grading.checks import ASSIGNMENTS as A; a = A[sys.argv[1]]; print(a.folder / a.stub)' "$assignment")"
+# the submissions, from the toolkit installed in the root: its reference solution, the stub, and
+# the solution with a line that does not build
+prepare='import sys
+from toolkit.grading.checks import ASSIGNMENTS
+from toolkit.grading.gradescope_run import read_settings
+from toolkit.opencl.program import cl_dir
+a = ASSIGNMENTS[read_settings("/autograder/source")["assignment"]]
+kind, out = sys.argv[1], "/autograder/submission/" + a.replaces
+text = (a.folder / a.stub).read_text() if kind == "stub" else (cl_dir() / a.replaces).read_text()
+open(out, "w").write(text + ("int this_does_not_build = ;\n" if kind == "broken" else ""))'
 for kind in solution stub broken; do
     rm -rf "$rootfs/autograder/submission"/* "$rootfs/autograder/results"/*
-    case $kind in
-        solution) cp "$checkout/cl/$replaces" "$rootfs/autograder/submission/$replaces" ;;
-        stub) cp "$stub" "$rootfs/autograder/submission/$replaces" ;;
-        broken) { cat "$checkout/cl/$replaces"; echo "int this_does_not_build = ;"; } > "$rootfs/autograder/submission/$replaces" ;;
-    esac
+    chroot "$rootfs" /usr/bin/env -i /opt/simd-toolkit/bin/python -c "$prepare" "$kind"
     start=$SECONDS
     chroot "$rootfs" /usr/bin/env -i PATH=/usr/sbin:/usr/bin:/sbin:/bin HOME=/root bash -c \
         "cd /autograder && ./run_autograder > /autograder/results/stdout 2>&1"

@@ -201,7 +201,7 @@ def test_the_student_editions_public_checks_give_a_right_solution_every_point_th
         shutil.copyfile(ROOT / "cl" / a.replaces, mine / "cl" / a.replaces)
     report = tmp_path / "report.xml"
     tests = _in(mine, "import sys, pytest; sys.exit(pytest.main(['-q', '-n', '0', '-p', 'no:cacheprovider', "
-                      f"'--junitxml={report}', 'tests/test_my_assignments.py']))", timeout=600)
+                      f"'--junitxml={report}', '-o', 'junit_family=xunit1', 'tests/test_my_assignments.py']))", timeout=600)
     assert tests.returncode == 0, tests.stdout[-3000:] + tests.stderr[-2000:]
     assert f"{len(ASSIGNMENTS)} passed" in tests.stdout
     # The checks it skipped because they compare with the reference solution are the ones marked

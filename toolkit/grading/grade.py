@@ -84,14 +84,15 @@ def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None,
 
 def _hand_over(root, folder, workdir, account):
     """Let the worker's user (`account`, if it is not the grader's) into the grading folder `root`,
-    read the submission's `folder` and own its own `workdir`; nothing else of the grader's."""
+    and give it the submission's `folder` (a check may build variants of the file beside it: its
+    files stay the grader's, readable) and its own `workdir`; nothing else of the grader's."""
     if account is None or account.pw_uid == os.geteuid():
         return
     root.chmod(0o711)   # through, not a listing
-    folder.chmod(0o755)
     for path in folder.iterdir():
         path.chmod(0o644)
-    os.chown(workdir, account.pw_uid, account.pw_gid)
+    for owned in (folder, workdir):
+        os.chown(owned, account.pw_uid, account.pw_gid)
 
 
 def selected_checks(a, only):
