@@ -10,7 +10,7 @@ from toolkit.cli.grade import check_names
 from toolkit.cli.options import DEVICE, number
 from toolkit.grading.batch import grade_class
 from toolkit.grading.export import export
-from toolkit.grading.gradescope_export import export_gradescope
+from toolkit.grading.gradescope_export import TIME_LIMIT as GRADESCOPE_TIME_LIMIT, export_gradescope
 from toolkit.grading.gradescope_results import VISIBILITIES
 from toolkit.grading.limits import MAX_TIME_LIMIT, check_time_limit
 from toolkit.grading.runner import TIME_LIMIT
@@ -35,8 +35,8 @@ def add_command(sub):
                         "(Gradescope's visibility; the public checks are visible at once; default after_due_date)")
     e.add_argument("--inputs", type=int, metavar="N", help="--gradescope: the hidden inputs' number (default: a new "
                    "one, printed; `course grade --inputs N` grades again offline on the same inputs)")
-    e.add_argument("--time-limit", type=number, default=TIME_LIMIT, metavar="SECONDS",
-                   help=f"--gradescope: per check (default {TIME_LIMIT}, at most {MAX_TIME_LIMIT})")
+    e.add_argument("--time-limit", type=number, metavar="SECONDS",
+                   help=f"--gradescope: per check (default {GRADESCOPE_TIME_LIMIT}, at most {MAX_TIME_LIMIT})")
     g = actions.add_parser("grade", help="grade a folder of submissions (one folder per student) with every check",
                            description="Each student's folder holds their files by the names of the toolkit files "
                                        "they replace, in cl/ (as in the student edition) or at its top. Writes "
@@ -64,13 +64,16 @@ def cmd_course(args):
     if args.gradescope:
         if args.instructor:
             raise ValueError("--gradescope writes autograders, not an edition: give it without --instructor")
-        zips, inputs = export_gradescope(args.dir, args.assignments, args.hidden_visibility, args.inputs,
-                                         args.time_limit, progress=lambda line: print(line, file=sys.stderr))
+        limit = GRADESCOPE_TIME_LIMIT if args.time_limit is None else args.time_limit
+        zips, inputs = export_gradescope(args.dir, args.assignments, args.hidden_visibility, args.inputs, limit,
+                                         progress=lambda line: print(line, file=sys.stderr))
         print(f"wrote {len(zips)} Gradescope autograders to {args.dir}: {', '.join(z.name for z in zips)}; hidden "
-              f"inputs {inputs} (keep it to grade again offline: course grade SUBMISSIONS --inputs {inputs})")
+              f"inputs {inputs} (keep it to grade again offline: course grade SUBMISSIONS --inputs {inputs} "
+              f"--time-limit {limit:g})")
         return 0
-    if args.assignments or args.inputs is not None:
-        raise ValueError("--assignments and --inputs choose what --gradescope exports: give them with --gradescope")
+    if args.assignments or args.inputs is not None or args.time_limit is not None:
+        raise ValueError("--assignments, --inputs and --time-limit choose what --gradescope exports: give them with "
+                         "--gradescope")
     files = export(args.dir, instructor=args.instructor)
     print(f"wrote the {'instructor' if args.instructor else 'student'} edition to {args.dir} ({len(files)} files)")
     return 0

@@ -11,8 +11,9 @@ Each DIR/<assignment>.zip holds, at its top (Gradescope unpacks it into /autogra
   the wheel        this checkout's toolkit, built now (`pip wheel --no-deps`): the reference
                    solutions the hidden checks compare with, never in the students' edition;
   autograder.json  the assignment, the hidden inputs' number (drawn now, the same for every
-                   submission; `course grade --inputs N` grades again offline on the same
-                   inputs), who sees the hidden checks (`--hidden-visibility`), the time limit,
+                   submission; `course grade --inputs N --time-limit 30` grades again offline
+                   on the same inputs), who sees the hidden checks (`--hidden-visibility`), the
+                   time limit per check (TIME_LIMIT),
                    and the unprivileged user (WORKER_USER, made by setup.sh) the checks run as.
 The zip is the instructor's: Gradescope never shows its files to students, and the number is in
 no result a student sees.
@@ -35,10 +36,14 @@ from toolkit.grading.export import source_files
 from toolkit.grading.gradescope_results import check_visibility
 from toolkit.grading.gradescope_run import SETTINGS
 from toolkit.grading.limits import check_time_limit
-from toolkit.grading.runner import TIME_LIMIT
 
 VENV = "/opt/simd-toolkit"   # where setup.sh installs the toolkit in the image
 WORKER_USER = "simd-grader"  # the unprivileged account setup.sh makes, that runs the students' kernels
+# Seconds per check. The grader's 10 s (runner.TIME_LIMIT) were sized on an idle 2-core machine;
+# a container shared with other submissions is slower (mlt_mutation's `image` took 8.2 s of its
+# 10 on a loaded one here), and a right solution that runs out of time loses points. A kernel that
+# does not finish costs this much more per hanging check.
+TIME_LIMIT = 30
 # What the wheel is built from: the files setup.cfg packages, and the files setup.cfg reads.
 WHEEL_SOURCES = ("setup.cfg", "pyproject.toml", "README.md", "toolkit/", "cl/", "scenes/", "tutorials/assignments/")
 
