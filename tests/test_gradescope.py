@@ -180,6 +180,14 @@ def test_the_reference_solution_scores_100_and_the_stub_0(name, zips, tmp_path):
     assert [t["visibility"] for t in results["tests"]] == ["visible"]
 
 
+def test_setup_checks_that_the_reference_solution_scores_100(zips, tmp_path, capsys):
+    """setup.sh ends with this: Gradescope's image fails to build unless the reference scores 100."""
+    root = gradescope_root(tmp_path, zips["inplace_regen"])
+    assert gradescope_run.check_solution(root / "source") == 0
+    assert capsys.readouterr().out.endswith("the reference solution scores 100\n")
+    assert "--check-solution" in (root / "source" / "setup.sh").read_text()
+
+
 def fixture_pairs():
     return ALL_FIXTURES if os.environ.get("GRADESCOPE_ALL_FIXTURES") == "1" else SOME_FIXTURES
 
@@ -363,7 +371,8 @@ def test_results_follow_the_visibility_chosen_and_count_a_skipped_check_neither_
     assert results["score"] == result["score"] == round(75 * 100 / 90)
     assert (tests["scan"]["score"], tests["scan"]["status"]) == (0, "failed")
     assert tests["scan"]["output"].startswith("the total of group 3 is 17") and "\nhint: " in tests["scan"]["output"]
-    assert (tests["races"]["score"], tests["races"]["max_score"]) == (0, 0) and "not counted" in tests["races"]["output"]
+    assert (tests["races"]["score"], tests["races"]["max_score"]) == (0, 0)
+    assert "not counted" in tests["races"]["output"]
     assert "rescaled" in results["output"]
 
 

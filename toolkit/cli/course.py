@@ -29,7 +29,8 @@ def add_command(sub):
     e.add_argument("--instructor", action="store_true", help="the instructor edition")
     e.add_argument("--gradescope", action="store_true",
                    help="instead, one Gradescope autograder zip per assignment (docs: the instructor guide)")
-    e.add_argument("--assignments", type=check_names, metavar="NAME,...", help="--gradescope: only these (default: all)")
+    e.add_argument("--assignments", type=check_names, metavar="NAME,...",
+                   help="--gradescope: only these (default: all)")
     e.add_argument("--hidden-visibility", choices=VISIBILITIES, default="after_due_date",
                    help="--gradescope: when students see the checks that compare with the reference solution "
                         "(Gradescope's visibility; the public checks are visible at once; default after_due_date)")

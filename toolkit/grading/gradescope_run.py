@@ -1,6 +1,7 @@
 """What Gradescope's `run_autograder` runs, once per submission (gradescope_export.py writes it):
 
     python -m toolkit.grading.gradescope_run ROOT      # ROOT: /autograder, or $AUTOGRADER_ROOT
+    python -m toolkit.grading.gradescope_run --check-solution SOURCE   # setup.sh: the reference scores 100?
 
 Gradescope lays ROOT out as `source/` (the autograder zip, unpacked: autograder.json says which
 assignment, on which hidden inputs, and who sees the hidden checks), `submission/` (the student's
@@ -17,8 +18,11 @@ submission, or one a kernel tried to write, is overwritten.
 """
 import json
 import os
+import shutil
 import sys
+import tempfile
 import traceback
+from itertools import islice
 from pathlib import Path
 
 from toolkit.core.images import write_atomically
@@ -29,9 +33,11 @@ from toolkit.grading.grade import grade
 from toolkit.grading.limits import check_time_limit
 from toolkit.grading.report import format_report
 from toolkit.grading.runner import Limits
+from toolkit.opencl.program import cl_dir
 
 SETTINGS = "autograder.json"   # in source/: what the export chose (gradescope_export.py)
 SHOWN_FILES = 10               # submitted files named in a message
+MAX_ENTRIES = 10000            # entries of a submission looked at to say what it holds
 
 
 def read_settings(source):
@@ -59,8 +65,8 @@ def find_file(submission, a):
     path = submitted_file(submission, a)
     if path is not None:
         return path, None
-    files = sorted(str(p.relative_to(submission)) for p in submission.rglob("*") if p.is_file()) \
-        if submission.is_dir() else []
+    found = submission.rglob("*") if submission.is_dir() else iter(())
+    files = sorted(str(p.relative_to(submission)) for p in islice(found, MAX_ENTRIES) if p.is_file())
     wanted = (f"This assignment ({a.name}: {a.title}) grades {a.replaces}, the file you wrote from the stub "
               f"{a.stub}; it is built in place of the toolkit's cl/{a.replaces}.")
     if not files:
@@ -92,7 +98,9 @@ def grade_submission(root, settings, limits=None):
     path, problem = find_file(Path(root) / "submission", a)
     if problem:
         return refused_json(a.name, problem), None
-    if path.read_bytes() == (a.folder / a.stub).read_bytes():
+    stub = a.folder / a.stub
+    # (a link, or a file of another size, is not the stub: grade() refuses what it must unread)
+    if not path.is_symlink() and path.stat().st_size == stub.stat().st_size and path.read_bytes() == stub.read_bytes():
         return refused_json(a.name, f"Your {a.replaces} is still the untouched stub: nothing to grade yet. "
                                     f"Write the assignment (its handout: tutorials/assignments/{a.name}/README.md), "
                                     f"check it with `python -m toolkit grade {a.name} --kernel cl/{a.replaces}` "
@@ -123,9 +131,29 @@ def run(root, limits=None):
     return 0
 
 
+def check_solution(source):
+    """Grade the reference solution as a submission, with the settings in folder `source` (the
+    zip's, unpacked): setup.sh does, when Gradescope builds the image, which then fails unless it
+    scores 100. Returns the exit status."""
+    with tempfile.TemporaryDirectory(prefix="autograder-check-") as root:
+        root = Path(root)
+        for folder in ("source", "submission", "results"):
+            (root / folder).mkdir()
+        shutil.copyfile(Path(source) / SETTINGS, root / "source" / SETTINGS)
+        a = ASSIGNMENTS[read_settings(root / "source")["assignment"]]
+        shutil.copyfile(cl_dir() / a.replaces, root / "submission" / a.replaces)
+        run(root)
+        score = json.loads((root / "results" / "results.json").read_text())["score"]
+    print(f"the reference solution scores {score}", flush=True)
+    return 0 if score == 100 else 1
+
+
 def main(argv):
-    if len(argv) != 1:
-        print("usage: python -m toolkit.grading.gradescope_run ROOT (Gradescope's /autograder)", file=sys.stderr)
+    if len(argv) == 2 and argv[0] == "--check-solution":
+        return check_solution(argv[1])
+    if len(argv) != 1 or argv[0].startswith("-"):
+        print("usage: python -m toolkit.grading.gradescope_run ROOT (Gradescope's /autograder)\n"
+              "       python -m toolkit.grading.gradescope_run --check-solution SOURCE", file=sys.stderr)
         return 2
     return run(argv[0])
 
