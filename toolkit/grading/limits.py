@@ -8,8 +8,8 @@ the worker runs
     of the grader's own settings or secrets reaches a kernel's build or the report), in a
     temporary folder of its own as the current folder;
   - where the grader runs as root (Gradescope's container), as another, unprivileged user
-    (Limits.user): a kernel that took the worker's process over could write nothing of the
-    grader's (results.json) nor anywhere but its own folder and that user's home;
+    (Limits.user): a kernel that took the worker's process over could write its own folders,
+    that user's home and what the system lets everyone write, nothing of root's (results.json);
   - and dies with the grader: a parent-death signal (Linux), and the grader turns SIGTERM and
     SIGHUP into an exit that kills the worker and removes its folder (stop_on_signals).
 """
