@@ -8,6 +8,7 @@ import shutil
 import subprocess
 import sys
 from pathlib import Path
+from xml.etree import ElementTree
 
 import pytest
 
@@ -101,6 +102,8 @@ def test_the_student_edition_holds_no_solution_body(editions):
     assert found_bodies(student) == {}
     assert not (student / "tests/fixtures").exists() and not (student / "docs/instructor_guide.md").exists()
     assert not [name for name, text in _texts(student / "docs") if "instructor_guide" in text]   # nor a link to it
+    assert not (student / "docs/gradescope.md").exists()   # the Gradescope page: the instructor's too
+    assert not [name for name, text in _texts(student / "docs") if "gradescope.md" in text or "\ngradescope\n" in text]
     assert "instructor_guide" in (instructor / "docs/course.md").read_text()
     quick_start = lambda readme: readme.split("## Quick start")[1].split("```")[1]   # the two commands
     assert quick_start((student / "README.md").read_text()) == quick_start((ROOT / "README.md").read_text())
@@ -196,10 +199,17 @@ def test_the_student_editions_public_checks_give_a_right_solution_every_point_th
     shutil.copytree(student, mine)
     for a in ASSIGNMENTS.values():
         shutil.copyfile(ROOT / "cl" / a.replaces, mine / "cl" / a.replaces)
+    report = tmp_path / "report.xml"
     tests = _in(mine, "import sys, pytest; sys.exit(pytest.main(['-q', '-n', '0', '-p', 'no:cacheprovider', "
-                      "'tests/test_my_assignments.py']))", timeout=600)
+                      f"'--junitxml={report}', '-o', 'junit_family=xunit1', 'tests/test_my_assignments.py']))", timeout=600)
     assert tests.returncode == 0, tests.stdout[-3000:] + tests.stderr[-2000:]
     assert f"{len(ASSIGNMENTS)} passed" in tests.stdout
+    # The checks it skipped because they compare with the reference solution are the ones marked
+    # hidden (Check.hidden): the Gradescope autograder shows them as the instructor chose.
+    skipped = {case.get("name").split("[")[1].rstrip("]"): set(prop.get("value").split())
+               for case in ElementTree.parse(report).iter("testcase")
+               for prop in case.iter("property") if prop.get("name") == "instructor_checks"}
+    assert skipped == {name: {c.name for c in a.checks if c.hidden} for name, a in ASSIGNMENTS.items()}
 
 
 def test_the_student_editions_notebooks_run_and_say_what_they_need(editions, python3_kernel, monkeypatch):

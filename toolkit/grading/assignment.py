@@ -39,6 +39,9 @@ class Check:
     what: str
     run: object
     hint: str = ""   # the idea a student who lost these points should look at (not the line)
+    # A hidden check compares with the reference solution: the student edition, which lacks it,
+    # skips the check (worker.py), so only the instructor's grader runs it. The others are public.
+    hidden: bool = False
 
 
 @dataclass
@@ -57,12 +60,12 @@ class Assignment:
     def folder(self):
         return assignments_dir() / self.name
 
-    def check(self, name, points, what, hint):
+    def check(self, name, points, what, hint, hidden=False):
         """Decorator: the function is check `name`, worth `points`; `what` is its line in the report,
-        `hint` the idea behind it, shown when its points are lost. The report lists the checks in the
-        order they are declared."""
+        `hint` the idea behind it, shown when its points are lost; `hidden`: it compares with the
+        reference solution (see Check). The report lists the checks in the order they are declared."""
         def register(function):
-            self.checks.append(Check(name, points, what, function, hint))
+            self.checks.append(Check(name, points, what, function, hint, hidden))
             return function
         return register
 

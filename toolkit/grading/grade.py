@@ -32,6 +32,7 @@ limits (limits.py); channel.py is how the worker reports, sources.py what a subm
 include; checks/<assignment>.py holds each assignment's checks (assignment.py: what a check is;
 context.py: what it works with); report.py formats the result; toolkit/cli/grade.py is the command.
 """
+import os
 import shutil
 import tempfile
 import time
@@ -39,7 +40,7 @@ from pathlib import Path
 
 from toolkit.grading.assignment import NEEDS_REFERENCE, SKIPPED, assignments_dir
 from toolkit.grading.checks import ASSIGNMENTS
-from toolkit.grading.limits import check_time_limit, stop_on_signals
+from toolkit.grading.limits import check_time_limit, stop_on_signals, worker_account
 from toolkit.grading.runner import TIME_LIMIT, GraderError, Limits, run_checks
 from toolkit.opencl.program import MAX_SOURCE_SIZE, cl_dir
 
@@ -73,11 +74,25 @@ def grade(name, kernel=None, solution=False, time_limit=TIME_LIMIT, device=None,
         shutil.copyfile(source, folder / a.replaces)
         for helper in a.helpers:
             shutil.copyfile(a.folder / helper, folder / helper)
+        _hand_over(Path(root), folder, workdir, worker_account(limits))
         try:
             reasons, times = run_checks(name, order, folder, time_limit, device, source.name, limits, workdir, inputs)
         except GraderError as failed:
             reasons, times, error = failed.reasons, failed.times, str(failed)
     return _result(a, shown, reasons, times, error, time.perf_counter() - start, only)
+
+
+def _hand_over(root, folder, workdir, account):
+    """Let the worker's user (`account`, if it is not the grader's) into the grading folder `root`,
+    and give it the submission's `folder` (a check may build variants of the file beside it: its
+    files stay the grader's, readable) and its own `workdir`; nothing else of the grader's."""
+    if account is None or account.pw_uid == os.geteuid():
+        return
+    root.chmod(0o711)   # through, not a listing
+    for path in folder.iterdir():
+        path.chmod(0o644)
+    for owned in (folder, workdir):
+        os.chown(owned, account.pw_uid, account.pw_gid)
 
 
 def selected_checks(a, only):

@@ -7,12 +7,16 @@ the worker runs
   - with a clean environment (only what Python, pyopencl and the OpenCL runtimes need: nothing
     of the grader's own settings or secrets reaches a kernel's build or the report), in a
     temporary folder of its own as the current folder;
+  - where the grader runs as root (Gradescope's container), as another, unprivileged user
+    (Limits.user): a kernel that took the worker's process over could write its own folders,
+    that user's home and what the system lets everyone write, nothing of root's (results.json);
   - and dies with the grader: a parent-death signal (Linux), and the grader turns SIGTERM and
     SIGHUP into an exit that kills the worker and removes its folder (stop_on_signals).
 """
 import ctypes
 import math
 import os
+import pwd
 import signal
 import sys
 import threading
@@ -40,6 +44,9 @@ class Limits:
     # runtimes reserve). A worker needs ~0.4 GB; a macro bomb reaches 4 GiB in ~75 s (2 cores).
     memory: int = 4 * 2**30
     file_size: int = 256 * 2**20   # bytes in one file it writes (kernel caches: a few MB)
+    # The account the worker runs as (None: the grader's own). Only root can switch to it: the
+    # Gradescope autograder does (gradescope_run.py). Its home holds the worker's kernel caches.
+    user: str = None
 
 
 def check_time_limit(seconds):
@@ -59,10 +66,27 @@ _KEPT = ("PATH", "HOME", "USER", "LOGNAME", "LANG", "LC_ALL", "LC_CTYPE", "LD_LI
 _KEPT_PREFIXES = ("POCL_", "PYOPENCL_", "OCL_", "OPENCL_", "OCLGRIND_", "CL_CONFIG_", "TOOLKIT_")
 
 
-def worker_environment(folder, python_path):
+def worker_account(limits):
+    """The password entry of the user the worker runs as, or None (it runs as the grader). A
+    ValueError if there is no such user, or the grader cannot switch to it (it is not root)."""
+    if limits.user is None:
+        return None
+    try:
+        account = pwd.getpwnam(limits.user)
+    except KeyError:
+        raise ValueError(f"the grader's worker should run as user {limits.user!r}, which does not exist") from None
+    if os.geteuid() != 0 and account.pw_uid != os.geteuid():
+        raise ValueError(f"only root can run the grader's worker as user {limits.user!r}")
+    return account
+
+
+def worker_environment(folder, python_path, account=None):
     """The worker's environment: the kept variables, `python_path` first on PYTHONPATH, and
-    `folder` as its temporary folder."""
+    `folder` as its temporary folder; as `account` (a password entry), its home and cache."""
     env = {k: v for k, v in environment_copy().items() if k in _KEPT or k.startswith(_KEPT_PREFIXES)}
+    if account is not None:
+        env.update(HOME=account.pw_dir, USER=account.pw_name, LOGNAME=account.pw_name,
+                   XDG_CACHE_HOME=os.path.join(account.pw_dir, ".cache"))
     env["PYTHONPATH"] = os.pathsep.join(p for p in (str(python_path), env.get("PYTHONPATH")) if p)
     env["TMPDIR"] = str(folder)
     env["OCLGRIND_DATA_RACES"] = env.get("OCLGRIND_DATA_RACES", "1")   # the compaction `races` check
@@ -85,8 +109,9 @@ if sys.platform.startswith("linux"):
         _prctl = None
 
 
-def limit_worker(limits, cpu_limit):
-    """The function Popen runs in the child before the worker starts (preexec_fn)."""
+def limit_worker(limits, cpu_limit, account=None):
+    """The function Popen runs in the child before the worker starts (preexec_fn); as `account`
+    (a password entry, looked up before the fork) if given."""
     parent = os.getpid()
 
     def apply():
@@ -98,6 +123,10 @@ def limit_worker(limits, cpu_limit):
             if now != resource.RLIM_INFINITY:   # never above the limits the grader runs under
                 value, hard = min(value, now), min(hard, now)
             resource.setrlimit(which, (value, hard))
+        if account is not None and os.geteuid() != account.pw_uid:   # no group of the grader's is kept
+            os.setgroups([])
+            os.setgid(account.pw_gid)
+            os.setuid(account.pw_uid)
         if _prctl is not None:
             _prctl(_PR_SET_PDEATHSIG, signal.SIGKILL, 0, 0, 0)
             if os.getppid() != parent:   # the grader died before the signal was set up

@@ -14,7 +14,7 @@ from collections import Counter
 from pathlib import Path
 
 from toolkit.grading.channel import MAX_LINE, Expected, ProtocolError, one_line, parse_report
-from toolkit.grading.limits import TIME_LIMIT, Limits, cpu_seconds, limit_worker, worker_environment
+from toolkit.grading.limits import TIME_LIMIT, Limits, cpu_seconds, limit_worker, worker_account, worker_environment
 from toolkit.opencl.device import NoOpenCLError
 
 __all__ = ["TIME_LIMIT", "GraderError", "Limits", "run_checks"]
@@ -165,13 +165,14 @@ class _Worker:
     printf writes, is discarded. Leaving the `with` kills it and its process group."""
 
     def __init__(self, command, checks, nonce, limits, time_limit, workdir):
+        account = worker_account(limits)
         reports, ours = os.pipe()   # (read end, write end): the worker gets the write end only
         try:
             self.process = subprocess.Popen(
                 command + [str(ours), *checks], stdin=subprocess.PIPE, stdout=subprocess.DEVNULL,
                 stderr=subprocess.PIPE, pass_fds=(ours,), cwd=workdir, start_new_session=True,
-                env=worker_environment(workdir, TOOLKIT_PARENT),
-                preexec_fn=limit_worker(limits, cpu_seconds(limits, time_limit, len(checks))))
+                env=worker_environment(workdir, TOOLKIT_PARENT, account),
+                preexec_fn=limit_worker(limits, cpu_seconds(limits, time_limit, len(checks)), account))
         except BaseException:
             os.close(reports)
             raise

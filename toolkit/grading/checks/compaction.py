@@ -193,7 +193,7 @@ def _check_parallel_scan(c):
 
 @ASSIGNMENT.check("compact", 20, "immediate_compact_slot (with the toolkit's scan) on random masks, sizes not a "
                   "multiple of the group", "a survivor's slot is the group's base (from the one atomic) plus its "
-                  "rank among the group's survivors; a dead item gets -1")
+                  "rank among the group's survivors; a dead item gets -1", hidden=True)
 def _check_compact(c):
     for what, mask in _random_masks(c.rng(1)):
         problem = _compaction_problem(mask, *_compact(c, mask), what)
@@ -203,7 +203,7 @@ def _check_compact(c):
 
 @ASSIGNMENT.check("edges", 10, "immediate_compact_slot (with the toolkit's scan): all dead, all alive, one item, "
                   "a partial last group", "a group with no survivor, a full group and the padding work-items "
-                  "of the last group (alive = false) must all work")
+                  "of the last group (alive = false) must all work", hidden=True)
 def _check_edges(c):
     rng = c.rng(3)
     cases = [("all 1000 dead: ", np.zeros(1000, bool)), ("all 1000 alive: ", np.ones(1000, bool)),
@@ -216,7 +216,8 @@ def _check_edges(c):
 
 @ASSIGNMENT.check("one_atomic", 10, "each work-group's survivors fill one range in local-id order (one atomic "
                   "per group)", "one work-item reserves the whole group's range with a single atomic on the "
-                  "counter, and shares the base through local memory; every other form of atomic counts too")
+                  "counter, and shares the base through local memory; every other form of atomic counts too",
+                  hidden=True)
 def _check_group_order(c):
     L = program.LOCAL_SIZE
     mask = c.rng(4).random(4099) < 0.5
@@ -333,7 +334,7 @@ def _captured_stderr(run):
 
 @ASSIGNMENT.check("render", 15, "pt_compact_regen with your compact.h: the toolkit's image, SIMD efficiency >= 97%",
                   "the path tracer calls both functions many times per kernel: they must work together, "
-                  "called again and again with the same scratch")
+                  "called again and again with the same scratch", hidden=True)
 def _check_compaction_render(c):
     images, efficiency = [], None
     for student in (True, False):

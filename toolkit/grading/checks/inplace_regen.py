@@ -104,7 +104,7 @@ def _check_regenerated(c):
 
 @ASSIGNMENT.check("image", 45, "pt_inplace_regen with your kernel: the toolkit's image, sample for sample",
                   "each sample id must be started exactly once, with the pass's seed and sample base, so that the image is "
-                  "the toolkit's sample for sample")
+                  "the toolkit's sample for sample", hidden=True)
 def _check_regen_image(c):
     films = [c.technique(PtInplaceRegen, student, stream_size=256).render(15, 9, 8, seed=c.seed(2))   # 1080 samples,
              for student in (True, False)]                                                  # 256 slots

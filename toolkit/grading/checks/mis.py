@@ -112,7 +112,7 @@ def _match_problem(scene_name, weights, expected, what):
 
 @ASSIGNMENT.check("sum_to_one", 10, "on real paths, the weights of every split sum to one, with both heuristics",
                   "the strategies that can make a path share it: their weights sum to one, and a strategy that "
-                  "cannot (a connection at a delta vertex) is left out of every sum")
+                  "cannot (a connection at a delta vertex) is left out of every sum", hidden=True)
 def _check_sum_to_one(c):
     for scene_name, tech, paths in _mis_cases(c):
         for power, name in _HEURISTICS:
@@ -205,7 +205,8 @@ def _check_heuristic(c):
                                  "(MIS_POWER=1) the power heuristic's, p_s^2 / sum_i p_i^2",
                   "walk each subpath backwards from the connection, multiplying one density ratio per vertex (the "
                   "last two of each side use the recomputed densities), leave the strategies at delta vertices out "
-                  "of the sum, and add each ratio as the heuristic asked for weighs it: r for balance, r^2 for power")
+                  "of the sum, and add each ratio as the heuristic asked for weighs it: r for balance, r^2 for power",
+                  hidden=True)
 def _check_weights(c):
     for scene_name, tech, paths in _mis_cases(c):
         balance = _split_weights(c, tech, scene_name, paths, student=False)

@@ -163,7 +163,7 @@ def _mutate(c, directory, it, current, dims):
                                     "marks every dimension fresh; a small step perturbs the dimensions the "
                                     "current state used and marks the others fresh",
                   "dimension 0 of the mutation's random numbers chooses the step; a large step is a new BDPT "
-                  "sample (every dimension fresh), a small one touches only what the current path used")
+                  "sample (every dimension fresh), a small one touches only what the current path used", hidden=True)
 def _check_large_step(c):
     rng = c.rng(64)
     chains, max_dims = 4096, mlt_toy.MAX_DIMS

@@ -193,7 +193,7 @@ def _check_logarithmic(c):
 
 @ASSIGNMENT.check("image", 35, "bdpt_parallel_connect with your kernel (and the toolkit's count and find_sample): "
                                "the image of bdpt_naive_connect", "each connection's local index within its "
-                  "sample picks its strategy (s, t): every strategy of every sample, once")
+                  "sample picks its strategy (s, t): every strategy of every sample, once", hidden=True)
 def _check_parallel_image(c):
     folder = _variant(c, "reference_parts", _with_reference_parts(c, _student(c)))
     image = c.technique(BdptParallelConnect, folder=folder).render(16, 16, 4, seed=c.seed(3)).image()

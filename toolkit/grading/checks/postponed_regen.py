@@ -95,7 +95,7 @@ def _sane(c):
 
 @ASSIGNMENT.check("image", 40, "bdpt_parallel_connect with your regeneration: the toolkit's image, sample for sample",
                   "each sample id of the budget must be started exactly once, so that every pixel gets its samples "
-                  "and the image is the toolkit's sample for sample")
+                  "and the image is the toolkit's sample for sample", hidden=True)
 def _check_image(c):
     if not _sane(c):
         raise CheckFailed("not rendered: some lanes within the budget start no sample, so the walk would read "
