@@ -20,7 +20,7 @@ from toolkit.core.simd import PhaseCounter
 from toolkit.core.validate import InputError
 from toolkit.demo import DemoUnavailable, require_panel
 from toolkit.demo.efficiency import efficiency_html, talk_figure
-from toolkit.demo.lanes_picture import BUSY, DRAIN_ROW, GAP, IDLE, WarpSampler, lanes_picture
+from toolkit.demo.lanes_picture import BUSY, BUSY_OTHER, DRAIN_ROW, GAP, IDLE, WarpSampler, lanes_picture
 from toolkit.demo.scenes import SceneChoices
 from toolkit.demo.settings import Settings, parse_resolution
 from toolkit.demo.tone_map import packed_for_bokeh, to_rgba
@@ -81,6 +81,50 @@ def test_lanes_sampled_spread_over_the_launch():
     mask[92:96] = True          # warp 23 of 100: the first of two sampled ones (golden-ratio steps: 23, 61)
     sampler.add_stream_step("extend", mask, iteration=0)
     assert sampler.rows[0][1][:4].all() and not sampler.rows[0][1][4:].any()
+
+
+def test_lanes_picture_shows_the_naive_connect_loop_with_its_idle_lanes():
+    """The naive connect phase (bdpt_naive_connect.py count_connect, SimdRecorder.inner_loop): a row
+    per iteration of its loop over each lane's connections, in the connect colour, the lanes of slots
+    still walking (0 connections) idle in a warp that issued; within a pass's final drain, no rows."""
+    from toolkit.techniques.simd_recorder import SimdRecorder
+    recorder = SimdRecorder(warp_width=4)
+    recorder.simd = sampler = WarpSampler(warp_width=4, warps=2, kept=8)
+    recorder.step("walk", 8, capacity=8)
+    connections = np.array([3, 0, 1, 0, 0, 0, 0, 0])       # warp 1: every slot still walking
+    recorder.inner_loop("connect", connections)
+    picture = lanes_picture(sampler.rows, warp_width=4, warps=2, steps=8)
+    assert [phase for phase, _ in sampler.rows] == ["walk", "connect", "connect", "connect"]
+    assert [pixel(picture, 1, 0, lane, 4) for lane in range(4)] == [BUSY["connect"], IDLE, BUSY["connect"], IDLE]
+    assert [pixel(picture, 2, 0, lane, 4) for lane in range(4)] == [BUSY["connect"]] + [IDLE] * 3
+    assert all(pixel(picture, row, 1, lane, 4) == GAP for row in (1, 2, 3) for lane in range(4))
+    assert BUSY["connect"] not in (BUSY["walk"], BUSY["generate"], IDLE, GAP, DRAIN_ROW)
+    # In the drain: the connect loop is counted, not drawn; its iterations are numbered as the next step.
+    recorder.step("walk", 1, capacity=8, draining=True)
+    recorder.inner_loop("connect", connections)
+    assert [phase for phase, _ in sampler.rows][4:] == ["drain"] and len(sampler.rows) == 5
+    assert [it["iteration"] for it in sampler.per_iteration if it["phase"] == "connect"] == [1, 2, 3, 2, 3, 4]
+    # The efficiency figures are those of the plain counters (PhaseCounter.add_warp_loops).
+    counter = PhaseCounter(4)
+    counter.add_warp_loops("connect", np.concatenate([connections, connections]))
+    assert sampler.efficiency()["connect"] == counter.efficiency()["connect"] == 4 / 12
+
+
+def test_lanes_picture_draws_metropolis_drains():
+    """Metropolis (drains=True): each iteration is one batch of proposals draining, drawn step by step:
+    mutate, walk steps over a shrinking packed stream, connect, accept."""
+    sampler = WarpSampler(warp_width=4, warps=2, kept=8, drains=True)
+    sampler.add_stream_step("mutate", 8, iteration=0)
+    for step, length in enumerate((8, 5)):
+        sampler.add_stream_step("walk", length, iteration=step, draining=True)
+    sampler.add_stream_step("connect", 6, iteration=2)
+    sampler.add_stream_step("accept", 8, iteration=2)
+    picture = lanes_picture(sampler.rows, warp_width=4, warps=2, steps=8)
+    assert [phase for phase, _ in sampler.rows] == ["mutate", "walk", "walk", "connect", "accept"]
+    assert pixel(picture, 0, 0, 0, 4) == BUSY_OTHER and pixel(picture, 4, 1, 3, 4) == BUSY_OTHER
+    assert [pixel(picture, 2, 1, lane, 4) for lane in range(4)] == [BUSY["walk"]] + [IDLE] * 3
+    assert [pixel(picture, 3, 1, lane, 4) for lane in range(4)] == [BUSY["connect"]] * 2 + [IDLE] * 2
+    assert not (picture[:5] == DRAIN_ROW).all(-1).any()
 
 
 def test_tone_map_and_bokeh_layout():

@@ -9,11 +9,14 @@ import socket
 import subprocess
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from chromium_page import BROWSER, ChromiumPage
+from toolkit.demo.lanes_picture import BUSY, BUSY_OTHER, IDLE, KEPT_STEPS
 
 ROOT = Path(__file__).resolve().parent.parent
 SCREENSHOT = ROOT / "docs" / "_build" / "demo.png"
@@ -34,6 +37,26 @@ STATUS = ("window.Bokeh && Bokeh.documents.length ? Array.from(Bokeh.documents[0
 EFFICIENCY = ("Array.from(Bokeh.documents[0].all_models).filter(m => (m.css_classes || [])"
               ".includes('simd-efficiency')).map(m => m.text).join('')")
 
+# The pixels of a technique's lanes picture in the page (Bokeh's packed RGBA, one uint32 each), or null.
+LANES = """(() => {{
+  const source = window.Bokeh && Bokeh.documents.length ? Bokeh.documents[0].get_model_by_name('lanes:{name}') : null;
+  return source ? Array.from(source.data.image[0]) : null;
+}})()"""
+
+
+def lanes_rows(page, name):
+    """`name`'s lanes picture as the page has it: (steps, width, 4) RGBA, top row first."""
+    pixels = page.evaluate(LANES.format(name=name))
+    if pixels is None:
+        return None
+    packed = np.array(pixels, np.uint32).reshape(KEPT_STEPS, -1)[::-1]     # Bokeh's bottom row first
+    return np.ascontiguousarray(packed).view(np.uint8).reshape(*packed.shape, 4)
+
+
+def cells(picture, colour):
+    """Per row, the number of lanes drawn in `colour`."""
+    return (picture == np.array(colour, np.uint8)).all(-1).sum(1)
+
 
 def changes_seen(page, name, wanted, timeout=120):
     """The distinct checksums of `name`'s image, polled until `wanted` changes were seen."""
@@ -48,20 +71,29 @@ def changes_seen(page, name, wanted, timeout=120):
 
 @pytest.fixture
 def demo_server():
+    with serve_demo("pt_naive,pt_inplace_regen") as served:
+        yield served
+
+
+@contextmanager
+def serve_demo(techniques):
+    """`python -m toolkit demo` at 64x64 with `techniques`: (the server, its address), then killed."""
     pytest.importorskip("panel", reason='the demo needs Panel: pip install ".[demo]"')
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
     server = subprocess.Popen([sys.executable, "-m", "toolkit", "demo", "--no-browser", "--port", str(port),
-                               "--resolution", "64x64", "--techniques", "pt_naive,pt_inplace_regen"],
+                               "--resolution", "64x64", "--techniques", techniques],
                               cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
                               start_new_session=True, env=dict(os.environ, PYTHONUNBUFFERED="1"))
     line = server.stdout.readline()
     assert "serving the demo at" in line, line + server.stdout.read()
-    yield server, f"http://127.0.0.1:{port}/"
-    if server.poll() is None:
-        os.killpg(server.pid, signal.SIGKILL)
-        server.wait()
+    try:
+        yield server, f"http://127.0.0.1:{port}/"
+    finally:
+        if server.poll() is None:
+            os.killpg(server.pid, signal.SIGKILL)
+            server.wait()
 
 
 @pytest.mark.skipif(BROWSER is None, reason="no headless browser (chromium) installed: apt-get install chromium")
@@ -112,3 +144,30 @@ def test_two_tabs_at_once(demo_server):
     assert server.wait(timeout=30) == 0
     output = server.stdout.read()
     assert "the last tab was closed" in output and "Traceback" not in output, output
+
+
+@pytest.mark.skipif(BROWSER is None, reason="no headless browser (chromium) installed: apt-get install chromium")
+def test_lanes_pictures_show_each_techniques_lesson():
+    """bdpt_naive_connect's picture has connect-phase rows with idle lanes (the slots still walking,
+    the sample's loop over its connections ended), and mlt's picture is not empty: its chains' steps."""
+    pytest.importorskip("websocket", reason="websocket-client drives the browser: pip install '.[test]'")
+    with serve_demo("bdpt_naive_connect,mlt") as (server, url):
+        with ChromiumPage() as page:
+            page.open(url)
+            pictures, deadline = {}, time.monotonic() + 180
+            while time.monotonic() < deadline:
+                pictures = {name: lanes_rows(page, name) for name in ("bdpt_naive_connect", "mlt")}
+                if all(p is not None for p in pictures.values()):
+                    connect = pictures["bdpt_naive_connect"]
+                    idle_connect_rows = (cells(connect, BUSY["connect"]) > 0) & (cells(connect, IDLE) > 0)
+                    mlt = pictures["mlt"]
+                    mlt_busy = sum(cells(mlt, c).sum() for c in (BUSY["walk"], BUSY["connect"], BUSY_OTHER))
+                    if idle_connect_rows.any() and mlt_busy > 0:
+                        break
+                time.sleep(0.5)
+            else:
+                pytest.fail(f"the lanes pictures did not show their lessons; the page says: {page.evaluate(STATUS)}")
+            errors = list(page.errors)
+        assert not errors, errors
+        # both of mlt's kinds of step, the BDPT walk and its Metropolis steps (mutate, accept)
+        assert cells(mlt, BUSY["walk"]).sum() > 0 and cells(mlt, BUSY_OTHER).sum() > 0

@@ -103,6 +103,21 @@ def test_phase_counter_counts_hand_made_warps_exactly():
     assert eff["overall"] == pytest.approx((2 + 5 + 4) / (4 + 8 + 12))
 
 
+def test_loop_iterations_per_iteration_by_hand_and_by_counting():
+    """add_loop_iterations' per-iteration figures (counted from the lengths' histogram): a hand-made
+    case, and a long random launch against counting lane by lane at each iteration."""
+    c = PhaseCounter(warp_width=4)
+    c.add_loop_iterations("connect", [3, 1, 0, 0, 0, 0, 0, 0], first_iteration=5)
+    assert [(it["iteration"], it["active"], it["efficiency"]) for it in c.per_iteration] == \
+        [(5, 2, 2 / 4), (6, 1, 1 / 4), (7, 1, 1 / 4)]
+    x = np.random.default_rng(3).integers(0, 30, 10_000)
+    c = PhaseCounter(warp_width=32)
+    c.add_loop_iterations("extend", x)
+    warp_longest = np.concatenate([x, np.zeros(-len(x) % 32, x.dtype)]).reshape(-1, 32).max(1)
+    assert [(it["active"], it["efficiency"]) for it in c.per_iteration] == \
+        [(int((x > k).sum()), int((x > k).sum()) / (32 * int((warp_longest > k).sum()))) for k in range(x.max())]
+
+
 @pytest.fixture(scope="module")
 def talk_figures(cornell_box):
     """The SIMD counters on cornell_box at W = 32, with a budget (128x128, 32 spp = 524k

@@ -54,11 +54,13 @@ class PhaseCounter:
         lanes with more than k iterations are active, the warps with any such lane issue."""
         w = self.warp_width
         x = np.asarray(lane_iterations, np.int64)
-        warps = _into_warps(x, w)
-        warp_max = warps.max(1)
-        for k in range(int(x.max()) if len(x) else 0):
-            active = int((x > k).sum())
-            issued = int((warp_max > k).sum()) * w
+        longest = int(x.max()) if len(x) else 0
+        # lanes (warps) with more than k iterations, for every k at once: counts of each length, summed from the top
+        lanes_past = _more_than(x, longest)
+        warps_past = _more_than(_into_warps(x, w).max(1), longest)
+        for k in range(longest):
+            active = int(lanes_past[k])
+            issued = int(warps_past[k]) * w
             self.per_iteration.append({"phase": phase, "iteration": first_iteration + k,
                                        "efficiency": active / issued if issued else 1.0,
                                        "active": active, "capacity": len(x), "draining": False})
@@ -75,3 +77,9 @@ def _into_warps(lane_iterations, warp_width):
     x = np.asarray(lane_iterations, np.int64)
     pad = (-len(x)) % warp_width
     return np.concatenate([x, np.zeros(pad, np.int64)]).reshape(-1, warp_width)
+
+
+def _more_than(counts, longest):
+    """For k = 0 .. longest - 1: how many of `counts` are greater than k."""
+    at_least = np.bincount(counts, minlength=longest + 1)[::-1].cumsum()[::-1]   # at_least[k]: counts >= k
+    return at_least[1:longest + 1]

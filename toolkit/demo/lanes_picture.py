@@ -6,18 +6,22 @@ step the techniques count per iteration: a boolean mask of the lanes that did th
 (in-place regeneration's slots, from the LaneCounts the kernels write), a count of lanes packed
 at the start of a compacted stream (compaction, regeneration at the stream's end), or each
 lane's number of loop iterations (pt_naive's one loop per path, where a lane is busy at
-iteration k while its path has more than k vertices to go). WarpSampler is a PhaseCounter that
+iteration k while its path has more than k vertices to go; the naive connect phase likewise, a
+lane busy at iteration k while its sample has more than k connections to make, its slot idle
+while its sample still walks). WarpSampler is a PhaseCounter that
 counts as before and also keeps, for the steps that have an iteration number, the lanes of
 `warps` warps spread over the launch (in-place regeneration: the same slots at every step; a
 compacted stream: warps of the packed paths; pt_naive: warps of pixels across the image). A few
 warps stand for all, as every warp of a launch does the same kind of work. Steps counted without
-an iteration (shadow rays, the connect phase, Metropolis's mutations) are in the efficiency
-figures only.
+an iteration (shadow rays, a compaction, BDPT's regeneration) are in the efficiency figures only.
 
 The final drain of a pass (every sample of its budget started, nothing regenerates, the stream
 or the slots empty: the counters mark those steps `draining`) is one dark row in the picture, not
 its steps: it is as long as the pass's longest path, and would fill the picture at the end of every
-pass, hiding the steady state the talk's figures are about. The efficiency table counts it.
+pass, hiding the steady state the talk's figures are about (a connect phase within it too). The
+efficiency table counts it. Metropolis is the exception (`drains=True`): each of its iterations is
+one batch of proposals, all started at once and none regenerated, so every walk step is a drain and
+a picture without them would stay empty; there the drain is the lesson, and its steps are drawn.
 """
 from collections import deque
 
@@ -30,8 +34,9 @@ KEPT_STEPS = 96       # the most recent steps kept (rows of the picture)
 GOLDEN = (5 ** 0.5 - 1) / 2
 
 # RGBA colours: a busy lane by phase, an idle lane, and the gap between two warps.
-BUSY = {"extend": (52, 120, 198, 255), "walk": (52, 120, 198, 255), "generate": (230, 126, 34, 255)}
-BUSY_OTHER = (120, 80, 170, 255)
+BUSY = {"extend": (52, 120, 198, 255), "walk": (52, 120, 198, 255), "generate": (230, 126, 34, 255),
+        "connect": (46, 160, 67, 255)}
+BUSY_OTHER = (120, 80, 170, 255)  # any other phase: Metropolis's mutate and accept
 DRAIN = "drain"                   # the marker row's phase
 DRAIN_ROW = (70, 70, 70, 255)
 IDLE = (225, 225, 225, 255)
@@ -40,11 +45,14 @@ GAP = (255, 255, 255, 255)
 
 class WarpSampler(PhaseCounter):
     """A PhaseCounter that also keeps the lanes of `warps` warps of each counted step (a row: its
-    phase and a boolean per lane), the last `kept` of them."""
+    phase and a boolean per lane), the last `kept` of them. `drains`: draw a drain's steps (Metropolis)
+    instead of one marker row."""
 
-    def __init__(self, warp_width=32, warps=SAMPLED_WARPS, kept=KEPT_STEPS):
+    def __init__(self, warp_width=32, warps=SAMPLED_WARPS, kept=KEPT_STEPS, drains=False):
         super().__init__(warp_width)
         self.warps = warps
+        self.drains = drains
+        self.in_drain = False  # the last numbered step was a pass's final drain (and not drawn)
         self.rows = deque(maxlen=kept)
         self.steps = 0     # rows ever added: the picture changes when this does
         self._picks = (None, None)   # (launch size, its sampled_lanes): the last size seen
@@ -53,7 +61,8 @@ class WarpSampler(PhaseCounter):
         super().add_stream_step(phase, mask_or_count, length, iteration, capacity, draining)
         if iteration is None:
             return
-        if draining:     # the pass's final drain: one marker row for all of it (see the module's docstring)
+        self.in_drain = draining and not self.drains
+        if self.in_drain:     # the pass's final drain: one marker row for all of it (see the module's docstring)
             if not self.rows or self.rows[-1][0] != DRAIN:
                 self.rows.append((DRAIN, np.zeros(self.warps * self.warp_width, bool)))
                 self.steps += 1
@@ -67,6 +76,8 @@ class WarpSampler(PhaseCounter):
 
     def add_loop_iterations(self, phase, lane_iterations, first_iteration=0):
         super().add_loop_iterations(phase, lane_iterations, first_iteration)
+        if self.in_drain:      # a connect phase within the final drain: left out with it
+            return
         x = self.sampled(np.asarray(lane_iterations, np.int64))
         # Each warp issues until its own longest lane is done: rows up to the sampled warps' longest.
         for k in range(int(x.max()) if len(x) else 0):

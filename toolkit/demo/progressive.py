@@ -32,7 +32,8 @@ class ProgressiveRender:
         self.name = technique
         self.tech = cls(queue, device_scene, count_simd=True, **options)
         # The same counters, and beside them the lanes of the first few warps of every step.
-        self.tech.recorder.simd = WarpSampler(self.tech.warp_width)
+        # Metropolis draws its drains' steps: each of its iterations is one (lanes_picture.py).
+        self.tech.recorder.simd = WarpSampler(self.tech.warp_width, drains=self.tech.family == "mlt")
         self.width, self.height = width, height
         self.seed = np.uint32(seed)
         self.camera = device_scene.camera(width, height)

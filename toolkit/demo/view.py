@@ -16,7 +16,7 @@ from bokeh.plotting import figure
 from toolkit.core.validate import InputError
 from toolkit.techniques import TECHNIQUES
 from toolkit.demo.efficiency import efficiency_html
-from toolkit.demo.lanes_picture import BUSY, KEPT_STEPS, SAMPLED_WARPS
+from toolkit.demo.lanes_picture import BUSY, BUSY_OTHER, KEPT_STEPS, SAMPLED_WARPS
 from toolkit.demo.still import still_png
 from toolkit.demo.settings import MOST_TECHNIQUES, RESOLUTIONS, Settings, parse_resolution
 from toolkit.demo.tone_map import packed_for_bokeh
@@ -29,9 +29,13 @@ COLOURS = ("#1f77b4", "#ff7f0e", "#2ca02c")     # one per technique slot, in the
 LANES_NOTE = (
     "Each row is one step of the technique (newest at the bottom), each pixel one lane of {warps} warps of "
     "{w} lanes spread over the step's launch: <span style='color:rgb{extend}'>■</span> busy extending a path, "
-    "<span style='color:rgb{generate}'>■</span> busy starting a sample, <span style='color:#bbb'>■</span> idle "
+    "<span style='color:rgb{generate}'>■</span> busy starting a sample, <span style='color:rgb{connect}'>■</span> "
+    "busy connecting (BDPT's naive connect phase: one row per iteration of its loop over a sample's connections; "
+    "the parallel one: one row), <span style='color:rgb{other}'>■</span> busy in another step (Metropolis's mutate "
+    "and accept), <span style='color:#bbb'>■</span> idle "
     "in a warp that issued the step, blank: the warp had no work and did not issue it; a dark line: the final "
-    "drain of a pass (every sample started, the stream emptying), left out here and counted in the table. "
+    "drain of a pass (every sample started, the stream emptying), left out here and counted in the table "
+    "(Metropolis draws it: each of its iterations is one batch of proposals draining). "
     "From the SIMD counters "
     "(toolkit/core/simd.py): the lanes each counted step had busy, as the kernels reported them.")
 
@@ -166,7 +170,8 @@ class DemoView:
         self.images.objects = [s.image_card for s in self.slots.values()]
         self.lanes.objects = [pn.pane.Bokeh(s.lanes_figure) for s in self.slots.values()]
         self.lanes_note.object = LANES_NOTE.format(warps=SAMPLED_WARPS, w=snap.warp_width or 32,
-                                                   extend=_rgb(BUSY["extend"]), generate=_rgb(BUSY["generate"]))
+                                                   extend=_rgb(BUSY["extend"]), generate=_rgb(BUSY["generate"]),
+                                                   connect=_rgb(BUSY["connect"]), other=_rgb(BUSY_OTHER))
         self.efficiency.object = efficiency_html({})
         lines = {name: dict(x=[], y=[]) for name in self.slots}
         for renderer in list(self.means_figure.renderers):

@@ -65,7 +65,7 @@ class NaiveConnect:
         if not ctx.recorder.on:
             return
         connections = ctx.memory.read_lane_counts(p.pool.lane_counts, p.pool.size)["work"]
-        ctx.recorder.simd.add_warp_loops("connect", connections)
+        ctx.recorder.inner_loop("connect", connections)     # and the lanes of each iteration, for the demo
         # For comparison: the same loops with only the terminated samples, packed side by side.
         self.packed.add_warp_loops("connect", connections[connections > 0])
 

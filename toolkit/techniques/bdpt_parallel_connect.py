@@ -33,7 +33,7 @@ class ParallelConnect:
         ctx.kernels.launch("bdpt_parallel_connect", total, **ctx.kernels.scene_args(), cam=p.camera,
                     total=np.int32(total), pool=np.int32(pool), **connect_args(p, firsts, values, pixels, lanes))
         if ctx.recorder.on:
-            ctx.recorder.simd.add_stream_step("connect", total)
+            ctx.recorder.before_step("connect", total)
         connections = Connections(total, values, pixels, ctx.queue)
         if self.read_slots:
             connections.slot_records = ctx.memory.read_ints(counts, pool)

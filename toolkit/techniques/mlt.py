@@ -264,7 +264,7 @@ class Mlt(BdptPoolTechnique):
         self.kernels.launch("mlt_mutate", int(it["active"]), it=it, current=c.current, proposal=c.proposal,
                             chains=c.records)
         if self.count_simd:
-            self.recorder.simd.add_stream_step("mutate", int(it["active"]))
+            self.recorder.before_step("mutate", int(it["active"]))
 
     def evaluate_proposals(self, c, active):
         """The proposals as one batch of BDPT samples (sample id = chain, random numbers from the
@@ -287,7 +287,7 @@ class Mlt(BdptPoolTechnique):
         self.kernels.launch("mlt_accept", active, it=it, current=c.current, proposal=c.proposal, chains=c.records,
                             f_proposal=c.f_proposal, dims_proposal=c.dims_proposal)
         if self.count_simd:
-            self.recorder.simd.add_stream_step("accept", active)
+            self.recorder.before_step("accept", active)
         return self.memory.read_structs(MLT_CHAIN, c.records, active)
 
     def splat(self, c, decisions, proposals, mode):

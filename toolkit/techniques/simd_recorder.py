@@ -31,6 +31,13 @@ class SimdRecorder:
         self.simd.add_loop_iterations(phase, iterations, first_iteration=self.iterations)
         self.iterations += int(iterations.max())
 
+    def inner_loop(self, phase, iterations):
+        """A loop that each work-item of one launch runs `iterations[k]` times, between two steps
+        (the naive connect phase: a lane's connections): a warp issues it as long as its longest
+        lane; its iterations are numbered as the step that follows, as before_step's."""
+        self.simd.add_warp_loops(phase, iterations)
+        self.simd.add_loop_iterations(phase, iterations, first_iteration=self.iterations)
+
     def extension_step(self, lanes, capacity, draining=False, shadow_queue=False):
         """SIMD counters of one extension step over a stream, from the LaneCounts of the lanes
         that ran it; with `shadow_queue` the shadow rays are traced (and counted) by a kernel
