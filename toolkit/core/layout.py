@@ -307,8 +307,16 @@ class MltMode(IntEnum):
     CANDIDATE = 2       # start = resample: a large step, kept with probability f / (sum of f so far)
 
 
+class MltTally(IntEnum):
+    """The render's integer counts that mlt's kernels keep on the device (cl/mlt_contribution.h),
+    read once at the end of the render: the index of each in the tallies buffer."""
+    NONFINITE = 0       # records dropped for a non-finite value (DroppedSamplesWarning)
+    OVERFLOW = 1        # proposals that read more than max_dims dimensions
+
+
 NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"),
-                (WalkCounter, ""), (StreamCounter, "STREAM_"), (MltMode, "MLT_")]
+                (WalkCounter, ""), (StreamCounter, "STREAM_"), (MltMode, "MLT_"),
+                (MltTally, "MLT_TALLY_")]
 
 # ---- single constants --------------------------------------------------------------------
 

@@ -89,7 +89,7 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.core.sample_dims import used_dims
-from toolkit.core.layout import MLT_CHAIN, MLT_ITERATION, MltMode
+from toolkit.core.layout import MLT_CHAIN, MLT_ITERATION, MltMode, MltTally
 from toolkit.core.validate import InputError, finite_number, whole_number
 from toolkit.opencl.work_sizes import device_work_sizes
 from toolkit.techniques.base import pixel_count
@@ -192,6 +192,7 @@ class Mlt(BdptPoolTechnique):
 
     def end_render(self, film):
         c, pixels = self.last_chains, film.width * film.height
+        c.read_tallies(self.memory)   # the non-finite records and dimension overflows, counted on the device
         # spp as made (whole samples per pixel; fewer than asked when time_limit stopped it)
         film.add_pass(self.image(c).reshape(film.height, film.width, 3), max(1, c.mutations // pixels),
                       nonfinite=c.nonfinite)
@@ -208,7 +209,8 @@ class Mlt(BdptPoolTechnique):
         c = Chains(count, seed, camera, cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
                    cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
                    cl.Buffer(ctx, cl.mem_flags.READ_WRITE, MLT_CHAIN.dtype.itemsize * n),
-                   cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n), self.memory.int_buffer(count), pixel_count(camera))
+                   cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n), self.memory.int_buffer(count),
+                   self.memory.int_buffer(len(MltTally), fill=0), pixel_count(camera))
         cl.enqueue_fill_buffer(self.queue, c.records, np.int32(0), 0, MLT_CHAIN.dtype.itemsize * n)
         self.last_chains = c
         if self.start == "naive":
@@ -230,7 +232,7 @@ class Mlt(BdptPoolTechnique):
         it["seed"], it["iteration"], it["chains"], it["active"] = c.seed, c.iteration, c.count, active
         it["large_step"], it["mode"] = self.large_step, int(mode)
         self.mutate(c, it)                               # every chain proposes (large or small step)
-        proposals = self.evaluate_proposals(c, active)   # all proposals as one batch of BDPT samples
+        proposals = self.evaluate_proposals(c, active, mode)   # all proposals as one batch of BDPT samples
         decisions = self.accept(c, it, proposals)        # accept or reject per chain
         self.splat(c, decisions, proposals, mode)        # proposal with weight a, current state with 1 - a
         c.iteration += 1
@@ -266,24 +268,20 @@ class Mlt(BdptPoolTechnique):
         if self.count_simd:
             self.recorder.simd.add_stream_step("mutate", int(it["active"]))
 
-    def evaluate_proposals(self, c, active):
+    def evaluate_proposals(self, c, active, mode):
         """The proposals as one batch of BDPT samples (sample id = chain, random numbers from the
-        proposals' vectors): their records stay with their chains (ProposalSink)."""
+        proposals' vectors): their f and dimensions summed on the device, their records kept
+        with their chains (ProposalSink)."""
         p = self.bdpt.start_pass(c.camera, c.seed, c.iteration, active, sampler_args={"mlt_primary": c.proposal},
                                  vector_stride=c.count)
-        sink = ProposalSink(active)
+        sink = ProposalSink(self.kernels, c, active)
         self.bdpt.evaluate(p, sink)
-        proposals, nonfinite, overflow = sink.proposals(self.max_dims)
-        c.nonfinite += nonfinite
-        c.overflow += overflow
-        return proposals
+        return sink.proposals(self.memory, read_dims=self.start == "pool" and mode == MltMode.START)
 
     def accept(self, c, it, proposals):
-        """mlt_accept (cl/mlt.h) with the proposals' f and dimensions; returns the chain records
-        (MltChain: acceptance, accepted, large_step of each chain)."""
+        """mlt_accept (cl/mlt.h) with the proposals' f and dimensions (on the device since the
+        connect phases); returns the chain records (MltChain: acceptance, accepted, large_step of each chain)."""
         active = int(it["active"])
-        cl.enqueue_copy(self.queue, c.f_proposal, proposals.f.astype(np.float32))
-        cl.enqueue_copy(self.queue, c.dims_proposal, proposals.dims.astype(np.int32))
         self.kernels.launch("mlt_accept", active, it=it, current=c.current, proposal=c.proposal, chains=c.records,
                             f_proposal=c.f_proposal, dims_proposal=c.dims_proposal)
         if self.count_simd:
