@@ -63,6 +63,8 @@ __kernel void mlt_accept(const MltIteration it, __global float* current, __globa
     }
     chain.accepted = accept;
     chain.acceptance = a;
+    chain.f_proposal = fy;            /* what the host reads of the proposal, with the decision */
+    chain.dims_proposal = dims_proposal[c];
     chains[c] = chain;
 }
 

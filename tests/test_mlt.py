@@ -220,31 +220,34 @@ def test_each_proposals_f_and_dims_are_summed_on_the_device_from_its_records(cor
     from toolkit.core.layout import LUMINANCE_WEIGHTS
     from toolkit.core.sample_dims import used_dims
     from toolkit.techniques import mlt_chains
-    seen, expected_dims = [], {}
-    add, proposals = mlt_chains.ProposalSink.add, mlt_chains.ProposalSink.proposals
+    from toolkit.techniques.mlt import Mlt
+    seen, pending, expected_dims = [], [], {}
+    add, records, accept = mlt_chains.ProposalSink.add, mlt_chains.ProposalSink.records, Mlt.accept
 
     def add_noting_dims(sink, connections):
         if connections.slots is not None:
-            done = connections.slot_records > 0
-            slots = connections.slots[done]
+            slots = connections.slots[connections.slot_records > 0]
             expected_dims.update(zip(slots["sample_id"].tolist(),
                                      used_dims(slots["eye_vertices"], slots["light_vertices"]).tolist()))
         add(sink, connections)
 
-    def checked(sink, memory, read_dims):
-        p = proposals(sink, memory, read_dims)
-        r = p.records
-        host = np.bincount(r.chain, r.values @ np.asarray(LUMINANCE_WEIGHTS), minlength=sink.active)
-        n = np.bincount(r.chain, minlength=sink.active)
-        seen.append((p.f, host, n))
-        if read_dims:
-            dims = np.full(sink.active, 8)
-            dims[list(expected_dims)] = np.minimum(list(expected_dims.values()), 128)
-            assert np.array_equal(p.dims, dims)
+    def records_noted(sink):
+        pending.append((sink.active, records(sink)))
+        return pending[-1][1]
+
+    def accept_checked(tech, c, it):
+        decisions = accept(tech, c, it)
+        active, r = pending.pop()
+        host = np.bincount(r.chain, r.values @ np.asarray(LUMINANCE_WEIGHTS), minlength=active)
+        seen.append((decisions["f_proposal"], host, np.bincount(r.chain, minlength=active)))
+        dims = np.full(active, 8)
+        dims[list(expected_dims)] = np.minimum(list(expected_dims.values()), 128)
+        assert np.array_equal(decisions["dims_proposal"], dims)
         expected_dims.clear()
-        return p
+        return decisions
     monkeypatch.setattr(mlt_chains.ProposalSink, "add", add_noting_dims)
-    monkeypatch.setattr(mlt_chains.ProposalSink, "proposals", checked)
+    monkeypatch.setattr(mlt_chains.ProposalSink, "records", records_noted)
+    monkeypatch.setattr(Mlt, "accept", accept_checked)
     render(cornell_box, 4, 0, 8, chains=128, start="pool", candidates=2)
     f, host, n = (np.concatenate(x) for x in zip(*seen))
     assert len(seen) == 2 + 2 and (f > 0).mean() > 0.3       # two candidates, two iterations

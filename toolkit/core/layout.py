@@ -204,8 +204,8 @@ MLT_CHAIN = Record("MltChain", [
     ("accepted", "int"),        # 1: this iteration's proposal became the current state
     ("acceptance", "float"),    # a = min(1, f(proposal) / f(current)): the proposal's splat weight
     ("candidates", "float"),    # start = resample: sum of f over the candidates seen so far
-    ("pad0", "int"),
-    ("pad1", "int"),
+    ("f_proposal", "float"),    # this iteration's proposal's f (cl/mlt_contribution.h), for the host's splats and b
+    ("dims_proposal", "int"),   # the dimensions it used (start = pool picks from the candidates')
 ], "One Metropolis chain (cl/mlt.h); its primary-sample vector is stored apart, dimension-major.")
 
 MLT_ITERATION = Record("MltIteration", [

@@ -65,12 +65,6 @@ class DeviceMemory:
             cl.enqueue_copy(self.queue, out, buffer, src_offset=offset)
         return out
 
-    def read_floats(self, buffer, n):
-        out = np.empty(n, np.float32)
-        if n:
-            cl.enqueue_copy(self.queue, out, buffer)
-        return out
-
     def read_ints(self, buffer, n, columns=1):
         out = np.empty((n, columns) if columns > 1 else n, np.int32)
         if n:

@@ -95,7 +95,7 @@ from toolkit.opencl.work_sizes import device_work_sizes
 from toolkit.techniques.base import pixel_count
 from toolkit.techniques.bdpt_evaluator import BdptEvaluator, BdptPoolTechnique, per_pixel_sums
 from toolkit.techniques.bdpt_parallel_connect import ParallelConnect
-from toolkit.techniques.mlt_chains import (Chains, ProposalSink, records_of_picks,
+from toolkit.techniques.mlt_chains import (Chains, ProposalSink, Proposals, records_of_picks,
                                            systematic_picks)
 
 STARTS = ("naive", "resample", "pool")
@@ -232,8 +232,9 @@ class Mlt(BdptPoolTechnique):
         it["seed"], it["iteration"], it["chains"], it["active"] = c.seed, c.iteration, c.count, active
         it["large_step"], it["mode"] = self.large_step, int(mode)
         self.mutate(c, it)                               # every chain proposes (large or small step)
-        proposals = self.evaluate_proposals(c, active, mode)   # all proposals as one batch of BDPT samples
-        decisions = self.accept(c, it, proposals)        # accept or reject per chain
+        records = self.evaluate_proposals(c, active)     # all proposals as one batch of BDPT samples
+        decisions = self.accept(c, it)                   # accept or reject per chain
+        proposals = Proposals(records, decisions["f_proposal"].astype(np.float64), decisions["dims_proposal"])
         self.splat(c, decisions, proposals, mode)        # proposal with weight a, current state with 1 - a
         c.iteration += 1
         return proposals
@@ -268,19 +269,20 @@ class Mlt(BdptPoolTechnique):
         if self.count_simd:
             self.recorder.simd.add_stream_step("mutate", int(it["active"]))
 
-    def evaluate_proposals(self, c, active, mode):
+    def evaluate_proposals(self, c, active):
         """The proposals as one batch of BDPT samples (sample id = chain, random numbers from the
-        proposals' vectors): their f and dimensions summed on the device, their records kept
+        proposals' vectors): their f and dimensions summed on the device, their records returned
         with their chains (ProposalSink)."""
         p = self.bdpt.start_pass(c.camera, c.seed, c.iteration, active, sampler_args={"mlt_primary": c.proposal},
                                  vector_stride=c.count)
         sink = ProposalSink(self.kernels, c, active)
         self.bdpt.evaluate(p, sink)
-        return sink.proposals(self.memory, read_dims=self.start == "pool" and mode == MltMode.START)
+        return sink.records()
 
-    def accept(self, c, it, proposals):
+    def accept(self, c, it):
         """mlt_accept (cl/mlt.h) with the proposals' f and dimensions (on the device since the
-        connect phases); returns the chain records (MltChain: acceptance, accepted, large_step of each chain)."""
+        connect phases); returns the chain records (MltChain: acceptance, accepted, large_step, and
+        the proposal's f and dims of each chain)."""
         active = int(it["active"])
         self.kernels.launch("mlt_accept", active, it=it, current=c.current, proposal=c.proposal, chains=c.records,
                             f_proposal=c.f_proposal, dims_proposal=c.dims_proposal)

@@ -36,7 +36,7 @@ class Proposals:
     """One iteration's proposals, evaluated as a batch of BDPT samples (sample id = chain)."""
     records: ChainRecords  # every connection record of every proposal
     f: np.ndarray          # (active,) scalar contribution of each proposal: luminance of its records, >= 0 (float32 sums)
-    dims: np.ndarray       # (active,) primary-sample dimensions each proposal used, at most max_dims; None: not read
+    dims: np.ndarray       # (active,) primary-sample dimensions each proposal used, at most max_dims
 
 
 class ProposalSink:
@@ -70,17 +70,12 @@ class ProposalSink:
         ok = (connections.pixels >= 0) & np.isfinite(values).all(1)
         self.parts.append(ChainRecords(values[ok].astype(np.float64), connections.pixels[ok], chain[ok]))
 
-    def proposals(self, memory, read_dims):
-        """The iteration's Proposals: the records, and f read from the device (dims too, if `read_dims`:
-        start = pool picks from the candidates' dimensions)."""
-        if self.parts:
-            records = ChainRecords(*(np.concatenate(x) for x in
-                                     zip(*((r.values, r.pixels, r.chain) for r in self.parts))))
-        else:
-            records = ChainRecords.empty()
-        f = memory.read_floats(self.chains.f_proposal, self.active).astype(np.float64)
-        dims = memory.read_ints(self.chains.dims_proposal, self.active) if read_dims else None
-        return Proposals(records, f, dims)
+    def records(self):
+        """The proposals' records, with their chains (f and dims stay on the device: mlt_accept
+        reads them there, and the host gets them with the chains' decisions, MltChain)."""
+        if not self.parts:
+            return ChainRecords.empty()
+        return ChainRecords(*(np.concatenate(x) for x in zip(*((r.values, r.pixels, r.chain) for r in self.parts))))
 
 
 @dataclass
