@@ -1,13 +1,15 @@
 """Metropolis light transport: many independent primary-sample-space chains (Kelemen et al. 2002)
 over the bidirectional estimator, as in the talk's slides "Metropolis Light Transport" and
-"Startup Bias". Kernels: cl/mlt.cl (cl/mlt.h: mutation and acceptance; the BDPT kernels of
+"Startup Bias". Kernels: cl/mlt.cl (cl/mlt.h: mutation and acceptance; cl/mlt_contribution.h:
+each proposal's f, summed on the device from its records; the BDPT kernels of
 cl/bdpt_parallel_connect.cl built with -DMLT=1 read their uniforms from the chains' vectors).
 
 One iteration, read like the slide:
     mutate every chain (large step with probability `large_step`, else a small step);
     evaluate all proposals as one batch of BDPT samples (BDPT's evaluator, bdpt_evaluator.py:
-        compacted walks, parallel connect; the records go to the chains, not to an image);
-    accept or reject per chain;
+        compacted walks, parallel connect; the records go to the chains, not to an image,
+        and each proposal's f is summed from them on the device);
+    accept or reject per chain (on the device; the host reads the decisions, with each proposal's f);
     splat the proposal with weight a and the current state with weight 1 - a.
 
 The estimator. A sample x (a point of primary sample space [0, 1)^D: the image position, the
@@ -60,9 +62,11 @@ like f / b up to the resampling of a finite pool: a bias of O(1 / (chains x N)),
 above, with no weights to add variance. A bright candidate may start several chains; they part
 with their first mutations.
 
-Splats (pixel, value) are added on the host in float64, like the t = 1 records of BDPT
-(bdpt_evaluator.per_pixel_sums): no float atomics. Each chain's current state keeps its records
-on the host until it is replaced.
+Splats (pixel, value) are added on the host in float64 (bdpt_evaluator.per_pixel_sums): no float
+atomics. Each chain's current state keeps its records on the host until it is replaced. Each
+proposal's f is the float32 sum of its records' luminance on the device, in the order the connect
+phase wrote them (cl/mlt_contribution.h: the same bits every run); the records dropped for a
+non-finite value and the proposals past max_dims are counted there too, and read at the end.
 
 Options (keyword arguments of toolkit.render(..., options=...)):
 

@@ -35,7 +35,7 @@ class ChainRecords:
 class Proposals:
     """One iteration's proposals, evaluated as a batch of BDPT samples (sample id = chain)."""
     records: ChainRecords  # every connection record of every proposal
-    f: np.ndarray          # (active,) scalar contribution of each proposal: luminance of its records, >= 0 (float32 sums)
+    f: np.ndarray          # (active,) scalar contribution of each proposal: luminance of its records, >= 0 (float32)
     dims: np.ndarray       # (active,) primary-sample dimensions each proposal used, at most max_dims
 
 
