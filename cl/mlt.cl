@@ -7,9 +7,11 @@
  *   bdpt_regenerate, bdpt_extend, bdpt_mark_terminated, the compaction,
  *   bdpt_parallel_connect_count, the scan, bdpt_parallel_connect
  *                                cl/bdpt_parallel_connect.cl  evaluate the proposals (one BDPT sample each)
- *   (the host sums each proposal's records: its contribution f and its splats)
+ *   mlt_proposal_sums            cl/mlt_contribution.h       after each connect phase: each proposal's f and dims
+ *   (the host reads the records for the splats)
  *   mlt_accept                   cl/mlt.h                    keep or reject each proposal
  * and once, for start = pool, after the candidates:
  *   mlt_start_from               cl/mlt.h                    each chain's first state, picked by the host */
 #include "bdpt_parallel_connect.cl"
 #include "mlt.h"
+#include "mlt_contribution.h"

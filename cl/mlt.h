@@ -8,8 +8,8 @@
  * prefix, from the vertex counts: toolkit/techniques/mlt.py); the rest are unused, uniform noise.
  *
  * One iteration: mlt_mutate writes every chain's proposal, the BDPT kernels evaluate it
- * (cl/bdpt_sampler.h answers their uniforms from the proposal), the host sums each proposal's
- * contribution f (luminance of all its strategies), mlt_accept keeps or rejects it.
+ * (cl/bdpt_sampler.h answers their uniforms from the proposal), mlt_proposal_sums sums each proposal's
+ * contribution f (luminance of all its strategies, cl/mlt_contribution.h), mlt_accept keeps or rejects it.
  *
  * The mutation, its random numbers and why its proposal is symmetric: cl/mlt_mutation.h (the
  * file that course assignment 6, tutorials/assignments/mlt_mutation/, replaces with a student's own).
@@ -29,7 +29,7 @@
 #include "mlt_mutation.h"
 
 /* Metropolis-Hastings acceptance of the proposals whose contributions f (luminance over all
- * strategies) and used dimensions the host has summed: a = min(1, f(y) / f(x)), and a = 1 from
+ * strategies) and used dimensions mlt_proposal_sums has summed: a = min(1, f(y) / f(x)), and a = 1 from
  * a state with f = 0 (the start may have one). START: always accepted. CANDIDATE (start =
  * resample): weighted reservoir sampling, kept with probability f / (sum of f so far), so after
  * N candidates the state is candidate i with probability f_i / sum f. The accepted vector is
@@ -63,6 +63,8 @@ __kernel void mlt_accept(const MltIteration it, __global float* current, __globa
     }
     chain.accepted = accept;
     chain.acceptance = a;
+    chain.f_proposal = fy;            /* what the host reads of the proposal, with the decision */
+    chain.dims_proposal = dims_proposal[c];
     chains[c] = chain;
 }
 

@@ -210,6 +210,74 @@ def test_storage_layout_and_connect_schedule_do_not_change_the_image(queue, corn
     assert np.allclose(images[0], images[2], rtol=rtol, atol=0), f"schedules differ by {worst:.2g} relative"
 
 
+# -- each proposal's f on the device ------------------------------------------------------------------
+
+def test_each_proposals_f_and_dims_are_summed_on_the_device_from_its_records(cornell_box, monkeypatch):
+    """mlt_proposal_sums (cl/mlt_contribution.h) adds each proposal's records in float32 on the
+    device: f agrees with the float64 sum of the same records read back, within float32 rounding
+    of a sum of n non-negative terms (n * 2^-23 of the sum, n the proposal's records: far below a
+    record's share); its dims are used_dims of the slot's subpaths, at most max_dims."""
+    from toolkit.core.layout import LUMINANCE_WEIGHTS
+    from toolkit.core.sample_dims import used_dims
+    from toolkit.techniques import mlt_chains
+    from toolkit.techniques.mlt import Mlt
+    seen, pending, expected_dims = [], [], {}
+    add, records, accept = mlt_chains.ProposalSink.add, mlt_chains.ProposalSink.records, Mlt.accept
+
+    def add_noting_dims(sink, connections):
+        if connections.slots is not None:
+            slots = connections.slots[connections.slot_records > 0]
+            expected_dims.update(zip(slots["sample_id"].tolist(),
+                                     used_dims(slots["eye_vertices"], slots["light_vertices"]).tolist()))
+        add(sink, connections)
+
+    def records_noted(sink):
+        pending.append((sink.active, records(sink)))
+        return pending[-1][1]
+
+    def accept_checked(tech, c, it):
+        decisions = accept(tech, c, it)
+        active, r = pending.pop()
+        host = np.bincount(r.chain, r.values @ np.asarray(LUMINANCE_WEIGHTS), minlength=active)
+        seen.append((decisions["f_proposal"], host, np.bincount(r.chain, minlength=active)))
+        dims = np.full(active, 8)
+        dims[list(expected_dims)] = np.minimum(list(expected_dims.values()), 128)
+        assert np.array_equal(decisions["dims_proposal"], dims)
+        expected_dims.clear()
+        return decisions
+    monkeypatch.setattr(mlt_chains.ProposalSink, "add", add_noting_dims)
+    monkeypatch.setattr(mlt_chains.ProposalSink, "records", records_noted)
+    monkeypatch.setattr(Mlt, "accept", accept_checked)
+    render(cornell_box, 4, 0, 8, chains=128, start="pool", candidates=2)
+    f, host, n = (np.concatenate(x) for x in zip(*seen))
+    assert len(seen) == 2 + 2 and (f > 0).mean() > 0.3       # two candidates, two iterations
+    assert np.all(np.abs(f - host) <= np.maximum(n, 1) * 2.0 ** -23 * host + 1e-30)
+
+
+def test_a_non_finite_record_is_dropped_counted_on_the_device_and_reported(cornell_box, monkeypatch):
+    """A NaN planted in the first record of every connect phase: the device leaves it out of f
+    and counts it (MltTally.NONFINITE, read once at the end), the host leaves it out of the
+    splats; the render reports it (DroppedSamplesWarning) and its image stays finite."""
+    import pyopencl as cl
+    from toolkit.techniques import mlt_chains
+    planted, add = [], mlt_chains.ProposalSink.add
+
+    def add_with_a_nan(sink, connections):
+        if connections.count:
+            queue = connections.queue
+            cl.enqueue_copy(queue, connections.value_buffer, np.float32([np.nan, 1.0, 1.0, 1.0]))
+            cl.enqueue_copy(queue, connections.pixel_buffer, np.int32([0]))
+            planted.append(1)
+        add(sink, connections)
+    monkeypatch.setattr(mlt_chains.ProposalSink, "add", add_with_a_nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("default", DroppedSamplesWarning)
+        with pytest.warns(DroppedSamplesWarning):
+            r = render(cornell_box, 2, 1, 8, chains=64, start="naive")
+    assert len(planted) > 1 and r.stats["nonfinite_samples"] == len(planted)
+    assert np.isfinite(r.image).all() and r.image.sum() > 0
+
+
 # -- chain counts at the extremes --------------------------------------------------------------------
 
 def test_one_chain_and_64k_chains(cornell_box):

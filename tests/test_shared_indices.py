@@ -28,6 +28,7 @@ CASES = [
     ("bounce_dim", "(int)bounce_dim(a, (uint)c)", lambda a, b, c: sd.bounce_dim(a, c)),
     ("bdpt_scatter_dim", "(int)bdpt_scatter_dim(b, (c & 1) != 0, (uint)a % 4u)",
      lambda a, b, c: sd.bdpt_scatter_dim(b, c % 2 == 1, a % 4)),
+    ("used_dims", "used_dims(b, c)", lambda a, b, c: sd.used_dims(b, c)),
 ]
 
 KERNEL = """

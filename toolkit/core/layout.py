@@ -206,8 +206,8 @@ MLT_CHAIN = Record("MltChain", [
     ("accepted", "int"),        # 1: this iteration's proposal became the current state
     ("acceptance", "float"),    # a = min(1, f(proposal) / f(current)): the proposal's splat weight
     ("candidates", "float"),    # start = resample: sum of f over the candidates seen so far
-    ("pad0", "int"),
-    ("pad1", "int"),
+    ("f_proposal", "float"),    # this iteration's proposal's f (cl/mlt_contribution.h), for the host's splats and b
+    ("dims_proposal", "int"),   # the dimensions it used (start = pool picks from the candidates')
 ], "One Metropolis chain (cl/mlt.h); its primary-sample vector is stored apart, dimension-major.")
 
 MLT_ITERATION = Record("MltIteration", [
@@ -306,8 +306,15 @@ class MltMode(IntEnum):
     CANDIDATE = 2       # start = resample: a large step, kept with probability f / (sum of f so far)
 
 
+class MltTally(IntEnum):
+    """The render's integer counts that mlt's kernels keep on the device (cl/mlt_contribution.h),
+    read once at the end of the render: the index of each in the tallies buffer."""
+    NONFINITE = 0       # records dropped for a non-finite value (DroppedSamplesWarning)
+    OVERFLOW = 1        # proposals that read more than max_dims dimensions
+
+
 NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"),
-                (WalkCounter, ""), (MltMode, "MLT_")]
+                (WalkCounter, ""), (MltMode, "MLT_"), (MltTally, "MLT_TALLY_")]
 
 # ---- single constants --------------------------------------------------------------------
 

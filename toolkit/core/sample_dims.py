@@ -17,8 +17,6 @@ Connections consume no random numbers (s = 1 uses the light subpath's first vert
 """
 from enum import IntEnum
 
-import numpy as np
-
 from toolkit.core.c_formula import c_defines, c_helper, where
 
 
@@ -77,7 +75,8 @@ def bdpt_scatter_dim(vertex, light_path, offset):
 def used_dims(eye_vertices, light_vertices):
     """Dimensions a BDPT sample used (a prefix of the table): vertex k >= 1 of either subpath
     scatters with dimensions 8 + 8 (k - 1) .. 8 + 8 k - 1, and the last stored vertex may have."""
-    return BDPT_FIRST_SCATTER_DIM + BDPT_DIMS_PER_VERTEX * (np.maximum(eye_vertices, light_vertices) - 1)
+    longer = where(eye_vertices >= light_vertices, eye_vertices, light_vertices)
+    return BDPT_FIRST_SCATTER_DIM + BDPT_DIMS_PER_VERTEX * (longer - 1)
 
 
 def c_definitions():
@@ -87,4 +86,5 @@ def c_definitions():
         f"#define DIMS_PER_BOUNCE {PATH_DIMS_PER_BOUNCE}",
         c_helper(bounce_dim, [("bounce", "int"), ("offset", "uint")], "uint"),
         c_defines(BdptDim, "BDPT_DIM_"), c_defines(BdptScatterDim, "BDPT_SCATTER_"),
-        c_helper(bdpt_scatter_dim, [("vertex", "int"), ("light_path", "bool"), ("offset", "uint")], "uint")])
+        c_helper(bdpt_scatter_dim, [("vertex", "int"), ("light_path", "bool"), ("offset", "uint")], "uint"),
+        c_helper(used_dims, [("eye_vertices", "int"), ("light_vertices", "int")])])

@@ -112,6 +112,10 @@ class Connections:
     strategy: np.ndarray = None      # (n,) each record's strategy (strategy_index), with STRATEGY_IMAGES
     slots: np.ndarray = None         # BdptSlot[pool] as connected (sample ids, vertex counts), if the phase reads them
     slot_records: np.ndarray = None  # (pool,) records each slot wrote, consecutive in slot order, likewise
+    # The same on the device (the parallel connect phase): for a sink that sums each sample's records there
+    slot_buffer: cl.Buffer = None    # BdptSlot[pool] as connected
+    count_buffer: cl.Buffer = None   # int[pool]: records each slot wrote
+    first_buffer: cl.Buffer = None   # int[pool]: where each slot's records start (the scan of count_buffer)
 
     @classmethod
     def none(cls):

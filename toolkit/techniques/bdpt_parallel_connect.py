@@ -34,7 +34,8 @@ class ParallelConnect:
                     total=np.int32(total), pool=np.int32(pool), **connect_args(p, firsts, values, pixels, lanes))
         if ctx.recorder.on:
             ctx.recorder.before_step("connect", total)
-        connections = Connections(total, values, pixels, ctx.queue)
+        connections = Connections(total, values, pixels, ctx.queue, slot_buffer=p.pool.slots, count_buffer=counts,
+                                  first_buffer=firsts)
         if self.read_slots:
             connections.slot_records = ctx.memory.read_ints(counts, pool)
             connections.slots = ctx.memory.read_structs(BDPT_SLOT, p.pool.slots, pool)

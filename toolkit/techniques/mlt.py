@@ -1,13 +1,15 @@
 """Metropolis light transport: many independent primary-sample-space chains (Kelemen et al. 2002)
 over the bidirectional estimator, as in the talk's slides "Metropolis Light Transport" and
-"Startup Bias". Kernels: cl/mlt.cl (cl/mlt.h: mutation and acceptance; the BDPT kernels of
+"Startup Bias". Kernels: cl/mlt.cl (cl/mlt.h: mutation and acceptance; cl/mlt_contribution.h:
+each proposal's f, summed on the device from its records; the BDPT kernels of
 cl/bdpt_parallel_connect.cl built with -DMLT=1 read their uniforms from the chains' vectors).
 
 One iteration, read like the slide:
     mutate every chain (large step with probability `large_step`, else a small step);
     evaluate all proposals as one batch of BDPT samples (BDPT's evaluator, bdpt_evaluator.py:
-        compacted walks, parallel connect; the records go to the chains, not to an image);
-    accept or reject per chain;
+        compacted walks, parallel connect; the records go to the chains, not to an image,
+        and each proposal's f is summed from them on the device);
+    accept or reject per chain (on the device; the host reads the decisions, with each proposal's f);
     splat the proposal with weight a and the current state with weight 1 - a.
 
 The estimator. A sample x (a point of primary sample space [0, 1)^D: the image position, the
@@ -60,9 +62,11 @@ like f / b up to the resampling of a finite pool: a bias of O(1 / (chains x N)),
 above, with no weights to add variance. A bright candidate may start several chains; they part
 with their first mutations.
 
-Splats (pixel, value) are added on the host in float64, like the t = 1 records of BDPT
-(bdpt_evaluator.per_pixel_sums): no float atomics. Each chain's current state keeps its records
-on the host until it is replaced.
+Splats (pixel, value) are added on the host in float64 (bdpt_evaluator.per_pixel_sums): no float
+atomics. Each chain's current state keeps its records on the host until it is replaced. Each
+proposal's f is the float32 sum of its records' luminance on the device, in the order the connect
+phase wrote them (cl/mlt_contribution.h: the same bits every run); the records dropped for a
+non-finite value and the proposals past max_dims are counted there too, and read at the end.
 
 Options (keyword arguments of toolkit.render(..., options=...)):
 
@@ -89,13 +93,13 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.core.sample_dims import used_dims
-from toolkit.core.layout import MLT_CHAIN, MLT_ITERATION, MltMode
+from toolkit.core.layout import MLT_CHAIN, MLT_ITERATION, MltMode, MltTally
 from toolkit.core.validate import InputError, finite_number, whole_number
 from toolkit.opencl.work_sizes import device_work_sizes
 from toolkit.techniques.base import pixel_count
 from toolkit.techniques.bdpt_evaluator import BdptEvaluator, BdptPoolTechnique, per_pixel_sums
 from toolkit.techniques.bdpt_parallel_connect import ParallelConnect
-from toolkit.techniques.mlt_chains import (Chains, ProposalSink, records_of_picks,
+from toolkit.techniques.mlt_chains import (Chains, ProposalSink, Proposals, records_of_picks,
                                            systematic_picks)
 
 STARTS = ("naive", "resample", "pool")
@@ -192,6 +196,7 @@ class Mlt(BdptPoolTechnique):
 
     def end_render(self, film):
         c, pixels = self.last_chains, film.width * film.height
+        c.read_tallies(self.memory)   # the non-finite records and dimension overflows, counted on the device
         # spp as made (whole samples per pixel; fewer than asked when time_limit stopped it)
         film.add_pass(self.image(c).reshape(film.height, film.width, 3), max(1, c.mutations // pixels),
                       nonfinite=c.nonfinite)
@@ -208,7 +213,8 @@ class Mlt(BdptPoolTechnique):
         c = Chains(count, seed, camera, cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
                    cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
                    cl.Buffer(ctx, cl.mem_flags.READ_WRITE, MLT_CHAIN.dtype.itemsize * n),
-                   cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n), self.memory.int_buffer(count), pixel_count(camera))
+                   cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n), self.memory.int_buffer(count),
+                   self.memory.int_buffer(len(MltTally), fill=0), pixel_count(camera))
         cl.enqueue_fill_buffer(self.queue, c.records, np.int32(0), 0, MLT_CHAIN.dtype.itemsize * n)
         self.last_chains = c
         if self.start == "naive":
@@ -230,8 +236,9 @@ class Mlt(BdptPoolTechnique):
         it["seed"], it["iteration"], it["chains"], it["active"] = c.seed, c.iteration, c.count, active
         it["large_step"], it["mode"] = self.large_step, int(mode)
         self.mutate(c, it)                               # every chain proposes (large or small step)
-        proposals = self.evaluate_proposals(c, active)   # all proposals as one batch of BDPT samples
-        decisions = self.accept(c, it, proposals)        # accept or reject per chain
+        records = self.evaluate_proposals(c, active)     # all proposals as one batch of BDPT samples
+        decisions = self.accept(c, it)                   # accept or reject per chain
+        proposals = Proposals(records, decisions["f_proposal"].astype(np.float64), decisions["dims_proposal"])
         self.splat(c, decisions, proposals, mode)        # proposal with weight a, current state with 1 - a
         c.iteration += 1
         return proposals
@@ -268,22 +275,19 @@ class Mlt(BdptPoolTechnique):
 
     def evaluate_proposals(self, c, active):
         """The proposals as one batch of BDPT samples (sample id = chain, random numbers from the
-        proposals' vectors): their records stay with their chains (ProposalSink)."""
+        proposals' vectors): their f and dimensions summed on the device, their records returned
+        with their chains (ProposalSink)."""
         p = self.bdpt.start_pass(c.camera, c.seed, c.iteration, active, sampler_args={"mlt_primary": c.proposal},
                                  vector_stride=c.count)
-        sink = ProposalSink(active)
+        sink = ProposalSink(self.kernels, c, active)
         self.bdpt.evaluate(p, sink)
-        proposals, nonfinite, overflow = sink.proposals(self.max_dims)
-        c.nonfinite += nonfinite
-        c.overflow += overflow
-        return proposals
+        return sink.records()
 
-    def accept(self, c, it, proposals):
-        """mlt_accept (cl/mlt.h) with the proposals' f and dimensions; returns the chain records
-        (MltChain: acceptance, accepted, large_step of each chain)."""
+    def accept(self, c, it):
+        """mlt_accept (cl/mlt.h) with the proposals' f and dimensions (on the device since the
+        connect phases); returns the chain records (MltChain: acceptance, accepted, large_step, and
+        the proposal's f and dims of each chain)."""
         active = int(it["active"])
-        cl.enqueue_copy(self.queue, c.f_proposal, proposals.f.astype(np.float32))
-        cl.enqueue_copy(self.queue, c.dims_proposal, proposals.dims.astype(np.int32))
         self.kernels.launch("mlt_accept", active, it=it, current=c.current, proposal=c.proposal, chains=c.records,
                             f_proposal=c.f_proposal, dims_proposal=c.dims_proposal)
         if self.count_simd:

@@ -6,8 +6,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.layout import LUMINANCE_WEIGHTS
-from toolkit.core.sample_dims import BDPT_FIRST_SCATTER_DIM, used_dims   # the dimension table the kernels read
+from toolkit.core.layout import MltTally
+from toolkit.core.sample_dims import BDPT_FIRST_SCATTER_DIM   # the dimension table the kernels read
 
 
 @dataclass
@@ -35,45 +35,47 @@ class ChainRecords:
 class Proposals:
     """One iteration's proposals, evaluated as a batch of BDPT samples (sample id = chain)."""
     records: ChainRecords  # every connection record of every proposal
-    f: np.ndarray          # (active,) float64 scalar contribution of each proposal: luminance of its records, >= 0
+    f: np.ndarray          # (active,) scalar contribution of each proposal: luminance of its records, >= 0 (float32)
     dims: np.ndarray       # (active,) primary-sample dimensions each proposal used, at most max_dims
 
 
 class ProposalSink:
-    """Where BDPT's connect phases put the proposals' records: with their chains (sample id =
-    chain), not in an image; and each connected sample's used dimensions."""
+    """Where BDPT's connect phases put the proposals' records (sample id = chain). Each proposal's
+    contribution f and used dimensions are summed on the device, in the chains' f_proposal and
+    dims_proposal (cl/mlt_contribution.h, mlt_proposal_sums: no record is read for them); the
+    records themselves go to the host, with their chains, for the splats."""
 
-    def __init__(self, active):
+    def __init__(self, kernels, chains, active):
+        self.kernels, self.chains, self.active = kernels, chains, active
         self.parts = []                                    # ChainRecords of each connect phase
-        self.dims = np.full(active, BDPT_FIRST_SCATTER_DIM, np.int64)  # a proposal that never connects used the start's
+        queue = kernels.queue
+        # a proposal that never connects has f = 0 and used the start's dimensions
+        cl.enqueue_fill_buffer(queue, chains.f_proposal, np.float32(0), 0, 4 * active)
+        cl.enqueue_fill_buffer(queue, chains.dims_proposal, np.int32(BDPT_FIRST_SCATTER_DIM), 0, 4 * active)
 
     def add(self, connections):
         """Connections with their slots (ParallelConnect(read_slots=True)); none: nothing connected."""
         if connections.slots is None:
             return
+        c, pool = self.chains, len(connections.slots)
+        self.kernels.launch("mlt_proposal_sums", pool, pool=np.int32(pool), slots=connections.slot_buffer,
+                            counts=connections.count_buffer, firsts=connections.first_buffer,
+                            record_value=connections.value_buffer, record_pixel=connections.pixel_buffer,
+                            f_proposal=c.f_proposal, dims_proposal=c.dims_proposal, tallies=c.tallies)
         counts, slots = connections.slot_records, connections.slots
         done = counts > 0
-        ids = slots["sample_id"][done]
-        self.dims[ids] = used_dims(slots["eye_vertices"][done], slots["light_vertices"][done])
-        chain = np.repeat(ids, counts[done])
-        ok = connections.pixels >= 0
-        self.parts.append(ChainRecords(connections.values[ok, :3].astype(np.float64), connections.pixels[ok],
-                                       chain[ok]))
+        chain = np.repeat(slots["sample_id"][done], counts[done])
+        values = connections.values[:, :3]
+        # as the device's sums: a record without a pixel, or non-finite (counted there), adds nothing
+        ok = (connections.pixels >= 0) & np.isfinite(values).all(1)
+        self.parts.append(ChainRecords(values[ok].astype(np.float64), connections.pixels[ok], chain[ok]))
 
-    def proposals(self, max_dims):
-        """(Proposals, records dropped for a non-finite value, proposals that read more than max_dims)."""
-        if self.parts:
-            records = ChainRecords(*(np.concatenate(x) for x in
-                                     zip(*((r.values, r.pixels, r.chain) for r in self.parts))))
-        else:
-            records = ChainRecords.empty()
-        finite = np.isfinite(records.values).all(1)
-        nonfinite = int((~finite).sum())
-        if nonfinite:     # a bug to report (DroppedSamplesWarning), never a NaN in the chain
-            records = records.where(finite)
-        f = np.bincount(records.chain, records.values @ np.asarray(LUMINANCE_WEIGHTS), minlength=len(self.dims))
-        overflow = int((self.dims > max_dims).sum())
-        return Proposals(records, np.maximum(f, 0.0), np.minimum(self.dims, max_dims)), nonfinite, overflow
+    def records(self):
+        """The proposals' records, with their chains (f and dims stay on the device: mlt_accept
+        reads them there, and the host gets them with the chains' decisions, MltChain)."""
+        if not self.parts:
+            return ChainRecords.empty()
+        return ChainRecords(*(np.concatenate(x) for x in zip(*((r.values, r.pixels, r.chain) for r in self.parts))))
 
 
 @dataclass
@@ -87,8 +89,9 @@ class Chains:
     current: cl.Buffer       # float[max_dims][count]: the current states' primary-sample vectors
     proposal: cl.Buffer      # float[max_dims][count]: this iteration's proposals
     records: cl.Buffer       # MltChain[count]
-    f_proposal: cl.Buffer    # float[count], written by the host
-    dims_proposal: cl.Buffer  # int[count], written by the host
+    f_proposal: cl.Buffer    # float[count]: each proposal's f, summed on the device (ProposalSink)
+    dims_proposal: cl.Buffer  # int[count]: the dimensions each proposal used, likewise
+    tallies: cl.Buffer       # int[len(MltTally)]: the render's counts kept on the device, read at its end
     pixels: int              # of the image the chains splat into
     iteration: int = 0
     f_current: np.ndarray = field(init=False)          # float64 f of each current state
@@ -101,14 +104,19 @@ class Chains:
     large_count: int = 0
     accepted: int = 0
     mutations: int = 0
-    overflow: int = 0                   # proposals that read more than max_dims dimensions
-    nonfinite: int = 0
+    overflow: int = 0                   # proposals that read more than max_dims dimensions (read_tallies)
+    nonfinite: int = 0                  # records dropped for a non-finite value (read_tallies)
 
     def __post_init__(self):
         self.f_current = np.zeros(self.count)
         self.current_records = ChainRecords.empty()
         self.splats, self.large_splats = np.zeros((self.pixels, 3)), np.zeros((self.pixels, 3))
         self.candidate_sum, self.weight = np.zeros(self.count), np.ones(self.count)
+
+    def read_tallies(self, memory):
+        """The counts the kernels kept (MltTally), read once: at the end of the render."""
+        tallies = memory.read_ints(self.tallies, len(MltTally))
+        self.nonfinite, self.overflow = int(tallies[MltTally.NONFINITE]), int(tallies[MltTally.OVERFLOW])
 
     @property
     def b(self):
