@@ -17,14 +17,10 @@ import sys
 import threading
 import webbrowser
 
-# Bokeh's and Panel's files come from this server, never from a CDN: the page works offline, and a
-# style sheet that Panel would otherwise take from its CDN (loading.css, made in a callback where
-# Bokeh's own default, "cdn", applies) cannot fail to load.
-os.environ.setdefault("BOKEH_RESOURCES", "server")
-
-import panel as pn  # noqa: E402 (after the setting above)
-from tornado.ioloop import IOLoop  # noqa: E402
-from tornado.iostream import StreamClosedError  # noqa: E402
+import panel as pn
+from bokeh.settings import settings as bokeh_settings
+from tornado.ioloop import IOLoop
+from tornado.iostream import StreamClosedError
 from tornado.websocket import WebSocketClosedError
 
 from toolkit.demo.view import DemoView
@@ -72,6 +68,10 @@ class DemoServer:
         self.ever_opened = False
         self.loop = IOLoop.current()
         self.loop.asyncio_loop.set_exception_handler(quiet_closed_sockets)
+        # Bokeh's and Panel's files come from this server, never from a CDN: the page works offline,
+        # and a style sheet that Panel makes in a redraw (loading.css, where Bokeh's own default,
+        # "cdn", applies) cannot fail to load.
+        bokeh_settings.resources.set_value("server")
         self.server = pn.serve({"/": self.new_tab}, port=self.port, address=host,
                                websocket_origin=allowed_origins(host, self.port), show=False, start=False,
                                title="SIMD efficiency, live", loop=self.loop, verbose=False,
