@@ -227,7 +227,8 @@ def _no_duplicates(pairs):
 
 
 def load_scene(path):
-    """Load and validate a scene folder or scene.json; raises SceneError naming the problem."""
+    """Load and validate a scene folder, its scene.json or a Mitsuba 3 XML file; raises SceneError
+    naming the problem."""
     try:
         return _load_scene(path)
     except SceneError:
@@ -251,6 +252,9 @@ def find_scene(given):
 
 def _load_scene(path):
     path = find_scene(path)
+    if path.suffix.lower() == ".xml" and not path.is_dir():     # Mitsuba 3's XML (FORMAT.md, "Mitsuba 3 XML")
+        from toolkit.core.mitsuba_scene import load_mitsuba     # here: it builds on this module
+        return load_mitsuba(path)
     if path.is_dir():
         path = path / "scene.json"
     if not path.exists() and not path.is_symlink():
