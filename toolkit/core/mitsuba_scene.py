@@ -206,7 +206,7 @@ class _Builder:
         self.materials, self.material_index = [], {}      # one material per <bsdf> element
         self.vertices, self.triangles, self.material_of, self.emission_of = [], [], [], []
         self.n_vertices = self.n_triangles = 0
-        self.one_sided, self.unmodelled, self.info = [], {}, {}
+        self.one_sided, self.smooth, self.unmodelled, self.info = [], [], {}, {}
 
     def _collect_ids(self, node):
         for child in node.children:
@@ -259,6 +259,11 @@ class _Builder:
             warnings.warn(f"{self.one_sided[0]}: {len(self.one_sided)} one-sided bsdf(s) (not in a <twosided>): in "
                           "Mitsuba their back is black; the toolkit's surfaces reflect on both sides, so the images "
                           "agree where no back face is seen or lit", stacklevel=4)
+        if self.smooth:
+            warnings.warn(f"{'; '.join(self.smooth)}: Mitsuba shades these meshes with normals interpolated between "
+                          "their faces (face_normals is false); the toolkit uses each face's own normal, so the "
+                          "images differ where they curve: write <boolean name=\"face_normals\" value=\"true\"/>",
+                          stacklevel=4)
         if self.unmodelled:
             warnings.warn(f"{self.where}: ignored what the toolkit does not model: " + "; ".join(
                 f"{mesh}: {', '.join(things)}" for mesh, things in self.unmodelled.items()), stacklevel=4)
@@ -288,6 +293,8 @@ class _Builder:
                 raise InputError(f"{where}: {error}") from None
             if ignored:
                 self.unmodelled.setdefault(path.name, ignored)
+            if not p.boolean("face_normals", False) and not _flat_at_every_vertex(v, t):
+                self.smooth.append(f"{node.where} ({path.name})")
         else:
             v, t = ANALYTIC_SHAPES[kind]()
         matrix = p.transform("to_world")
@@ -453,10 +460,39 @@ class _Builder:
         return max_depth, rr_depth
 
 
+def _flat_at_every_vertex(vertices, triangles):
+    """Whether every vertex's faces share one normal: then Mitsuba's interpolated vertex normals
+    (computed, or read from the file) are the face normals the toolkit uses."""
+    v = vertices[triangles]
+    normals = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    normals /= np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
+    total, count = np.zeros_like(vertices), np.zeros(len(vertices))
+    for corner in range(3):
+        np.add.at(total, triangles[:, corner], normals)
+        np.add.at(count, triangles[:, corner], 1)
+    used = count > 0
+    return bool(np.all(np.linalg.norm(total[used], axis=1) >= count[used] * (1 - 1e-9)))
+
+
+def _distance(point, triangle):
+    """The distance from `point` to a triangle (3x3): to its plane where the foot lies inside it,
+    else to its nearest edge."""
+    a, b, c = triangle
+    n = np.cross(b - a, c - a)
+    foot = point - np.dot(point - a, n) / np.dot(n, n) * n
+    if all(np.dot(np.cross(q - p, foot - p), n) >= 0 for p, q in ((a, b), (b, c), (c, a))):
+        return float(np.linalg.norm(point - foot))
+
+    def to_edge(p, q):
+        s = np.clip(np.dot(point - p, q - p) / np.dot(q - p, q - p), 0.0, 1.0)
+        return np.linalg.norm(point - (p + s * (q - p)))
+    return float(min(to_edge(a, b), to_edge(b, c), to_edge(c, a)))
+
+
 def _check_clipping(scene, near, far, where):
     """Mitsuba's clipping planes are allowed only where they clip nothing the camera sees: no
-    triangle comes nearer to the camera than the near plane can reach into the view (its bounding
-    sphere against the ball of the near plane's corners), and no vertex lies beyond the far plane."""
+    triangle comes nearer to the camera than the near plane can reach into the view (the ball
+    through the near plane's corners), and no vertex lies beyond the far plane."""
     cam = scene.camera
     forward, right, up = cam.basis()
     reach = near * math.sqrt(1 + np.dot(right, right) + np.dot(up, up))      # to the near plane's corners
@@ -464,6 +500,7 @@ def _check_clipping(scene, near, far, where):
     centre = v.mean(1)
     radius = np.linalg.norm(v - centre[:, None], axis=2).max(1)
     near_ones = np.linalg.norm(centre - cam.origin, axis=1) - radius < reach
+    near_ones[near_ones] = [_distance(cam.origin, tri) < reach for tri in v[near_ones]]    # the few: exactly
     if near <= 0 or near_ones.any():
         raise InputError(f"{where}: near_clip {near:g} may clip triangles that the toolkit would show (it has no "
                          f"near plane): {int(near_ones.sum())} come within {reach:g} of the camera; lower near_clip")
