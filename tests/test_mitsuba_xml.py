@@ -77,7 +77,7 @@ def _compare_with_mitsuba(path, res, spp, toolkit_spp, passes=16):
     mi = pytest.importorskip("mitsuba")
     mi.set_variant("scalar_rgb")
     from toolkit.api import render
-    scene = mi.load_file(str(path), res=res) if "res" in Path(path).read_text() else mi.load_file(str(path))
+    scene = mi.load_file(str(path), res=res)      # both files take their resolution from $res
     images = np.stack([np.array(mi.render(scene, spp=spp, seed=k))[..., :3] for k in range(passes)])
     ref, ref_err = images.mean(0), images.std(0, ddof=1) / math.sqrt(passes)
     ours = render(_load(path), technique="pt_naive", spp=toolkit_spp, seed=1, resolution=(res, res))
