@@ -1,5 +1,6 @@
-"""A Mitsuba 3 XML scene as a toolkit Scene: the subset the toolkit models (scenes/FORMAT.md,
-"Mitsuba 3 XML"), the inverse of the writer in toolkit/peers/mitsuba.py.
+"""A Mitsuba 3 XML scene as the parts of a toolkit Scene: the subset the toolkit models
+(scenes/FORMAT.md, "Mitsuba 3 XML"), the inverse of the writer in toolkit/peers/mitsuba.py.
+scene.py's load_scene builds and checks the Scene from them, as it does for scene.json.
 
 mitsuba_xml.py reads the files into Nodes (includes, defaults and parameters done); here each
 element is mapped to what the toolkit models, or refused: an element or a property outside the
@@ -17,8 +18,6 @@ from toolkit.core.errors import InputError
 from toolkit.core.mesh_files import read_mesh
 from toolkit.core.mitsuba_xml import read_xml
 from toolkit.core.obj import ObjError
-from toolkit.core.scene import Camera, Scene, SceneError, _parse_integrator, _parse_material, check_scene, \
-    drop_degenerate
 from toolkit.core.transforms import camera_frame, checked, compose, place_mesh
 from toolkit.core.validate import LIMITS, finite_number, in_range, whole_number
 
@@ -217,7 +216,8 @@ class _Builder:
                 self.ids[child.attrib["id"]] = child
             self._collect_ids(child)
 
-    def build(self, root, name, path):
+    def build(self, root):
+        """The scene's parts: scene.py's MitsubaParts."""
         sensor = integrator = None
         for node in root.children:
             if node.tag == "sensor":
@@ -247,14 +247,7 @@ class _Builder:
             raise InputError(f"{self.where}: the scene has no <sensor> (the toolkit needs a perspective camera)")
         vertices, triangles = np.concatenate(self.vertices), np.concatenate(self.triangles)
         camera, clips = self.sensor(sensor)
-        max_depth, rr_depth = self.integrator(integrator)
-        scene = Scene(name=name, camera=camera, vertices=vertices, triangles=triangles,
-                      material_of=np.concatenate(self.material_of), emission_of=np.concatenate(self.emission_of),
-                      materials=self.materials, max_depth=max_depth, rr_depth=rr_depth, path=path,
-                      info={"notes": "read from Mitsuba 3 XML", **self.info})
-        scene = drop_degenerate(scene, self.where)
-        check_scene(scene, self.where)
-        _check_clipping(scene, *clips)
+        integrator = self.integrator(integrator)
         if self.one_sided:
             warnings.warn(f"{self.one_sided[0]}: {len(self.one_sided)} one-sided bsdf(s) (not in a <twosided>): in "
                           "Mitsuba their back is black; the toolkit's surfaces reflect on both sides, so the images "
@@ -267,7 +260,9 @@ class _Builder:
         if self.unmodelled:
             warnings.warn(f"{self.where}: ignored what the toolkit does not model: " + "; ".join(
                 f"{mesh}: {', '.join(things)}" for mesh, things in self.unmodelled.items()), stacklevel=4)
-        return scene
+        return {"where": self.where, "camera": camera, "clips": clips, "vertices": vertices, "triangles": triangles,
+                "material_of": np.concatenate(self.material_of), "emission_of": np.concatenate(self.emission_of),
+                "materials": self.materials, "integrator": integrator, "info": self.info}
 
     # -- shapes ------------------------------------------------------------------------------
 
@@ -340,10 +335,9 @@ class _Builder:
             else:
                 description = self.bsdf(node)
                 name = node.attrib.get("id") or f"{node.attrib['type']}_{len(self.materials)}"
-            self.material_index[key] = len(self.materials)
-            self.materials.append(_parse_material(node.where if node is not None else shape.where, name,
-                                                  {k: (v.tolist() if isinstance(v, np.ndarray) else v)
-                                                   for k, v in description.items()}))
+            self.material_index[key] = len(self.materials)     # (where, name, scene.json's description)
+            self.materials.append((node.where if node is not None else shape.where, name,
+                                   {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in description.items()}))
         return self.material_index[key]
 
     def bsdf(self, node, two_sided=False):
@@ -422,10 +416,10 @@ class _Builder:
                              f"got {axis!r}")
         where = f"{node.where}: the perspective sensor"
         origin, target, up = camera_frame(p.transform("to_world"), f"{where}'s to_world")
-        camera = Camera(origin=origin, target=target, up=up, fov_axis=axis,
-                        fov_deg=finite_number("camera.fov_deg", fov, f"{where}'s fov"),
-                        width=whole_number("camera.width", width, f"{where}'s film width"),
-                        height=whole_number("camera.height", height, f"{where}'s film height"))
+        camera = dict(origin=origin, target=target, up=up, fov_axis=axis,
+                      fov_deg=finite_number("camera.fov_deg", fov, f"{where}'s fov"),
+                      width=whole_number("camera.width", width, f"{where}'s film width"),
+                      height=whole_number("camera.height", height, f"{where}'s film height"))
         return camera, (p.number("near_clip", NEAR_CLIP), p.number("far_clip", FAR_CLIP), node.where)
 
     def film(self, node):
@@ -446,7 +440,7 @@ class _Builder:
 
     def integrator(self, node):
         if node is None:        # Mitsuba's default: path, unbounded, roulette from depth 5
-            return -1, 5
+            return self.where, {"max_depth": -1, "rr_depth": 5}
         if node.attrib.get("type") not in SUPPORTED["integrator"]:
             raise unsupported(node)
         p = Plugin(node, {"max_depth", "rr_depth", "hide_emitters"}, self.ids)
@@ -455,9 +449,7 @@ class _Builder:
         max_depth, rr_depth = p.integer("max_depth", -1), p.integer("rr_depth", 5)
         if rr_depth > LIMITS["integrator.rr_depth"][1] and 0 <= max_depth <= rr_depth:
             rr_depth = -1        # roulette from a depth no path reaches: none, in the toolkit's words
-        max_depth, rr_depth, _ = _parse_integrator(f"{node.where}: {node.describe()}",
-                                                   {"max_depth": max_depth, "rr_depth": rr_depth})
-        return max_depth, rr_depth
+        return f"{node.where}: {node.describe()}", {"max_depth": max_depth, "rr_depth": rr_depth}
 
 
 def _flat_at_every_vertex(vertices, triangles):
@@ -489,7 +481,7 @@ def _distance(point, triangle):
     return float(min(to_edge(a, b), to_edge(b, c), to_edge(c, a)))
 
 
-def _check_clipping(scene, near, far, where):
+def check_clipping(scene, near, far, where):
     """Mitsuba's clipping planes are allowed only where they clip nothing the camera sees: no
     triangle comes nearer to the camera than the near plane can reach into the view (the ball
     through the near plane's corners), and no vertex lies beyond the far plane."""
@@ -510,12 +502,8 @@ def _check_clipping(scene, near, far, where):
                          f"{depth.max():g}); the toolkit has no far plane: raise far_clip")
 
 
-def load_mitsuba(path):
-    """The Scene of a Mitsuba 3 XML file; an InputError naming the file, line and problem."""
-    try:
-        root, reader = read_xml(path)
-        return _Builder(root, reader).build(root, reader.main.stem, reader.main)
-    except SceneError:
-        raise
-    except InputError as error:
-        raise SceneError(str(error)) from None
+def read_mitsuba(path):
+    """The parts of the Scene of a Mitsuba 3 XML file (a dict: see _Builder.build); an InputError
+    naming the file, line and problem."""
+    root, reader = read_xml(path)
+    return _Builder(root, reader).build(root)
