@@ -119,9 +119,10 @@ def test_unsupported_features_are_refused_by_name_and_line(name, element, line):
 
 
 @pytest.mark.skipif(not MITSUBA_DATA, reason="MITSUBA_DATA names no checkout of mitsuba-data")
-@pytest.mark.parametrize("name, element", [("bsdf_plastic_default.xml", "bsdf_plastic_default.xml:4: <bsdf 'plastic'>"),
-                                           ("bsdf_diffuse_textured.xml", "matpreview.xml:9: <shape 'serialized'>"),
-                                           ("integrator_depth_2.xml", "integrator_depth_2.xml:46: <spectrum 'reflectance'>")])
+@pytest.mark.parametrize("name, element", [
+    ("bsdf_plastic_default.xml", "bsdf_plastic_default.xml:4: <bsdf 'plastic'>"),
+    ("bsdf_diffuse_textured.xml", "matpreview.xml:9: <shape 'serialized'>"),
+    ("integrator_depth_2.xml", "integrator_depth_2.xml:46: <spectrum 'reflectance'>")])
 def test_mitsubas_documentation_scenes_are_refused(name, element):
     result = _render_cli(Path(MITSUBA_DATA) / "docs" / "scenes" / name)
     assert result.returncode == 2 and "Traceback" not in result.stderr
@@ -144,8 +145,8 @@ def _scene(tmp_path, body, sensor=None, name="scene.xml"):
 
 
 @pytest.mark.parametrize("body, message", [
-    ('<bsdf type="conductor" id="c"><string name="material" value="Au"/></bsdf><shape type="cube"><ref id="c"/></shape>',
-     "material 'Au'"),
+    ('<bsdf type="conductor" id="c"><string name="material" value="Au"/></bsdf>'
+     '<shape type="cube"><ref id="c"/></shape>', "material 'Au'"),
     ('<shape type="cube"><bsdf type="roughconductor"/></shape>', "distribution 'beckmann'"),
     ('<shape type="cube"><bsdf type="dielectric"/></shape>', "ext_ior is 1.000277"),
     ('<shape type="cube"><bsdf type="diffuse"><float name="roughness" value="1"/></bsdf></shape>',
@@ -191,8 +192,8 @@ def test_transforms_map_to_the_toolkits(tmp_path):
         <translate value="1, 2, 3"/> <translate z="-1"/>
         <matrix value="1 0 0 0.5  0 1 0 0  0 0 1 0  0 0 0 1"/></transform><bsdf type="diffuse"/></shape>"""
     scene = _load(_scene(tmp_path, body))
-    expected = compose([("scale", [2, 3, 1]), ("scale", [0.5] * 3), ("rotate", [0, 0, 1], 90), ("rotate", [1, 0, 0], 30),
-                        ("translate", [1, 2, 3]), ("translate", [0, 0, -1]),
+    expected = compose([("scale", [2, 3, 1]), ("scale", [0.5] * 3), ("rotate", [0, 0, 1], 90),
+                        ("rotate", [1, 0, 0], 30), ("translate", [1, 2, 3]), ("translate", [0, 0, -1]),
                         ("matrix", np.array([[1, 0, 0, .5], [0, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1.]]))])
     corners = analytic_shapes.rectangle()[0]
     np.testing.assert_allclose(scene.vertices[4:], corners @ expected[:3, :3].T + expected[:3, 3], atol=1e-12)

@@ -336,8 +336,8 @@ class _Builder:
                 description = self.bsdf(node)
                 name = node.attrib.get("id") or f"{node.attrib['type']}_{len(self.materials)}"
             self.material_index[key] = len(self.materials)     # (where, name, scene.json's description)
-            self.materials.append((node.where if node is not None else shape.where, name,
-                                   {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in description.items()}))
+            listed = {k: (v.tolist() if isinstance(v, np.ndarray) else v) for k, v in description.items()}
+            self.materials.append((node.where if node is not None else shape.where, name, listed))
         return self.material_index[key]
 
     def bsdf(self, node, two_sided=False):
@@ -364,8 +364,8 @@ class _Builder:
             # No Fresnel: only Mitsuba's material "none" (reflectance 1 at every angle, times
             # specular_reflectance) is what the toolkit's mirror and glossy compute.
             rough = kind == "roughconductor"
-            p = Plugin(node, {"material", "specular_reflectance"} | ({"distribution", "alpha", "sample_visible"} if rough else set()),
-                       self.ids)
+            known = {"material", "specular_reflectance"} | ({"distribution", "alpha", "sample_visible"} if rough else set())
+            p = Plugin(node, known, self.ids)
             if p.string("material", "none") != "none":
                 raise unsupported(p.get("material"), f"material '{p.string('material', '')}' of {node.describe()} "
                                   "(a conductor's Fresnel term is not modelled: use material \"none\")")
