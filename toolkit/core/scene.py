@@ -13,6 +13,7 @@ import numpy as np
 from toolkit.core.images import read_exr
 from toolkit.core.layout import MATERIAL_TYPES
 from toolkit.core.mesh_files import read_mesh
+from toolkit.core.mitsuba_scene import check_clipping, read_mitsuba
 from toolkit.core.obj import ObjError
 from toolkit.core.transforms import camera_frame, checked, compose, operations_from_json, place_mesh
 from toolkit.core.package_data import data_dir
@@ -227,7 +228,8 @@ def _no_duplicates(pairs):
 
 
 def load_scene(path):
-    """Load and validate a scene folder or scene.json; raises SceneError naming the problem."""
+    """Load and validate a scene folder, its scene.json or a Mitsuba 3 XML file; raises SceneError
+    naming the problem."""
     try:
         return _load_scene(path)
     except SceneError:
@@ -251,6 +253,8 @@ def find_scene(given):
 
 def _load_scene(path):
     path = find_scene(path)
+    if path.suffix.lower() == ".xml" and not path.is_dir():     # Mitsuba 3's XML (FORMAT.md, "Mitsuba 3 XML")
+        return _load_mitsuba(path)
     if path.is_dir():
         path = path / "scene.json"
     if not path.exists() and not path.is_symlink():
@@ -275,6 +279,22 @@ def _load_scene(path):
     check_scene(scene, where)
     scene.reference, scene.reference_stderr, problem = _load_reference(path.parent, camera)
     scene.info.update(problem)
+    return scene
+
+
+def _load_mitsuba(path):
+    """A Mitsuba 3 XML file's scene: mitsuba_scene.py's parts, checked as scene.json's are."""
+    parts = read_mitsuba(path)
+    where = parts["where"]
+    materials = [_parse_material(mwhere, name, description) for mwhere, name, description in parts["materials"]]
+    max_depth, rr_depth, _ = _parse_integrator(*parts["integrator"])
+    scene = Scene(name=Path(where).stem, camera=Camera(**parts["camera"]), vertices=parts["vertices"],
+                  triangles=parts["triangles"], material_of=parts["material_of"], emission_of=parts["emission_of"],
+                  materials=materials, max_depth=max_depth, rr_depth=rr_depth, path=Path(where),
+                  info={"notes": "read from Mitsuba 3 XML", **parts["info"]})
+    scene = drop_degenerate(scene, where)
+    check_scene(scene, where)
+    check_clipping(scene, *parts["clips"])
     return scene
 
 

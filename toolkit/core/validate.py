@@ -50,6 +50,10 @@ LIMITS = {
     "mesh.line_length": (0, 1 << 16, "characters of one line of an OBJ file"),
     "scene.json.bytes": (1, 1 << 24, "size of scene.json"),
     "scene.json.depth": (0, 16, "nesting of JSON objects and lists"),
+    "scene.xml.bytes": (1, 1 << 24, "Mitsuba XML read for one scene: the main file and every include, counted each "
+                                    "time it is included"),
+    "scene.xml.depth": (1, 64, "nesting of XML elements in one Mitsuba XML file"),
+    "scene.xml.includes": (1, 16, "nesting of Mitsuba XML includes (a cycle is refused at once)"),
     "spp": (1, 1 << 24, "samples per pixel of one render"),
     "seed": (0, (1 << 32) - 1, "the device hashes it as a 32-bit unsigned integer"),
     "memory.fraction": (0.0, 0.5, "film and device buffers, as a share of this machine's memory"),

@@ -200,6 +200,58 @@ def to_mitsuba(scene, folder, width=None, height=None, spp=16, integrator="path"
     return out
 
 
+# The element of each object key in to_mitsuba's dict (shape_0, shape_1, ...: <shape>).
+_XML_OBJECTS = ("integrator", "sensor", "film", "rfilter", "sampler", "bsdf", "emitter", "shape")
+
+
+def write_mitsuba_xml(scene, folder, width=None, height=None, spp=16, integrator="path"):
+    """`scene` as a Mitsuba 3 XML file, folder/scene.xml, with its meshes beside it: to_mitsuba's
+    scene written out, the camera by a <lookat>, every float in Python's repr (it reads back to
+    the same float64). toolkit/core/mitsuba_scene.py reads it back as the same scene
+    (tests/test_mitsuba_xml.py); Mitsuba renders it with mi.load_file. Returns the path."""
+    folder = Path(folder)
+    description = to_mitsuba(scene, folder, width, height, spp, integrator)
+    for key, shape in description.items():      # filenames relative to the scene file, as Mitsuba resolves them
+        if key.startswith("shape_"):
+            shape["filename"] = Path(shape["filename"]).name
+    cam = scene.camera
+    lines = ['<scene version="3.0.0">']
+    for key, value in description.items():
+        if key != "type":
+            lines += _xml_element(key, value, cam, "    ")
+    path = folder / "scene.xml"
+    path.write_text("\n".join(lines + ["</scene>", ""]), encoding="utf-8")
+    return path
+
+
+def _xml_value(x):
+    return repr(float(x))
+
+
+def _xml_element(name, value, cam, indent):
+    """The lines of one property or object of to_mitsuba's dict."""
+    if isinstance(value, dict) and value.get("type") == "look_at_placeholder":
+        xyz = [", ".join(map(_xml_value, v)) for v in (cam.origin, cam.target, cam.up)]
+        return [f'{indent}<transform name="{name}">',
+                f'{indent}    <lookat origin="{xyz[0]}" target="{xyz[1]}" up="{xyz[2]}"/>', f"{indent}</transform>"]
+    if isinstance(value, dict) and value.get("type") == "rgb":
+        return [f'{indent}<rgb name="{name}" value="{", ".join(map(_xml_value, value["value"]))}"/>']
+    if isinstance(value, dict):
+        tag = next(t for t in _XML_OBJECTS if name == t or name.startswith(t + "_"))
+        lines = [f'{indent}<{tag} type="{value["type"]}">']
+        for key, inner in value.items():
+            if key != "type":
+                lines += _xml_element(key, inner, cam, indent + "    ")
+        return lines + [f"{indent}</{tag}>"]
+    if isinstance(value, bool):
+        return [f'{indent}<boolean name="{name}" value="{str(value).lower()}"/>']
+    if isinstance(value, int):
+        return [f'{indent}<integer name="{name}" value="{value}"/>']
+    if isinstance(value, float):
+        return [f'{indent}<float name="{name}" value="{_xml_value(value)}"/>']
+    return [f'{indent}<string name="{name}" value="{value}"/>']
+
+
 def _camera_transform(mi, cam):
     return mi.ScalarTransform4f().look_at(origin=[float(x) for x in cam.origin],
                                           target=[float(x) for x in cam.target],
