@@ -13,6 +13,7 @@ from toolkit.peers.embree import EmbreeIntersector
 from toolkit.core.layout import BDPT_VERTEX, VertexFlag
 from toolkit.verify.same_image import SAME_DEVICE_BDPT
 from toolkit.techniques import BdptParallelConnect
+from planted_nan import plant_nan_in_every_connect_phase
 
 VERTEX_DELTA = VertexFlag.DELTA   # flags of BdptVertex (toolkit/core/layout.py, emitted into layout.h)
 VERTEX_LIGHT = VertexFlag.LIGHT
@@ -256,16 +257,7 @@ def test_a_non_finite_record_is_dropped_and_reported_never_in_the_image(cornell_
     adds it): each is counted and reported (DroppedSamplesWarning), and the image stays finite."""
     from toolkit.api import DroppedSamplesWarning
     from toolkit.techniques import bdpt_base
-    planted, add = [], bdpt_base.ImageSink.add
-
-    def add_with_a_nan(sink, connections):
-        if connections.count:
-            queue = connections.queue
-            cl.enqueue_copy(queue, connections.value_buffer, np.float32([np.nan, 1.0, 1.0, 1.0]))
-            cl.enqueue_copy(queue, connections.pixel_buffer, np.int32([0]))
-            planted.append(1)
-        add(sink, connections)
-    monkeypatch.setattr(bdpt_base.ImageSink, "add", add_with_a_nan)
+    planted = plant_nan_in_every_connect_phase(monkeypatch, bdpt_base.ImageSink)
     with pytest.warns(DroppedSamplesWarning):
         r = toolkit.render(cornell_box, technique=technique, spp=2, seed=1, resolution=(12, 8), count_simd=False)
     assert len(planted) > 1 and r.stats["nonfinite_samples"] == len(planted)

@@ -23,6 +23,7 @@ from toolkit.core.stats import bonferroni, student_t_two_sided_p
 from toolkit.measure.reference import reference_at, relative_mean_error, z_test
 from toolkit.techniques.mlt import SMALL_STEP
 from toolkit.core.validate import InputError
+from planted_nan import plant_nan_in_every_connect_phase
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -258,18 +259,8 @@ def test_a_non_finite_record_is_dropped_counted_on_the_device_and_reported(corne
     """A NaN planted in the first record of every connect phase: the device leaves it out of f
     and counts it (MltTally.NONFINITE, read once at the end), the host leaves it out of the
     splats; the render reports it (DroppedSamplesWarning) and its image stays finite."""
-    import pyopencl as cl
     from toolkit.techniques import mlt_chains
-    planted, add = [], mlt_chains.ProposalSink.add
-
-    def add_with_a_nan(sink, connections):
-        if connections.count:
-            queue = connections.queue
-            cl.enqueue_copy(queue, connections.value_buffer, np.float32([np.nan, 1.0, 1.0, 1.0]))
-            cl.enqueue_copy(queue, connections.pixel_buffer, np.int32([0]))
-            planted.append(1)
-        add(sink, connections)
-    monkeypatch.setattr(mlt_chains.ProposalSink, "add", add_with_a_nan)
+    planted = plant_nan_in_every_connect_phase(monkeypatch, mlt_chains.ProposalSink)
     with warnings.catch_warnings():
         warnings.simplefilter("default", DroppedSamplesWarning)
         with pytest.warns(DroppedSamplesWarning):
