@@ -35,15 +35,10 @@ from toolkit.grading.checks import ASSIGNMENTS
 from toolkit.grading.export import source_files
 from toolkit.grading.gradescope_results import check_visibility
 from toolkit.grading.gradescope_run import SETTINGS
-from toolkit.grading.limits import check_time_limit
+from toolkit.grading.limits import TIME_LIMIT, check_time_limit
 
 VENV = "/opt/simd-toolkit"   # where setup.sh installs the toolkit in the image
 WORKER_USER = "simd-grader"  # the unprivileged account setup.sh makes, that runs the students' kernels
-# Seconds per check. The grader's 10 s (runner.TIME_LIMIT) were sized on an idle 2-core machine;
-# a container shared with other submissions is slower (mlt_mutation's `image` took 8.2 s of its
-# 10 on a loaded one here), and a right solution that runs out of time loses points. A kernel that
-# does not finish costs this much more per hanging check.
-TIME_LIMIT = 30
 # What the wheel is built from: the files setup.cfg packages, and the files setup.cfg reads.
 WHEEL_SOURCES = ("setup.cfg", "pyproject.toml", "README.md", "toolkit/", "cl/", "scenes/", "tutorials/assignments/")
 

@@ -35,7 +35,7 @@ def build(c):
     for power in (False, True):
         c.build("mis_checks.cl", {"MIS_POWER": power})
     # The real paths too, once (_mis_cases keeps them in the grading folder): found here, within the
-    # build step's limit, the first check that needs them does not pay for it out of its own 10 s
+    # build step's limit, the first check that needs them does not pay for it out of its own time limit
     # (sum_to_one, which runs both heuristics, was stopped at 10 s once in a whole-suite run).
     if c.runs("sum_to_one", "weights"):
         for _ in _mis_cases(c):
