@@ -118,6 +118,32 @@ def test_build_bvh_takes_the_compiled_build_from_compiled_from(monkeypatch):
     assert calls == ["_build_compiled", "_build_numpy"]
 
 
+def test_a_build_in_its_own_process_gives_the_same_bvh_and_children(monkeypatch):
+    """From SEPARATE_FROM triangles the build and the wide BVH's children come from a child process
+    (build_process.py, which keeps numba out of the renderer): the same nodes, order, depth and
+    children of each width as this process makes."""
+    vertices, triangles = sphere_triangles()
+    here = bvh.build_bvh(vertices, triangles)
+    monkeypatch.setattr(bvh, "SEPARATE_FROM", len(triangles))
+    there = bvh.build_bvh(vertices, triangles)
+    assert sorted(there.children) == sorted(bvh.WIDE_NODES) and not here.children
+    assert here.nodes.tobytes() == there.nodes.tobytes()
+    assert np.array_equal(here.order, there.order) and here.max_depth == there.max_depth
+    for width in bvh.WIDE_NODES:
+        for what, x, y in zip(("kids", "index_of", "depth", "stack"),
+                              bvh._wide_children(here.nodes, here.nodes["count"] > 0, width), there.children[width]):
+            assert np.array_equal(x, y), (width, what)
+
+
+def test_a_build_process_that_fails_is_an_error(monkeypatch):
+    """A child that stops (here: numba cannot be imported) ends the build with an error, not a hang."""
+    monkeypatch.setattr(bvh, "SEPARATE_FROM", 0)
+    monkeypatch.setenv("PYTHONPATH", "")
+    monkeypatch.setattr("sys.executable", "false")      # a program that exits 1 at once, reading nothing
+    with pytest.raises(RuntimeError, match="BVH build process .* exit code 1"):
+        bvh.build_bvh(*sphere_triangles(20, 10))
+
+
 def test_million_scene_script_writes_the_box_and_sphere(tmp_path):
     """The benchmark scene at a small size: the box's 36 triangles and 2 x around x rings of the
     sphere, less the 2 x around at its poles that collapse to lines (the loader drops them)."""

@@ -14,14 +14,11 @@ surface area, the SAH's measure of how often a ray visits it) until it has that 
 binary leaf (at most four triangles, BVH_WIDTH) becomes one TriGroup, so both BVHs keep the
 same triangle order and leaves.
 """
-import sys
 import time
 from collections import deque
-from concurrent.futures import ThreadPoolExecutor, wait
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
-from tqdm.auto import tqdm
 
 from toolkit.core.layout import BVH_NODE, BVH_WIDTH, TRI_GROUP, WIDE_NODES, WideChild
 
@@ -29,6 +26,10 @@ from toolkit.core.layout import BVH_NODE, BVH_WIDTH, TRI_GROUP, WIDE_NODES, Wide
 # choice of children too, from as many binary nodes): below, numpy's build (about 15,000
 # triangles/s) takes no longer than numba's start (half a second to a second) and spares its 150 MB.
 COMPILED_FROM = 15_000
+# Builds of this many triangles or more run in a process of their own (build_process.py), which
+# takes numba's 120 MB with it when it ends; the wide BVH's children of every width come from it
+# too. Starting it costs about 0.2 s; a scene this big needs the memory.
+SEPARATE_FROM = 250_000
 # Builds of this many triangles or more show a progress bar, updated every PROGRESS_STEP triangles.
 PROGRESS_FROM = 1_000_000
 PROGRESS_STEP = 250_000
@@ -42,6 +43,9 @@ class Bvh:
     inner_nodes: int
     leaf_nodes: int
     max_depth: int
+    # Width -> _wide_children's arrays for that width, where the build's process made them
+    # (SEPARATE_FROM): this process then never starts numba. Empty otherwise (made when asked).
+    children: dict = field(default_factory=dict)
 
     @property
     def node_count(self):
@@ -58,47 +62,48 @@ def build_bvh(vertices, triangles, leaf_size=4, bins=16):
     From COMPILED_FROM triangles on, the compiled build does it (toolkit/core/sah_build.py, the
     same tree bit for bit); a scene of PROGRESS_FROM triangles or more shows its progress."""
     start = time.perf_counter()
+    if len(triangles) >= SEPARATE_FROM:
+        return _build_separately(vertices, triangles, leaf_size, bins, start)
     if len(triangles) >= COMPILED_FROM:
         lo, hi, first, count, axis, order, depth = _build_compiled(vertices, triangles, leaf_size, bins)
     else:
         lo, hi, first, count, axis, order, depth = _build_numpy(vertices[triangles], leaf_size, bins)
-    flat = BVH_NODE.zeros(len(first))
-    # Round outwards so float32 boxes still contain the float32 triangles.
-    flat["lo"][:, :3] = np.nextafter(lo.astype(np.float32), np.float32(-np.inf))
-    flat["hi"][:, :3] = np.nextafter(hi.astype(np.float32), np.float32(np.inf))
-    flat["first"], flat["count"], flat["axis"] = first, count, axis
+    flat = _flat_nodes(lo, hi, first, count, axis)
     leaves = int((flat["count"] > 0).sum())
     return Bvh(flat, order, time.perf_counter() - start, len(flat) - leaves, leaves, depth)
 
 
+def _flat_nodes(lo, hi, first, count, axis):
+    """The device's BVH_NODE records of the build's arrays."""
+    flat = aligned_zeros(len(first) * BVH_NODE.dtype.itemsize).view(BVH_NODE.dtype)    # see aligned_zeros
+    # Round outwards so float32 boxes still contain the float32 triangles.
+    flat["lo"][:, :3] = np.nextafter(lo.astype(np.float32), np.float32(-np.inf))
+    flat["hi"][:, :3] = np.nextafter(hi.astype(np.float32), np.float32(np.inf))
+    flat["first"], flat["count"], flat["axis"] = first, count, axis
+    return flat
+
+
 def _build_compiled(vertices, triangles, leaf_size, bins):
-    """The root's split here, then its two subtrees at once, one thread each (2 cores, 2 threads)."""
-    # Imported here: numba's start costs about half a second and 150 MB, which small scenes need not pay.
+    """The compiled build in this process (sah_build.build: the root's two subtrees in two threads)."""
+    # Imported here: numba's start costs about half a second and 120 MB, which small scenes need not pay.
     from toolkit.core import sah_build
+    return sah_build.build(vertices, triangles, leaf_size, bins, PROGRESS_STEP, len(triangles) >= PROGRESS_FROM)
 
-    root = sah_build.BuildState.of_triangles(vertices, triangles)
-    root.run(len(triangles), leaf_size, bins, max_nodes=1)
-    if root.done:                   # the root is a leaf
-        return (root.node_lo[:1], root.node_hi[:1], root.node_first[:1], root.node_count[:1], root.node_axis[:1],
-                root.order, 0)
-    subtrees = root.waiting()
-    root.release()
 
-    def build(state):
-        while not state.done:
-            state.run(PROGRESS_STEP, leaf_size, bins)
-        state.release()
-
-    with tqdm(total=len(triangles), unit="tri", desc="BVH build", file=sys.stderr, leave=False,
-              disable=len(triangles) < PROGRESS_FROM, mininterval=0.5) as bar, \
-            ThreadPoolExecutor(len(subtrees)) as pool:
-        running = [pool.submit(build, state) for state in subtrees]
-        while wait(running, timeout=0.5).not_done:
-            bar.update(sum(state.counters[sah_build.PLACED] for state in subtrees) - bar.n)
-        for done in running:
-            done.result()           # raises what the thread raised
-    lo, hi, first, count, axis, depth = sah_build.join(root, *subtrees)
-    return lo, hi, first, count, axis, root.order, int(depth)
+def _build_separately(vertices, triangles, leaf_size, bins, start):
+    """The compiled build and the wide BVH's children of each width, made by a process of its own
+    (build_process.py); the same arrays as _build_compiled and _wide_children make here."""
+    from toolkit.core.build_process import BuildProcess
+    with BuildProcess() as child:
+        child.send(np.ascontiguousarray(vertices, np.float64), np.ascontiguousarray(triangles, np.int64),
+                   np.array([leaf_size, bins, PROGRESS_STEP, len(triangles) >= PROGRESS_FROM], np.int64))
+        lo, hi, first, count, axis, order, depth = child.receive(7)
+        flat = _flat_nodes(lo, hi, first, count, axis)
+        del lo, hi, first, count, axis
+        child.send(_node_areas(flat), np.array(list(WIDE_NODES), np.int64))
+        children = {width: tuple(child.receive(4)) for width in WIDE_NODES}
+    leaves = int((flat["count"] > 0).sum())
+    return Bvh(flat, order, time.perf_counter() - start, len(flat) - leaves, leaves, int(depth), children)
 
 
 def _best_split(lo, hi, centroid, bins):
@@ -205,11 +210,11 @@ def collapse_wide(bvh, leaf_vertices, node_width, width=BVH_WIDTH):
     is_leaf = nodes["count"] > 0
     if is_leaf.any() and nodes["count"].max() > width:
         raise ValueError(f"a TriGroup holds {width} triangles; the BVH has leaves of {nodes['count'].max()}")
-    kids, index_of, depth_of, stack_of = _wide_children(nodes, is_leaf, node_width)
+    kids, index_of, depth_of, stack_of = bvh.children.get(node_width) or _wide_children(nodes, is_leaf, node_width)
     leaves = int(is_leaf.sum())
     # One buffer of words, zeroed, and the records written into it where they lie (no copy).
     split = len(kids) * WIDE_NODES[node_width].dtype.itemsize
-    records = np.zeros(split + leaves * TRI_GROUP.dtype.itemsize, np.uint8)
+    records = aligned_zeros(split + leaves * TRI_GROUP.dtype.itemsize)
     wide = records[:split].view(WIDE_NODES[node_width].dtype)
     groups = records[split:].view(TRI_GROUP.dtype)
     group_of = _tri_groups(nodes, is_leaf, leaf_vertices, width, groups)
@@ -226,11 +231,20 @@ def collapse_wide(bvh, leaf_vertices, node_width, width=BVH_WIDTH):
                    int(stack_of.max()))
 
 
+def aligned_zeros(nbytes, alignment=4096):
+    """`nbytes` zero bytes (uint8) that start on a multiple of `alignment` (a page): a CPU device
+    can use them as a buffer in place (device_scene.py, USE_HOST_PTR), and the 8-wide BVH's
+    aligned loads find their records on 32 bytes there too."""
+    raw = np.zeros(nbytes + alignment, np.uint8)
+    start = -raw.ctypes.data % alignment
+    return raw[start:start + nbytes]
+
+
 def wide_stack_needed(bvh, node_width):
     """The traversal-stack entries collapse_wide(bvh, ..., node_width) will need (WideBvh.stack_needed),
     without making its records."""
     nodes = bvh.nodes
-    return int(_wide_children(nodes, nodes["count"] > 0, node_width)[3].max())
+    return int((bvh.children.get(node_width) or _wide_children(nodes, nodes["count"] > 0, node_width))[3].max())
 
 
 def _tri_groups(nodes, is_leaf, leaf_vertices, width, groups):
@@ -252,13 +266,17 @@ def _tri_groups(nodes, is_leaf, leaf_vertices, width, groups):
     return group_of
 
 
+def _node_areas(nodes):
+    """Each node's surface area, of its float32 box (the one the device tests), in float64."""
+    return _area(nodes["lo"][:, :3].astype(np.float64), nodes["hi"][:, :3].astype(np.float64))
+
+
 def _wide_children(nodes, is_leaf, width):
     """The wide nodes' children, chosen top-down (the inner child of largest surface area opens
     first): (binary children per wide node (wide nodes, width), -1 in empty lanes; binary node ->
     wide node index for inner children, else -1; depth per wide node; stack entries a ray may
     hold on reaching it). Big trees take the compiled walk (toolkit/core/wide_children.py)."""
-    lo, hi = nodes["lo"][:, :3].astype(np.float64), nodes["hi"][:, :3].astype(np.float64)
-    area = _area(lo, hi)
+    area = _node_areas(nodes)
     if len(nodes) >= COMPILED_FROM:
         from toolkit.core.wide_children import wide_children      # numba: see build_bvh
         return wide_children(nodes["first"].astype(np.int64), is_leaf, area, width)

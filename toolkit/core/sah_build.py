@@ -16,9 +16,14 @@ builders to the same nodes on random and bundled scenes.
 
 The build is resumable: `build_some` works until `budget` more triangles sit in leaves and
 returns, so the caller can show progress between calls on a big scene. And a state builds one
-range of triangles, apart from any other: toolkit/core/bvh.py builds the root's two subtrees
-at once, in two threads, and `join` makes one tree of them.
+range of triangles, apart from any other: `build` builds the root's two subtrees at once, in
+two threads, and `join` makes one tree of them.
+
+This file imports numpy and numba only, never the toolkit: build_process.py runs it in a
+process of its own for big scenes.
 """
+import sys
+
 import numpy as np
 from numba import njit
 
@@ -94,7 +99,9 @@ class BuildState:
         return self.counters[NODES]
 
     def waiting(self):
-        """A state for each range on the stack (the left child's first), the stack emptied."""
+        """A state for each range on the stack (the left child's first), the stack emptied. This
+        state's scratch space goes first: the new states make their own."""
+        self.scratch_bounds = self.scratch_order = None
         states = [BuildState(self.bounds, self.order, *self.stack[i, [0, 1, 3]], self.boxes[i])
                   for i in range(self.counters[STACKED] - 1, -1, -1)]
         self.counters[STACKED] = 0
@@ -104,6 +111,37 @@ class BuildState:
         """Let go of the triangles' boxes and the scratch space (a million triangles: up to 100 MB),
         once this state builds no more: the nodes and the order are what a build keeps."""
         self.bounds = self.scratch_bounds = self.scratch_order = None
+
+
+def build(vertices, triangles, leaf_size, bins, step, progress):
+    """(lo, hi, first, count, axis, order, depth) of the tree over `triangles` (M, 3) indexing
+    `vertices` (V, 3): the root's split here, then its two subtrees at once, one thread each (2
+    cores, 2 threads), each resumed every `step` triangles; `progress`: show a progress bar."""
+    from concurrent.futures import ThreadPoolExecutor, wait
+    from tqdm.auto import tqdm
+
+    root = BuildState.of_triangles(vertices, triangles)
+    root.run(len(triangles), leaf_size, bins, max_nodes=1)
+    if root.done:                   # the root is a leaf
+        return (root.node_lo[:1], root.node_hi[:1], root.node_first[:1], root.node_count[:1], root.node_axis[:1],
+                root.order, 0)
+    subtrees = root.waiting()
+    root.release()
+
+    def build_subtree(state):
+        while not state.done:
+            state.run(step, leaf_size, bins)
+        state.release()
+
+    with tqdm(total=len(triangles), unit="tri", desc="BVH build", file=sys.stderr, leave=False,
+              disable=not progress, mininterval=0.5) as bar, ThreadPoolExecutor(len(subtrees)) as pool:
+        running = [pool.submit(build_subtree, state) for state in subtrees]
+        while wait(running, timeout=0.5).not_done:
+            bar.update(sum(state.counters[PLACED] for state in subtrees) - bar.n)
+        for done in running:
+            done.result()           # raises what the thread raised
+    lo, hi, first, count, axis, depth = join(root, *subtrees)
+    return lo, hi, first, count, axis, root.order, int(depth)
 
 
 def join(root, left, right):

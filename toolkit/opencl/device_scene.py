@@ -9,7 +9,7 @@ import hashlib
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.bvh import build_bvh, collapse_wide, wide_stack_needed
+from toolkit.core.bvh import aligned_zeros, build_bvh, collapse_wide, wide_stack_needed
 from toolkit.core.layout import BVH_KINDS, BVH_STACK_SIZE, CAMERA, LIGHT, LUMINANCE_WEIGHTS, MATERIAL, MATERIAL_TYPES, SCENE_ARGS, TRIANGLE, WIDE_NODES
 from toolkit.opencl import lanes
 
@@ -40,6 +40,15 @@ def node_width(queue):
     return 4 if queue.builds.lanes in ("on", lanes.HARDWARE) else 8
 
 
+def _host_memory_flag(device):
+    """How the scene's arrays become buffers. A CPU device's memory is the host's: there the
+    buffers are the arrays themselves (USE_HOST_PTR; a million triangles' nodes and triangles
+    are 130 MB, which a copy would double). Other devices get a copy (COPY_HOST_PTR): a GPU
+    must not traverse its BVH across the bus. The arrays are never written after this, and a
+    buffer made with USE_HOST_PTR keeps its array alive (pyopencl holds it)."""
+    return cl.mem_flags.USE_HOST_PTR if device.type & cl.device_type.CPU else cl.mem_flags.COPY_HOST_PTR
+
+
 class DeviceScene:
     # Relative size of the ray offset: far above float32 rounding (~1e-7) of a hit point,
     # far below any gap between surfaces in the scenes (the Cornell light hangs 0.3% below the ceiling).
@@ -68,7 +77,7 @@ class DeviceScene:
         # Rounded to float32 vertex by vertex, then gathered: the same numbers as gathering in
         # float64 and rounding, without a float64 copy of every triangle (72 MB for a million).
         tv = local.astype(np.float32)[scene.triangles[order]]
-        self.triangles = TRIANGLE.zeros(len(order))
+        self.triangles = aligned_zeros(len(order) * TRIANGLE.dtype.itemsize).view(TRIANGLE.dtype)
         self.triangles["v0"][:, :3] = tv[:, 0]
         self.triangles["v1"][:, :3] = tv[:, 1]
         self.triangles["v2"][:, :3] = tv[:, 2]
@@ -88,13 +97,13 @@ class DeviceScene:
             nodes = self.wide.words
         del tv      # before the buffers are made: a million triangles' float32 vertices are 36 MB
         self._build_lights(local, order)
-        self.materials = MATERIAL.zeros(len(scene.materials))
+        self.materials = aligned_zeros(len(scene.materials) * MATERIAL.dtype.itemsize).view(MATERIAL.dtype)
         for i, m in enumerate(scene.materials):
             self.materials[i]["reflectance"][:3] = m["reflectance"]
             self.materials[i]["type"] = MATERIAL_TYPES[m["type"]]
             self.materials[i]["ior"] = m["ior"]
             self.materials[i]["alpha"] = m["alpha"]
-        mf = cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR
+        mf = cl.mem_flags.READ_ONLY | _host_memory_flag(queue.device)
         ctx = queue.context
         self.buffers = {name: cl.Buffer(ctx, mf, hostbuf=a) for name, a in
                         (("nodes", nodes), ("tris", self.triangles), ("materials", self.materials),
@@ -112,7 +121,7 @@ class DeviceScene:
         power = area * (emission @ np.array(LUMINANCE_WEIGHTS))
         power = np.where(power > 0, power, area * emission.max(1))
         prob = power / power.sum()
-        self.lights = LIGHT.zeros(len(light_tris))
+        self.lights = aligned_zeros(len(light_tris) * LIGHT.dtype.itemsize).view(LIGHT.dtype)
         self.lights["emission"][:, :3] = emission
         cdf = np.cumsum(prob)
         cdf[-1] = 1.0

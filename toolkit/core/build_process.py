@@ -1,0 +1,123 @@
+"""The compiled BVH build of a big scene, in a short-lived process of its own.
+
+Why: numba's compiler (LLVM) stays in the memory of any process that has used it, about 120 MB,
+even when it only loads the build's machine code from its cache. A renderer of a million
+triangles needs that memory for the scene and its OpenCL runtime (issue 49: the whole `render`
+under 600 MB). So toolkit/core/bvh.py hands big builds to a child process, which uses numba,
+sends the tree back and exits, and its memory goes with it.
+
+The child is this file run as a script (`python build_process.py`): it imports numpy and numba
+and the two toolkit modules it runs, sah_build.py and wide_children.py, not the toolkit's
+package (whose import starts pyopencl). Arrays travel through its stdin and stdout in numpy's .npy format;
+the parent and the child take turns, so neither waits on a full pipe:
+
+    parent -> child   vertices, triangles, settings (leaf size, bins, progress step, progress bar?)
+    child -> parent   lo, hi, first, count, axis, order, depth (sah_build.build)
+    parent -> child   each node's surface area as the device's float32 boxes give it, the widths
+    child -> parent   per width: kids, index_of, depth_of, stack_of (wide_children.wide_children)
+
+Its progress bar and any error message go to the parent's stderr.
+"""
+import contextlib
+import importlib
+import subprocess
+import sys
+import types
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+
+
+class _Stream:
+    """A pipe seen by numpy's .npy reader and writer as a plain stream: they read and write it
+    in chunks, never seek, and never hand it to C's file functions (which a pipe can upset)."""
+
+    def __init__(self, pipe):
+        self.pipe = pipe
+
+    def read(self, size=-1):
+        return self.pipe.read(size)
+
+    def write(self, data):
+        return self.pipe.write(data)
+
+
+def send(pipe, *arrays):
+    stream = _Stream(pipe)
+    for array in arrays:
+        np.lib.format.write_array(stream, np.asarray(array), allow_pickle=False)
+    pipe.flush()
+
+
+def receive(pipe, count):
+    stream = _Stream(pipe)
+    return [np.lib.format.read_array(stream, allow_pickle=False) for _ in range(count)]
+
+
+class BuildProcess:
+    """The parent's end: `with BuildProcess() as child: child.send(...); child.receive(n)`."""
+
+    def __enter__(self):
+        self.process = subprocess.Popen([sys.executable, str(HERE / "build_process.py")],
+                                        stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        return self
+
+    def send(self, *arrays):
+        try:
+            send(self.process.stdin, *arrays)
+        except (BrokenPipeError, OSError):
+            self._failed()
+
+    def receive(self, count):
+        try:
+            return receive(self.process.stdout, count)
+        except (ValueError, OSError):          # a short or garbled stream: the child stopped
+            self._failed()
+
+    def _failed(self):
+        code = self.process.wait()
+        raise RuntimeError(f"the BVH build process ({sys.executable} {HERE / 'build_process.py'}) stopped with "
+                           f"exit code {code}; its messages, if any, are above")
+
+    def __exit__(self, kind, error, trace):
+        if kind is not None:
+            self.process.kill()         # stopped here (an error, Ctrl-C): the child's work is not wanted
+        for pipe in (self.process.stdin, self.process.stdout):
+            with contextlib.suppress(OSError):      # a child that stopped early leaves a broken pipe
+                pipe.close()
+        if self.process.wait() != 0 and kind is None:
+            self._failed()
+        return False
+
+
+def _load(name):
+    """toolkit.core.`name`, imported without running the toolkit's __init__ (which imports
+    pyopencl): its packages are made here as empty ones. The module keeps its real name, which
+    numba's cache records (a cached function is found again under that name only)."""
+    for package, folder in (("toolkit", HERE.parent), ("toolkit.core", HERE)):
+        if package not in sys.modules:
+            module = types.ModuleType(package)
+            module.__path__ = [str(folder)]
+            sys.modules[package] = module
+    return importlib.import_module(f"toolkit.core.{name}")
+
+
+def main():
+    stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
+    sah_build, wide = _load("sah_build"), _load("wide_children")
+    vertices, triangles, settings = receive(stdin, 3)
+    leaf_size, bins, step, progress = (int(x) for x in settings)
+    lo, hi, first, count, axis, order, depth = sah_build.build(vertices, triangles, leaf_size, bins, step, progress)
+    del vertices, triangles
+    send(stdout, lo, hi, first, count, axis, order, np.array(depth))
+    del lo, hi, order
+    area, widths = receive(stdin, 2)
+    for width in widths:
+        send(stdout, *wide.wide_children(first, count > 0, area, int(width)))
+
+
+if __name__ == "__main__":
+    sys.path.pop(0)     # this folder: none of its files may be found in place of a library's
+    main()
