@@ -205,7 +205,9 @@ assert GROUP_WORDS % 2 == 0 and node_words(8) % 2 == 0, "8-wide BVH records must
 def collapse_wide(bvh, leaf_vertices, node_width, width=BVH_WIDTH):
     """The wide BVH of `bvh`: nodes of up to `node_width` children (4 or 8), leaves of up to
     `width` triangles. `leaf_vertices`: (M, 3, 3) float32 triangle vertices in leaf order (the
-    device's triangles), copied into the TriGroups bit for bit."""
+    device's triangles), or their three corners as three (M, 3 or more) arrays (the device's
+    Triangle records' v0, v1, v2: no copy); copied into the TriGroups bit for bit."""
+    corners = [leaf_vertices[:, v] for v in range(3)] if isinstance(leaf_vertices, np.ndarray) else leaf_vertices
     nodes = bvh.nodes
     is_leaf = nodes["count"] > 0
     if is_leaf.any() and nodes["count"].max() > width:
@@ -217,7 +219,7 @@ def collapse_wide(bvh, leaf_vertices, node_width, width=BVH_WIDTH):
     records = aligned_zeros(split + leaves * TRI_GROUP.dtype.itemsize)
     wide = records[:split].view(WIDE_NODES[node_width].dtype)
     groups = records[split:].view(TRI_GROUP.dtype)
-    group_of = _tri_groups(nodes, is_leaf, leaf_vertices, width, groups)
+    group_of = _tri_groups(nodes, is_leaf, corners, width, groups)
     used = kids >= 0
     k = kids[used]
     for axis, name in enumerate("xyz"):
@@ -247,7 +249,7 @@ def wide_stack_needed(bvh, node_width):
     return int((bvh.children.get(node_width) or _wide_children(nodes, nodes["count"] > 0, node_width))[3].max())
 
 
-def _tri_groups(nodes, is_leaf, leaf_vertices, width, groups):
+def _tri_groups(nodes, is_leaf, corners, width, groups):
     """One TriGroup per binary leaf, in node order, written into `groups` (zeroed records, one per
     leaf); returns binary node -> its group or -1."""
     leaves = np.flatnonzero(is_leaf)
@@ -262,7 +264,7 @@ def _tri_groups(nodes, is_leaf, leaf_vertices, width, groups):
         for v in range(3):
             for k, name in enumerate("xyz"):
                 # Empty lanes keep v0 = v1 = v2 = 0: a degenerate triangle the test rejects (det = 0).
-                groups[f"v{v}{name}"][has, lane] = leaf_vertices[slot, v, k]
+                groups[f"v{v}{name}"][has, lane] = corners[v][slot, k]
     return group_of
 
 

@@ -74,13 +74,15 @@ class DeviceScene:
         if self.bvh.max_depth >= BVH_STACK_SIZE - 1:
             raise ValueError(f"{scene.name}: BVH depth {self.bvh.max_depth} exceeds the device stack ({BVH_STACK_SIZE})")
         order = self.bvh.order
-        # Rounded to float32 vertex by vertex, then gathered: the same numbers as gathering in
-        # float64 and rounding, without a float64 copy of every triangle (72 MB for a million).
-        tv = local.astype(np.float32)[scene.triangles[order]]
+        # Rounded to float32 vertex by vertex, then gathered corner by corner: the same numbers as
+        # gathering in float64 and rounding, without a copy of every triangle's vertices (a
+        # million triangles: 72 MB in float64, 36 in float32); the wide BVH reads them from here.
+        local32 = local.astype(np.float32)
         self.triangles = aligned_zeros(len(order) * TRIANGLE.dtype.itemsize).view(TRIANGLE.dtype)
-        self.triangles["v0"][:, :3] = tv[:, 0]
-        self.triangles["v1"][:, :3] = tv[:, 1]
-        self.triangles["v2"][:, :3] = tv[:, 2]
+        corners = [self.triangles[f"v{v}"] for v in range(3)]
+        for v in range(3):
+            corners[v][:, :3] = local32[scene.triangles[order, v]]
+        del local32
         self.triangles["material"] = scene.material_of[order]
         self.triangles["prim"] = order
         self.triangles["light"] = -1
@@ -90,12 +92,11 @@ class DeviceScene:
             width = wide_width or node_width(queue)
             if wide_width is None and width == 8 and wide_stack_needed(self.bvh, 8) > BVH_STACK_SIZE:
                 width = 4   # eight children a level fill the stack faster: a tree too deep for it gets four
-            self.wide = collapse_wide(self.bvh, tv, width)
+            self.wide = collapse_wide(self.bvh, corners, width)
             if self.wide.stack_needed > BVH_STACK_SIZE:
                 raise ValueError(f"{scene.name}: the wide BVH needs {self.wide.stack_needed} stack entries, "
                                  f"more than the device stack ({BVH_STACK_SIZE})")
             nodes = self.wide.words
-        del tv      # before the buffers are made: a million triangles' float32 vertices are 36 MB
         self._build_lights(local, order)
         self.materials = aligned_zeros(len(scene.materials) * MATERIAL.dtype.itemsize).view(MATERIAL.dtype)
         for i, m in enumerate(scene.materials):
