@@ -122,7 +122,7 @@ def test_a_build_in_its_own_process_gives_the_same_bvh_and_children(monkeypatch)
     """From SEPARATE_FROM triangles the build and the wide BVH's children come from a child process
     (build_process.py, which keeps numba out of the renderer): the same nodes, order, depth and
     children of each width as this process makes."""
-    vertices, triangles = sphere_triangles()
+    vertices, triangles = sphere_triangles(60, 30)
     here = bvh.build_bvh(vertices, triangles)
     monkeypatch.setattr(bvh, "SEPARATE_FROM", len(triangles))
     there = bvh.build_bvh(vertices, triangles)
