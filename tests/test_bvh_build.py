@@ -121,10 +121,12 @@ def test_build_bvh_takes_the_compiled_build_from_compiled_from(monkeypatch):
 def test_a_build_in_its_own_process_gives_the_same_bvh_and_children(monkeypatch):
     """From SEPARATE_FROM triangles the build and the wide BVH's children come from a child process
     (build_process.py, which keeps numba out of the renderer): the same nodes, order, depth and
-    children of each width as this process makes."""
+    children of each width as this process makes. The child's numba prints its cache's doings
+    to stdout (NUMBA_DEBUG_CACHE): the arrays' pipe must not get them (it hung the build once)."""
     vertices, triangles = sphere_triangles(60, 30)
     here = bvh.build_bvh(vertices, triangles)
     monkeypatch.setattr(bvh, "SEPARATE_FROM", len(triangles))
+    monkeypatch.setenv("NUMBA_DEBUG_CACHE", "1")
     there = bvh.build_bvh(vertices, triangles)
     assert sorted(there.children) == sorted(bvh.WIDE_NODES) and not here.children
     assert here.nodes.tobytes() == there.nodes.tobytes()

@@ -20,6 +20,7 @@ Its progress bar and any error message go to the parent's stderr.
 """
 import contextlib
 import importlib
+import os
 import subprocess
 import sys
 import types
@@ -77,7 +78,11 @@ class BuildProcess:
             self._failed()
 
     def _failed(self):
-        code = self.process.wait()
+        try:
+            code = self.process.wait(timeout=10)
+        except subprocess.TimeoutExpired:       # stuck writing to a pipe no one reads any more
+            self.process.kill()
+            code = self.process.wait()
         raise RuntimeError(f"the BVH build process ({sys.executable} {HERE / 'build_process.py'}) stopped with "
                            f"exit code {code}; its messages, if any, are above")
 
@@ -87,7 +92,8 @@ class BuildProcess:
         for pipe in (self.process.stdin, self.process.stdout):
             with contextlib.suppress(OSError):      # a child that stopped early leaves a broken pipe
                 pipe.close()
-        if self.process.wait() != 0 and kind is None:
+        code = self.process.wait()
+        if kind is None and code != 0:
             self._failed()
         return False
 
@@ -105,7 +111,10 @@ def _load(name):
 
 
 def main():
-    stdin, stdout = sys.stdin.buffer, sys.stdout.buffer
+    # The arrays get stdout to themselves: whatever else would print there (numba's debug
+    # options, a library's message) goes to stderr, where the parent's messages go.
+    stdin, stdout = sys.stdin.buffer, os.fdopen(os.dup(sys.stdout.fileno()), "wb")
+    os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
     sah_build, wide = _load("sah_build"), _load("wide_children")
     vertices, triangles, settings = receive(stdin, 3)
     leaf_size, bins, step, progress = (int(x) for x in settings)

@@ -3,7 +3,8 @@
 Two builders make the same tree, bit for bit: `_build_numpy`, one node at a time in numpy (the
 one to read), and toolkit/core/sah_build.py, the same loops compiled by numba, for scenes of
 COMPILED_FROM triangles or more (a million triangles: a minute in numpy, about a second
-compiled). tests/test_bvh_build.py holds them to the same nodes.
+compiled), in a process of its own from SEPARATE_FROM triangles (build_process.py: numba's
+memory leaves with it). tests/test_bvh_build.py holds them to the same nodes.
 
 Nodes are stored depth-first: an inner node's left child follows it, `first` holds the right
 child. Leaves hold at most `leaf_size` triangles, reordered so each leaf's are contiguous.
