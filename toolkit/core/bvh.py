@@ -74,14 +74,24 @@ def build_bvh(vertices, triangles, leaf_size=4, bins=16):
     return Bvh(flat, order, time.perf_counter() - start, len(flat) - leaves, leaves, depth)
 
 
+NODE_ARRAYS = ("lo", "hi", "first", "count", "axis")     # the build's arrays, as BVH_NODE's fields
+
+
 def _flat_nodes(lo, hi, first, count, axis):
     """The device's BVH_NODE records of the build's arrays."""
     flat = aligned_zeros(len(first) * BVH_NODE.dtype.itemsize).view(BVH_NODE.dtype)    # see aligned_zeros
-    # Round outwards so float32 boxes still contain the float32 triangles.
-    flat["lo"][:, :3] = np.nextafter(lo.astype(np.float32), np.float32(-np.inf))
-    flat["hi"][:, :3] = np.nextafter(hi.astype(np.float32), np.float32(np.inf))
-    flat["first"], flat["count"], flat["axis"] = first, count, axis
+    for name, array in zip(NODE_ARRAYS, (lo, hi, first, count, axis)):
+        _set_nodes(flat, name, array)
     return flat
+
+
+def _set_nodes(flat, name, array):
+    """One of the build's arrays into the records' field of that name."""
+    if name in ("lo", "hi"):
+        # Round outwards so float32 boxes still contain the float32 triangles.
+        flat[name][:, :3] = np.nextafter(array.astype(np.float32), np.float32(-np.inf if name == "lo" else np.inf))
+    else:
+        flat[name] = array
 
 
 def _build_compiled(vertices, triangles, leaf_size, bins):
@@ -98,9 +108,13 @@ def _build_separately(vertices, triangles, leaf_size, bins, start):
     with BuildProcess() as child:
         child.send(np.ascontiguousarray(vertices, np.float64), np.ascontiguousarray(triangles, np.int64),
                    np.array([leaf_size, bins, PROGRESS_STEP, len(triangles) >= PROGRESS_FROM], np.int64))
-        lo, hi, first, count, axis, order, depth = child.receive(7)
-        flat = _flat_nodes(lo, hi, first, count, axis)
-        del lo, hi, first, count, axis
+        flat = None
+        for name in NODE_ARRAYS:        # one at a time into the records: all five are 43 MB for a million triangles
+            array, = child.receive(1)
+            if flat is None:
+                flat = aligned_zeros(len(array) * BVH_NODE.dtype.itemsize).view(BVH_NODE.dtype)
+            _set_nodes(flat, name, array)
+        order, depth = child.receive(2)
         child.send(_node_areas(flat), np.array(list(WIDE_NODES), np.int64))
         children = {width: tuple(child.receive(4)) for width in WIDE_NODES}
     leaves = int((flat["count"] > 0).sum())
