@@ -19,7 +19,7 @@ is lit as cornell_box is, without a rare bright path, so it needs no more sample
 half of them, 8192 per test pixel (1024 for BDPT: 16 passes on a CPU, where its t-based z-test wants at
 least 11), cost its five tests ~19 s of CPU in all, 62% of the box's time (a bunny sample costs
 ~1.4x a box sample: its rays visit 25 BVH nodes against 19). Measured over seeds 1-3 and 7: mean
-|z| 0.75-0.88, smallest p 1e-4 (BDPT) to 3e-3 against the corrected alpha of 1.3e-5.
+|z| 0.75-0.88, smallest p 9e-5 (BDPT) to 5e-3 against the corrected alpha of 1.3e-5.
 """
 import numpy as np
 import pytest
