@@ -73,6 +73,12 @@ def cornell_spheres():
     return load_scene(SCENES / "cornell_spheres")
 
 
+@pytest.fixture(scope="session")
+def cornell_bunny():
+    from toolkit import load_scene
+    return load_scene(SCENES / "cornell_bunny")
+
+
 @pytest.fixture
 def python3_kernel(tmp_path, monkeypatch):
     """A 'python3' kernelspec that runs this interpreter, so the notebook sees the same

@@ -135,7 +135,7 @@ def test_obj_normals_uvs_and_materials_are_named_in_a_warning(tmp_path):
 def test_bundled_scenes_load_without_a_warning():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        for name in ("cornell_box", "cornell_spheres", "covered_lamp", "door_ajar"):
+        for name in ("cornell_box", "cornell_bunny", "cornell_spheres", "covered_lamp", "door_ajar"):
             load_scene(name)
 
 

@@ -329,7 +329,7 @@ def test_a_folder_of_that_name_here_wins_over_the_bundled_scene(tmp_path, monkey
 
 def test_an_unknown_name_lists_the_bundled_scenes(tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)
-    load_fails("cornell_bx", "cornell_bx: no such scene folder or scene file", "cornell_box, cornell_spheres")
+    load_fails("cornell_bx", "cornell_bx: no such scene folder or scene file", "cornell_box, cornell_bunny, cornell_spheres")
 
 
 def test_cli_render_takes_a_bundled_scene_s_name(tmp_path):
