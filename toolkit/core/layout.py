@@ -304,6 +304,7 @@ class MltMode(IntEnum):
     MUTATE = 0          # the Metropolis step: large step with probability large_step, else a small step
     START = 1           # start = naive: one large step, always accepted
     CANDIDATE = 2       # start = resample: a large step, kept with probability f / (sum of f so far)
+    PICKED = 3          # start = pool: the picked candidate evaluated again (its records), always accepted, not in b
 
 
 class MltTally(IntEnum):
@@ -311,6 +312,8 @@ class MltTally(IntEnum):
     read once at the end of the render: the index of each in the tallies buffer."""
     NONFINITE = 0       # records dropped for a non-finite value (DroppedSamplesWarning)
     OVERFLOW = 1        # proposals that read more than max_dims dimensions
+    ACCEPTED = 2        # accepted mutations (MltMode.MUTATE): the acceptance rate
+    LARGE_STEPS = 3     # large steps whose f is in b's sum (cl/mlt_splat.h): b = sum / LARGE_STEPS
 
 
 NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"),
