@@ -1,16 +1,19 @@
 """Metropolis light transport: many independent primary-sample-space chains (Kelemen et al. 2002)
 over the bidirectional estimator, as in the talk's slides "Metropolis Light Transport" and
 "Startup Bias". Kernels: cl/mlt.cl (cl/mlt.h: mutation and acceptance; cl/mlt_contribution.h:
-each proposal's f, summed on the device from its records; the BDPT kernels of
-cl/bdpt_parallel_connect.cl built with -DMLT=1 read their uniforms from the chains' vectors).
+each proposal's f, summed on the device from its records; cl/mlt_splat.h: the splats, the
+current states' records and b; the BDPT kernels of cl/bdpt_parallel_connect.cl built with
+-DMLT=1 read their uniforms from the chains' vectors).
 
-One iteration, read like the slide:
+One iteration, read like the slide, every step of it on the device:
     mutate every chain (large step with probability `large_step`, else a small step);
     evaluate all proposals as one batch of BDPT samples (BDPT's evaluator, bdpt_evaluator.py:
         compacted walks, parallel connect; the records go to the chains, not to an image,
-        and each proposal's f is summed from them on the device);
-    accept or reject per chain (on the device; the host reads the decisions, with each proposal's f);
+        and each proposal's f is summed from them);
+    accept or reject per chain;
     splat the proposal with weight a and the current state with weight 1 - a.
+The host reads nothing of the chains while they iterate: the films, b and the counts once at
+the end (and, for start = pool, the candidates' f once, to pick the starts).
 
 The estimator. A sample x (a point of primary sample space [0, 1)^D: the image position, the
 light sample, every scattering decision) has the contribution h_j(x) to pixel j, the sum of
@@ -60,13 +63,23 @@ together in proportion to f (systematic resampling: chains x N candidates, `chai
 spaced draws on the cumulative f), and every chain weighs 1. The chains then start distributed
 like f / b up to the resampling of a finite pool: a bias of O(1 / (chains x N)), like the ratio
 above, with no weights to add variance. A bright candidate may start several chains; they part
-with their first mutations.
+with their first mutations. The candidates' records are not kept: the picked ones are evaluated
+once more from their vectors (MltMode.PICKED: the same path, so the same records; not counted in b).
 
-Splats (pixel, value) are added on the host in float64 (bdpt_evaluator.per_pixel_sums): no float
-atomics. Each chain's current state keeps its records on the host until it is replaced. Each
-proposal's f is the float32 sum of its records' luminance on the device, in the order the connect
-phase wrote them (cl/mlt_contribution.h: the same bits every run); the records dropped for a
-non-finite value and the proposals past max_dims are counted there too, and read at the end.
+Splats are summed on the device, into two record films (toolkit/opencl/record_film.py: exact
+128-bit fixed point per pixel and channel, so the order of the additions changes no bit; no float
+atomics): the Metropolis splats, scaled by the final b when the image is made, and with `combine`
+the large steps' own. A splat is a record (value, pixel) with its weight in .w (cl/mlt_splat.h).
+Each proposal's records go to a proposal store on the device, and each chain's current state keeps
+its records in a current store, rebuilt after each acceptance from the accepted proposals' records
+and the kept states'; the host bounds the stores' sizes from the records proposed and a read of the
+current store's size queued LAG iterations before (never waited for while the device is behind).
+Each proposal's f is the float32 sum of its records' luminance on the device, in the order the
+connect phase wrote them (cl/mlt_contribution.h: the same bits every run). b's sum is exact too:
+each large step's f, in fixed point, added with integer atomics to one 128-bit sum
+(cl/mlt_splat.h); b before each iteration, for the combination's weights, is computed from it on
+the device. The records dropped for a non-finite value, the proposals past max_dims, the accepted
+mutations and the large steps are counted there too, and read at the end, with b's sum.
 
 Options (keyword arguments of toolkit.render(..., options=...)):
 
