@@ -18,10 +18,8 @@
  *   mlt_start_from               cl/mlt.h                    each chain's first state, picked by the host
  * or for start = resample:
  *   mlt_resample_weights         cl/mlt_splat.h              each chain's weight
- * record_film.cl is included for its exact fixed-point helpers (b's sum); its kernels, built
- * here too, are not launched from this program (toolkit/opencl/record_film.py builds its own). */
+ * The splats are added by the record film's own program (cl/record_film.cl, toolkit/opencl/record_film.py). */
 #include "bdpt_parallel_connect.cl"
-#include "record_film.cl"
 #include "mlt.h"
 #include "mlt_contribution.h"
 #include "mlt_splat.h"

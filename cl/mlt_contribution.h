@@ -21,7 +21,7 @@ __kernel void mlt_proposal_sums(const int pool, __global const BdptSlot* slots, 
                                 __global const int* record_pixel, __global float* f_proposal,
                                 __global int* dims_proposal, __global int* tallies, const int store_base,
                                 __global float4* store_value, __global int* store_pixel, __global int* store_chain,
-                                __global int* proposal_first, __global int* proposal_count)
+                                __global int2* proposal_span)
 {
     int slot = get_global_id(0);
     if (slot >= pool) return;
@@ -40,8 +40,7 @@ __kernel void mlt_proposal_sums(const int pool, __global const BdptSlot* slots, 
         store_pixel[to] = pixel;                  /* -1: splats nothing */
         store_chain[to] = sample.sample_id;
     }
-    proposal_first[sample.sample_id] = store_base + firsts[slot];
-    proposal_count[sample.sample_id] = n;
+    proposal_span[sample.sample_id] = (int2)(store_base + firsts[slot], n);   /* first record, count */
     int dims = used_dims(sample.eye_vertices, sample.light_vertices);
     f_proposal[sample.sample_id] = fmax(f, 0.0f);
     dims_proposal[sample.sample_id] = min(dims, MLT_MAX_DIMS);

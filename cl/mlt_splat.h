@@ -6,7 +6,7 @@
  * copied there by mlt_proposal_sums (cl/mlt_contribution.h); its current state keeps its records
  * in the current store. Each store is three arrays, one entry per record: value (float4, .w is
  * the record's splat weight, set before each splat), pixel (-1: none) and chain; and per chain
- * the first entry and the count of its records. After the acceptance mlt_keep_records writes the
+ * its span (int2: the first entry and the count of its records). After the acceptance mlt_keep_records writes the
  * next current store: each chain's accepted proposal's records, or its old current records.
  *
  * Splats. mlt_splat_weights gives every chain three weights (before mlt_accept, which overwrites
@@ -24,6 +24,7 @@
 #define MLT_SPLAT_H
 
 #include "common.h"
+#include "fixed_point_128.h"
 #include "mlt.h"
 
 /* Every active chain's splat weights (.x proposal, .y current state, .z a large step's own; zero
@@ -102,30 +103,26 @@ __kernel void mlt_weigh_records(const int capacity, __global const int* total, c
  * their order changes from run to run, the film's integer sums do not. Counts the accepted
  * mutations. */
 __kernel void mlt_keep_records(const MltIteration it, __global const MltChain* chains,
-                               __global const int* proposal_first, __global const int* proposal_count,
-                               __global const float4* proposal_value, __global const int* proposal_pixel,
-                               __global const int* current_first, __global const int* current_count,
+                               __global const int2* proposal_span, __global const float4* proposal_value,
+                               __global const int* proposal_pixel, __global const int2* current_span,
                                __global const float4* current_value, __global const int* current_pixel,
-                               __global int* next_first, __global int* next_count, __global float4* next_value,
-                               __global int* next_pixel, __global int* next_chain, __global int* next_total,
-                               __global int* tallies)
+                               __global int2* next_span, __global float4* next_value, __global int* next_pixel,
+                               __global int* next_chain, __global int* next_total, __global int* tallies)
 {
     int c = get_global_id(0);
     if (c >= it.chains) return;
     bool accepted = c < it.active && chains[c].accepted;
     if (accepted && it.mode == MLT_MUTATE) atomic_inc(&tallies[MLT_TALLY_ACCEPTED]);
-    int from = accepted ? proposal_first[c] : current_first[c];
-    int n = accepted ? proposal_count[c] : current_count[c];
+    int2 span = accepted ? proposal_span[c] : current_span[c];    /* (first record, count) */
     __global const float4* value = accepted ? proposal_value : current_value;
     __global const int* pixel = accepted ? proposal_pixel : current_pixel;
-    int first = n > 0 ? atomic_add(next_total, n) : 0;
-    for (int k = 0; k < n; ++k) {
-        next_value[first + k] = value[from + k];
-        next_pixel[first + k] = pixel[from + k];
+    int first = span.y > 0 ? atomic_add(next_total, span.y) : 0;
+    for (int k = 0; k < span.y; ++k) {
+        next_value[first + k] = value[span.x + k];
+        next_pixel[first + k] = pixel[span.x + k];
         next_chain[first + k] = c;
     }
-    next_first[c] = first;
-    next_count[c] = n;
+    next_span[c] = (int2)(first, span.y);
 }
 
 #endif

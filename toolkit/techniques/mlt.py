@@ -348,12 +348,11 @@ class Mlt(BdptPoolTechnique):
                                         record_value=store.value)
                     film.add(store.value, store.pixel, count, weighted=True)
         nxt = c.next_store(proposed)
-        self.kernels.launch("mlt_keep_records", c.count, it=it, chains=c.records, proposal_first=c.proposals.first,
-                            proposal_count=c.proposals.count, proposal_value=c.proposals.value,
-                            proposal_pixel=c.proposals.pixel, current_first=current.first,
-                            current_count=current.count, current_value=current.value, current_pixel=current.pixel,
-                            next_first=nxt.first, next_count=nxt.count, next_value=nxt.value, next_pixel=nxt.pixel,
-                            next_chain=nxt.chain, next_total=nxt.total, tallies=c.tallies)
+        self.kernels.launch("mlt_keep_records", c.count, it=it, chains=c.records, proposal_span=c.proposals.span,
+                            proposal_value=c.proposals.value, proposal_pixel=c.proposals.pixel,
+                            current_span=current.span, current_value=current.value, current_pixel=current.pixel,
+                            next_span=nxt.span, next_value=nxt.value, next_pixel=nxt.pixel, next_chain=nxt.chain,
+                            next_total=nxt.total, tallies=c.tallies)
         c.kept(nxt)
         self.kernels.launch("mlt_estimate_b", 1, b_sum=c.b_sum, unit_exponent=np.int32(c.films[1].unit_exponent),
                             tallies=c.tallies, b_estimate=c.b_estimate)

@@ -14,7 +14,7 @@ from toolkit.techniques.pass_end import LAG
 class RecordStore:
     """Connection records that belong to chains, on the device (cl/mlt_splat.h): per record its
     value (float4; .w is its splat weight, set before each splat), pixel (-1: none) and chain; per
-    chain where its records start and how many there are; and `total`, the records in the store
+    chain its span (int2: where its records start, how many there are); and `total`, the records in the store
     (an int on the device). `capacity`: the records it can hold."""
 
     def __init__(self, memory, chains, capacity):
@@ -22,7 +22,7 @@ class RecordStore:
         self.capacity = capacity
         self.value = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 16 * max(1, capacity))
         self.pixel, self.chain = memory.int_buffer(capacity, fill=-1), memory.int_buffer(capacity)
-        self.first, self.count = memory.int_buffer(chains, fill=0), memory.int_buffer(chains, fill=0)
+        self.span = memory.int_buffer(2 * chains, fill=0)
         self.total = memory.int_buffer(1, fill=0)
 
 
@@ -44,7 +44,7 @@ class ProposalSink:
         # a proposal that never connects has f = 0, used the start's dimensions and has no records
         cl.enqueue_fill_buffer(queue, chains.f_proposal, np.float32(0), 0, 4 * active)
         cl.enqueue_fill_buffer(queue, chains.dims_proposal, np.int32(BDPT_FIRST_SCATTER_DIM), 0, 4 * active)
-        cl.enqueue_fill_buffer(queue, chains.proposals.count, np.int32(0), 0, 4 * active)
+        cl.enqueue_fill_buffer(queue, chains.proposals.span, np.int32(0), 0, 8 * active)
 
     def add(self, connections):
         """The records of one connect phase (on the device: Connections' buffers)."""
@@ -57,7 +57,7 @@ class ProposalSink:
                             record_value=connections.value_buffer, record_pixel=connections.pixel_buffer,
                             f_proposal=c.f_proposal, dims_proposal=c.dims_proposal, tallies=c.tallies,
                             store_base=np.int32(self.total), store_value=store.value, store_pixel=store.pixel,
-                            store_chain=store.chain, proposal_first=store.first, proposal_count=store.count)
+                            store_chain=store.chain, proposal_span=store.span)
         self.total += connections.count
 
     def records(self):
@@ -116,8 +116,7 @@ class Chains:
             for name, size in (("value", 16), ("pixel", 4), ("chain", 4)):
                 if kept:
                     cl.enqueue_copy(q, getattr(self.proposals, name), getattr(old, name), byte_count=size * kept)
-            for name in ("first", "count"):
-                cl.enqueue_copy(q, getattr(self.proposals, name), getattr(old, name), byte_count=4 * self.count)
+            cl.enqueue_copy(q, self.proposals.span, old.span, byte_count=8 * self.count)
         return self.proposals
 
     def next_store(self, proposed):
