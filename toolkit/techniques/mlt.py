@@ -195,6 +195,9 @@ class Mlt(BdptPoolTechnique):
 
     def begin_render(self, camera, seed, spp):
         self.total = pixel_count(camera) * spp          # mutations in all
+        if self.total + self.candidates * min(self.chain_count, self.total) >= 2 ** 31:
+            raise InputError(f"mlt counts its mutations and large steps in 32-bit integers on the device: "
+                             f"{self.total:,} mutations are too many; render fewer pixels or samples per pixel")
         self.started = time.perf_counter()
         self.begin(camera, seed, min(self.chain_count, self.total))
 

@@ -52,6 +52,8 @@ class ProposalSink:
             return
         c, pool = self.chains, self.pool
         store = c.proposal_store_for(self.total + connections.count, self.total)
+        # a record the phase did not write (none today: count is exact) splats nothing
+        cl.enqueue_fill_buffer(self.kernels.queue, store.pixel, np.int32(-1), 4 * self.total, 4 * connections.count)
         self.kernels.launch("mlt_proposal_sums", pool, pool=np.int32(pool), slots=connections.slot_buffer,
                             counts=connections.count_buffer, firsts=connections.first_buffer,
                             record_value=connections.value_buffer, record_pixel=connections.pixel_buffer,
