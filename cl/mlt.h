@@ -39,7 +39,8 @@ HELPER float mlt_acceptance(float f_current, float f_proposal) {
  * a state with f = 0 (the start may have one). START: always accepted. CANDIDATE (start =
  * resample): weighted reservoir sampling, kept with probability f / (sum of f so far), so after
  * N candidates the state is candidate i with probability f_i / sum f. The accepted vector is
- * copied into the chain's current one (its used dimensions); `acceptance` is what the host weights the splats with. */
+ * copied into the chain's current one (its used dimensions). The splats' weights use the same a
+ * (mlt_acceptance), computed before this kernel by mlt_splat_weights (cl/mlt_splat.h). */
 __kernel void mlt_accept(const MltIteration it, __global float* current, __global const float* proposal,
                          __global MltChain* chains, __global const float* f_proposal,
                          __global const int* dims_proposal)
@@ -69,7 +70,7 @@ __kernel void mlt_accept(const MltIteration it, __global float* current, __globa
     }
     chain.accepted = accept;
     chain.acceptance = a;
-    chain.f_proposal = fy;            /* what the host reads of the proposal, with the decision */
+    chain.f_proposal = fy;            /* the proposal as this acceptance saw it */
     chain.dims_proposal = dims_proposal[c];
     chains[c] = chain;
 }

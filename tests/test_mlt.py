@@ -179,7 +179,7 @@ def test_option_limits_are_checked(cornell_box):
             toolkit.render(cornell_box, technique="mlt", spp=1, resolution=(4, 4), options=options)
     # the device counts mutations and large steps in 32-bit integers (cl/mlt_splat.h)
     with pytest.raises(InputError, match="32-bit"):
-        toolkit.render(cornell_box, technique="mlt", spp=2 ** 27, resolution=(4, 4), options={"chains": 16})
+        toolkit.render(cornell_box, technique="mlt", spp=2 ** 24, resolution=(16, 8), options={"chains": 16})
 
 
 # -- what only changes the cost ---------------------------------------------------------------------

@@ -206,8 +206,8 @@ MLT_CHAIN = Record("MltChain", [
     ("accepted", "int"),        # 1: this iteration's proposal became the current state
     ("acceptance", "float"),    # a = min(1, f(proposal) / f(current)): the proposal's splat weight
     ("candidates", "float"),    # start = resample: sum of f over the candidates seen so far
-    ("f_proposal", "float"),    # this iteration's proposal's f (cl/mlt_contribution.h), for the host's splats and b
-    ("dims_proposal", "int"),   # the dimensions it used (start = pool picks from the candidates')
+    ("f_proposal", "float"),    # this iteration's proposal's f (cl/mlt_contribution.h), as mlt_accept saw it
+    ("dims_proposal", "int"),   # the dimensions it used
 ], "One Metropolis chain (cl/mlt.h); its primary-sample vector is stored apart, dimension-major.")
 
 MLT_ITERATION = Record("MltIteration", [

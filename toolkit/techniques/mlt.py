@@ -12,8 +12,10 @@ One iteration, read like the slide, every step of it on the device:
         and each proposal's f is summed from them);
     accept or reject per chain;
     splat the proposal with weight a and the current state with weight 1 - a.
-The host reads nothing of the chains while they iterate: the films, b and the counts once at
-the end (and, for start = pool, the candidates' f once, to pick the starts).
+While the chains iterate the host waits for nothing: it reads one count per iteration, behind the
+kernels and looked at iterations later (how many records the current states keep: mlt_chains.py
+Chains.next_store), and the films, b and the tallies once at the end (for start = pool, also the
+candidates' f once, to pick the starts).
 
 The estimator. A sample x (a point of primary sample space [0, 1)^D: the image position, the
 light sample, every scattering decision) has the contribution h_j(x) to pixel j, the sum of
