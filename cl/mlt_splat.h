@@ -101,13 +101,14 @@ __kernel void mlt_weigh_records(const int capacity, __global const int* total, c
 /* The next current store: chain c keeps its accepted proposal's records, or its current ones
  * (chains past it.active did not mutate). Entries are taken with an atomic counter, next_total:
  * their order changes from run to run, the film's integer sums do not. Counts the accepted
- * mutations. */
+ * mutations, and the records past `capacity` (none: the host bounds the store's size). */
 __kernel void mlt_keep_records(const MltIteration it, __global const MltChain* chains,
                                __global const int2* proposal_span, __global const float4* proposal_value,
                                __global const int* proposal_pixel, __global const int2* current_span,
                                __global const float4* current_value, __global const int* current_pixel,
                                __global int2* next_span, __global float4* next_value, __global int* next_pixel,
-                               __global int* next_chain, __global int* next_total, __global int* tallies)
+                               __global int* next_chain, __global int* next_total, const int capacity,
+                               __global int* tallies)
 {
     int c = get_global_id(0);
     if (c >= it.chains) return;
@@ -117,6 +118,11 @@ __kernel void mlt_keep_records(const MltIteration it, __global const MltChain* c
     __global const float4* value = accepted ? proposal_value : current_value;
     __global const int* pixel = accepted ? proposal_pixel : current_pixel;
     int first = span.y > 0 ? atomic_add(next_total, span.y) : 0;
+    if (first + span.y > capacity) {       /* the host's bound was wrong: never written past, reported */
+        atomic_add(&tallies[MLT_TALLY_STORE_OVERFLOW], span.y);
+        next_span[c] = (int2)(0, 0);
+        return;
+    }
     for (int k = 0; k < span.y; ++k) {
         next_value[first + k] = value[span.x + k];
         next_pixel[first + k] = pixel[span.x + k];

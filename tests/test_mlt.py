@@ -303,6 +303,22 @@ def test_a_non_finite_splat_is_left_out_of_the_films_and_reported(cornell_box, m
     assert np.isfinite(r.image).all() and r.image.sum() > 0
 
 
+def test_a_current_store_too_small_is_never_written_past_and_is_reported(cornell_box, monkeypatch):
+    """If the host's bound on the current states' records were wrong, mlt_keep_records writes no
+    record past the store (it counts them: MltTally.STORE_OVERFLOW) and the render raises."""
+    from toolkit.techniques import mlt_chains
+    next_store = mlt_chains.Chains.next_store
+
+    def too_small(chains, proposed):
+        next_store(chains, proposed)
+        chains.stores[1] = mlt_chains.RecordStore(chains.memory, chains.count, 1)
+        chains.memory.fill_ints(chains.stores[1].total, 0)
+        return chains.stores[1]
+    monkeypatch.setattr(mlt_chains.Chains, "next_store", too_small)
+    with pytest.raises(RuntimeError, match="a bug"):
+        render(cornell_box, 2, 1, 8, chains=64, start="naive")
+
+
 # -- the iteration on the device: the same bits, b ---------------------------------------------------
 
 def test_one_seed_gives_the_same_image_bits(cornell_box):

@@ -314,6 +314,7 @@ class MltTally(IntEnum):
     OVERFLOW = 1        # proposals that read more than max_dims dimensions
     ACCEPTED = 2        # accepted mutations (MltMode.MUTATE): the acceptance rate
     LARGE_STEPS = 3     # large steps whose f is in b's sum (cl/mlt_splat.h): b = sum / LARGE_STEPS
+    STORE_OVERFLOW = 4  # records a current store had no room for: the host's bound is wrong, a bug (raised)
 
 
 NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"),

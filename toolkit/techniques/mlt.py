@@ -357,7 +357,7 @@ class Mlt(BdptPoolTechnique):
                             proposal_value=c.proposals.value, proposal_pixel=c.proposals.pixel,
                             current_span=current.span, current_value=current.value, current_pixel=current.pixel,
                             next_span=nxt.span, next_value=nxt.value, next_pixel=nxt.pixel, next_chain=nxt.chain,
-                            next_total=nxt.total, tallies=c.tallies)
+                            next_total=nxt.total, capacity=np.int32(nxt.capacity), tallies=c.tallies)
         c.kept(nxt)
         self.kernels.launch("mlt_estimate_b", 1, b_sum=c.b_sum, unit_exponent=np.int32(c.films[1].unit_exponent),
                             tallies=c.tallies, b_estimate=c.b_estimate)

@@ -98,9 +98,10 @@ class Chains:
     film_dropped: int = 0    # splats the films left out (not finite, or beyond FILM_RECORD_LIMIT): a bug
     proposals: RecordStore = field(init=False)  # this iteration's proposals' records
     stores: list = field(init=False)            # the current states' records, and the next ones' (swapped)
-    bound: int = 0           # at least the records of the current store (StoreBound)
-    added: list = field(init=False)             # (iteration, records proposed) since the last read total
-    pending: list = field(init=False)           # (iteration, PendingRead of a current store's total)
+    bound: int = 0           # at least the records of the current store (next_store)
+    rebuilds: int = 0        # current stores made so far (a picked start's iteration makes one too)
+    added: list = field(init=False)             # (rebuild, records proposed) since the last total read
+    pending: list = field(init=False)           # (rebuild, PendingRead of that current store's total)
     splats: np.ndarray = field(init=False)        # (pixels, 3) float64: the Metropolis splats resolved so far
     large_splats: np.ndarray = field(init=False)  # (pixels, 3) float64: the large steps' own, likewise
 
@@ -128,11 +129,11 @@ class Chains:
         for before the device is past it), plus every record proposed since."""
         while self.pending and (len(self.pending) > LAG or self.pending[0][1].event.command_execution_status
                                 == cl.command_execution_status.COMPLETE):
-            iteration, read = self.pending.pop(0)
-            self.added = [(k, n) for k, n in self.added if k > iteration]
+            rebuild, read = self.pending.pop(0)
+            self.added = [(k, n) for k, n in self.added if k > rebuild]
             self.bound = min(self.bound, int(read.result()) + sum(n for _, n in self.added))
         self.bound += proposed
-        self.added.append((self.iteration, proposed))
+        self.added.append((self.rebuilds, proposed))
         store = self.stores[1]
         if store.capacity < self.bound:
             store = self.stores[1] = RecordStore(self.memory, self.count, store_capacity(self.bound))
@@ -144,13 +145,17 @@ class Chains:
     def kept(self, store):
         """The next store is now the current one; its total is read behind the kernels (next_store)."""
         self.stores = [store, self.stores[0]]
-        self.pending.append((self.iteration, self.memory.read_later(store.total, np.int32)))
+        self.pending.append((self.rebuilds, self.memory.read_later(store.total, np.int32)))
+        self.rebuilds += 1
 
     def read_tallies(self):
         """The counts the kernels kept (MltTally) and b's sum, read once: at the end of the render."""
         tallies = self.memory.read_ints(self.tallies, len(MltTally))
         self.nonfinite, self.overflow = int(tallies[MltTally.NONFINITE]), int(tallies[MltTally.OVERFLOW])
         self.accepted, self.large_count = int(tallies[MltTally.ACCEPTED]), int(tallies[MltTally.LARGE_STEPS])
+        if tallies[MltTally.STORE_OVERFLOW]:
+            raise RuntimeError(f"mlt: {tallies[MltTally.STORE_OVERFLOW]} records found no room in the current "
+                               f"states' store (Chains.next_store's bound is wrong): a bug, please report it")
         words = np.empty(4, np.uint32)
         cl.enqueue_copy(self.memory.queue, words, self.b_sum)
         self.b_total = exact_fixed_point(words, self.films[1].unit_exponent)
