@@ -7,11 +7,19 @@
  *   bdpt_regenerate, bdpt_extend, bdpt_mark_terminated, the compaction,
  *   bdpt_parallel_connect_count, the scan, bdpt_parallel_connect
  *                                cl/bdpt_parallel_connect.cl  evaluate the proposals (one BDPT sample each)
- *   mlt_proposal_sums            cl/mlt_contribution.h       after each connect phase: each proposal's f and dims
- *   (the host reads the records for the splats)
+ *   mlt_proposal_sums            cl/mlt_contribution.h       after each connect phase: each proposal's f and dims,
+ *                                                            its records into the proposal store
+ *   mlt_splat_weights            cl/mlt_splat.h              each chain's splat weights; the large steps' f into b
  *   mlt_accept                   cl/mlt.h                    keep or reject each proposal
+ *   mlt_weigh_records, record_film_add (x3)                  the splats into the films (cl/record_film.cl)
+ *   mlt_keep_records             cl/mlt_splat.h              the next current states' records
+ *   mlt_estimate_b               cl/mlt_splat.h              b for the next iteration's weights
  * and once, for start = pool, after the candidates:
- *   mlt_start_from               cl/mlt.h                    each chain's first state, picked by the host */
+ *   mlt_start_from               cl/mlt.h                    each chain's first state, picked by the host
+ * or for start = resample:
+ *   mlt_resample_weights         cl/mlt_splat.h              each chain's weight
+ * The splats are added by the record film's own program (cl/record_film.cl, toolkit/opencl/record_film.py). */
 #include "bdpt_parallel_connect.cl"
 #include "mlt.h"
 #include "mlt_contribution.h"
+#include "mlt_splat.h"

@@ -28,12 +28,19 @@
 /* mlt_perturb and the mlt_mutate kernel */
 #include "mlt_mutation.h"
 
+/* a = min(1, f(y) / f(x)), and 1 from a state with f = 0: the one formula of mlt_accept and of
+ * the splat weights (cl/mlt_splat.h), so both see the same a. */
+HELPER float mlt_acceptance(float f_current, float f_proposal) {
+    return f_current > 0.0f ? fmin(1.0f, f_proposal / f_current) : 1.0f;
+}
+
 /* Metropolis-Hastings acceptance of the proposals whose contributions f (luminance over all
  * strategies) and used dimensions mlt_proposal_sums has summed: a = min(1, f(y) / f(x)), and a = 1 from
  * a state with f = 0 (the start may have one). START: always accepted. CANDIDATE (start =
  * resample): weighted reservoir sampling, kept with probability f / (sum of f so far), so after
  * N candidates the state is candidate i with probability f_i / sum f. The accepted vector is
- * copied into the chain's current one (its used dimensions); `acceptance` is what the host weights the splats with. */
+ * copied into the chain's current one (its used dimensions). The splats' weights use the same a
+ * (mlt_acceptance), computed before this kernel by mlt_splat_weights (cl/mlt_splat.h). */
 __kernel void mlt_accept(const MltIteration it, __global float* current, __global const float* proposal,
                          __global MltChain* chains, __global const float* f_proposal,
                          __global const int* dims_proposal)
@@ -44,13 +51,13 @@ __kernel void mlt_accept(const MltIteration it, __global float* current, __globa
     MltChain chain = chains[c];
     float fy = f_proposal[c];
     float a;
-    if (it.mode == MLT_START) {
+    if (it.mode == MLT_START || it.mode == MLT_PICKED) {
         a = 1.0f;
     } else if (it.mode == MLT_CANDIDATE) {
         chain.candidates += fy;
         a = chain.candidates > 0.0f ? fy / chain.candidates : 1.0f;   /* all zero so far: any will do */
     } else {
-        a = chain.f_current > 0.0f ? fmin(1.0f, fy / chain.f_current) : 1.0f;
+        a = mlt_acceptance(chain.f_current, fy);
     }
     bool accept = sampler_get(&m, 1) < a;
     if (accept) {   /* the dimensions the new state used: perturbed ones as stored, fresh ones drawn */
@@ -63,7 +70,7 @@ __kernel void mlt_accept(const MltIteration it, __global float* current, __globa
     }
     chain.accepted = accept;
     chain.acceptance = a;
-    chain.f_proposal = fy;            /* what the host reads of the proposal, with the decision */
+    chain.f_proposal = fy;            /* the proposal as this acceptance saw it */
     chain.dims_proposal = dims_proposal[c];
     chains[c] = chain;
 }
@@ -71,19 +78,17 @@ __kernel void mlt_accept(const MltIteration it, __global float* current, __globa
 /* start = pool: chain c starts at a large step that chain src_chain[c] evaluated in iteration
  * src_iteration[c] (the host picked it from all chains' candidates in proportion to f). A large
  * step's dimensions were all fresh, so its vector is the mutation's random numbers of that
- * (chain, iteration), drawn again here for the dimensions its path used. */
-__kernel void mlt_start_from(const MltIteration it, __global float* current, __global MltChain* chains,
-                             __global const int* src_chain, __global const int* src_iteration,
-                             __global const float* f, __global const int* dims)
+ * (chain, iteration), drawn again here for the dimensions its path used; they become chain c's
+ * proposal, which an iteration in the mode MLT_PICKED evaluates again (its records) and accepts. */
+__kernel void mlt_start_from(const MltIteration it, __global float* proposal, __global const int* src_chain,
+                             __global const int* src_iteration, __global const int* dims)
 {
     int c = get_global_id(0);
     if (c >= it.active) return;
     Sampler m = mlt_mutation_sampler(it.seed, src_chain[c], src_iteration[c]);
     int used = min(dims[c], MLT_MAX_DIMS);
-    for (int d = 0; d < used; ++d)
-        current[mlt_index((uint)d, (uint)c, (uint)it.chains)] = mlt_fresh(&m, (uint)d);
-    chains[c].f_current = f[c];
-    chains[c].dims_current = dims[c];
+    for (int d = 0; d < MLT_MAX_DIMS; ++d)
+        proposal[mlt_index((uint)d, (uint)c, (uint)it.chains)] = d < used ? mlt_fresh(&m, (uint)d) : MLT_FRESH;
 }
 
 #endif

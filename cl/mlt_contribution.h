@@ -1,5 +1,6 @@
 /* Each proposal's contribution f and used dimensions, summed on the device from the records of
- * a connect phase (cl/bdpt_parallel_connect.cl): the host reads no record to decide acceptance.
+ * a connect phase (cl/bdpt_parallel_connect.cl), and its records copied to the proposal store
+ * (cl/mlt_splat.h), where the splats find them: the host reads no record.
  *
  * One work-item per pool slot. The parallel connect phase writes a slot's records consecutively,
  * from firsts[slot] (the scan of counts), so the work-item adds its sample's records one after
@@ -18,7 +19,9 @@
 __kernel void mlt_proposal_sums(const int pool, __global const BdptSlot* slots, __global const int* counts,
                                 __global const int* firsts, __global const float4* record_value,
                                 __global const int* record_pixel, __global float* f_proposal,
-                                __global int* dims_proposal, __global int* tallies)
+                                __global int* dims_proposal, __global int* tallies, const int store_base,
+                                __global float4* store_value, __global int* store_pixel, __global int* store_chain,
+                                __global int2* proposal_span)
 {
     int slot = get_global_id(0);
     if (slot >= pool) return;
@@ -27,12 +30,17 @@ __kernel void mlt_proposal_sums(const int pool, __global const BdptSlot* slots, 
     BdptSlot sample = slots[slot];
     float f = 0.0f;
     int nonfinite = 0;
-    for (int k = firsts[slot]; k < firsts[slot] + n; ++k) {
-        if (record_pixel[k] < 0) continue;
+    int to = store_base + firsts[slot];     /* this phase's records follow the iteration's earlier phases' */
+    for (int k = firsts[slot]; k < firsts[slot] + n; ++k, ++to) {
         float3 value = record_value[k].xyz;
-        if (!(isfinite(value.x) && isfinite(value.y) && isfinite(value.z))) { ++nonfinite; continue; }
-        f += luminance(value);
+        int pixel = record_pixel[k];
+        if (pixel >= 0 && !all_finite(value)) { ++nonfinite; pixel = -1; }
+        if (pixel >= 0) f += luminance(value);
+        store_value[to] = (float4)(value, 0.0f);  /* .w: the splat weight, set before each splat */
+        store_pixel[to] = pixel;                  /* -1: splats nothing */
+        store_chain[to] = sample.sample_id;
     }
+    proposal_span[sample.sample_id] = (int2)(store_base + firsts[slot], n);   /* first record, count */
     int dims = used_dims(sample.eye_vertices, sample.light_vertices);
     f_proposal[sample.sample_id] = fmax(f, 0.0f);
     dims_proposal[sample.sample_id] = min(dims, MLT_MAX_DIMS);

@@ -25,7 +25,8 @@ PROGRAMS = {
     "pt_compact_regen.cl": ["pt_compact_regen", "pt_compact_regen/multipass"],
     "bdpt_naive_connect.cl": ["bdpt_naive_connect"],
     "bdpt_parallel_connect.cl": ["bdpt_parallel_connect"],
-    "mlt.cl": ["mlt", "mlt/pool"],      # pool: the start from chosen candidates (mlt_start_from)
+    # pool: the start from chosen candidates (mlt_start_from); resample: the chains' weights (mlt_resample_weights)
+    "mlt.cl": ["mlt", "mlt/pool", "mlt/resample"],
 }
 SCALARS = {np.int32: "int", np.uint32: "uint", np.float32: "float"}
 RECORD_NAMES = {record.dtype: record.name for record in RECORDS}

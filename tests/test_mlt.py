@@ -177,6 +177,9 @@ def test_option_limits_are_checked(cornell_box):
                           ({"small_step": 0.9}, "small_step")):
         with pytest.raises(InputError, match=name):
             toolkit.render(cornell_box, technique="mlt", spp=1, resolution=(4, 4), options=options)
+    # the device counts mutations and large steps in 32-bit integers (cl/mlt_splat.h)
+    with pytest.raises(InputError, match="32-bit"):
+        toolkit.render(cornell_box, technique="mlt", spp=2 ** 24, resolution=(16, 8), options={"chains": 16})
 
 
 # -- what only changes the cost ---------------------------------------------------------------------
@@ -222,43 +225,51 @@ def test_each_proposals_f_and_dims_are_summed_on_the_device_from_its_records(cor
     from toolkit.core.sample_dims import used_dims
     from toolkit.techniques import mlt_chains
     from toolkit.techniques.mlt import Mlt
+    import pyopencl as cl
+    from toolkit.core.layout import BDPT_SLOT
     seen, pending, expected_dims = [], [], {}
-    add, records, accept = mlt_chains.ProposalSink.add, mlt_chains.ProposalSink.records, Mlt.accept
+    add, accept = mlt_chains.ProposalSink.add, Mlt.accept
 
-    def add_noting_dims(sink, connections):
-        if connections.slots is not None:
-            slots = connections.slots[connections.slot_records > 0]
-            expected_dims.update(zip(slots["sample_id"].tolist(),
-                                     used_dims(slots["eye_vertices"], slots["light_vertices"]).tolist()))
+    def add_noting_dims(sink, connections):   # the test reads the records back; the render does not
+        if connections.count:
+            memory = sink.chains.memory
+            counts = memory.read_ints(connections.count_buffer, sink.pool)
+            slots = memory.read_structs(BDPT_SLOT, connections.slot_buffer, sink.pool)
+            done = counts > 0
+            chain = np.repeat(slots["sample_id"][done], counts[done])
+            ok = (connections.pixels >= 0) & np.isfinite(connections.values[:, :3]).all(1)
+            pending.append((chain[ok], connections.values[ok, :3].astype(np.float64)))
+            expected_dims.update(zip(slots["sample_id"][done].tolist(),
+                                     used_dims(slots["eye_vertices"][done], slots["light_vertices"][done]).tolist()))
         add(sink, connections)
 
-    def records_noted(sink):
-        pending.append((sink.active, records(sink)))
-        return pending[-1][1]
-
     def accept_checked(tech, c, it):
-        decisions = accept(tech, c, it)
-        active, r = pending.pop()
-        host = np.bincount(r.chain, r.values @ np.asarray(LUMINANCE_WEIGHTS), minlength=active)
-        seen.append((decisions["f_proposal"], host, np.bincount(r.chain, minlength=active)))
+        accept(tech, c, it)
+        active = int(it["active"])
+        f = np.empty(active, np.float32)
+        cl.enqueue_copy(tech.queue, f, c.f_proposal)
+        dims_proposal = c.memory.read_ints(c.dims_proposal, active)
+        chain = np.concatenate([x for x, _ in pending] + [np.zeros(0, np.int64)])
+        values = np.concatenate([v for _, v in pending] + [np.zeros((0, 3))])
+        pending.clear()
+        host = np.bincount(chain, values @ np.asarray(LUMINANCE_WEIGHTS), minlength=active)
+        seen.append((f, host, np.bincount(chain, minlength=active)))
         dims = np.full(active, 8)
         dims[list(expected_dims)] = np.minimum(list(expected_dims.values()), 128)
-        assert np.array_equal(decisions["dims_proposal"], dims)
+        assert np.array_equal(dims_proposal, dims)
         expected_dims.clear()
-        return decisions
     monkeypatch.setattr(mlt_chains.ProposalSink, "add", add_noting_dims)
-    monkeypatch.setattr(mlt_chains.ProposalSink, "records", records_noted)
     monkeypatch.setattr(Mlt, "accept", accept_checked)
     render(cornell_box, 4, 0, 8, chains=128, start="pool", candidates=2)
     f, host, n = (np.concatenate(x) for x in zip(*seen))
-    assert len(seen) == 2 + 2 and (f > 0).mean() > 0.3       # two candidates, two iterations
+    assert len(seen) == 2 + 1 + 2 and (f > 0).mean() > 0.3   # two candidates, the picked ones again, two iterations
     assert np.all(np.abs(f - host) <= np.maximum(n, 1) * 2.0 ** -23 * host + 1e-30)
 
 
 def test_a_non_finite_record_is_dropped_counted_on_the_device_and_reported(cornell_box, monkeypatch):
     """A NaN planted in the first record of every connect phase: the device leaves it out of f
-    and counts it (MltTally.NONFINITE, read once at the end), the host leaves it out of the
-    splats; the render reports it (DroppedSamplesWarning) and its image stays finite."""
+    and counts it (MltTally.NONFINITE, read once at the end), and stores it without a pixel, so
+    no splat adds it; the render reports it (DroppedSamplesWarning) and its image stays finite."""
     from toolkit.techniques import mlt_chains
     planted = plant_nan_in_every_connect_phase(monkeypatch, mlt_chains.ProposalSink)
     with warnings.catch_warnings():
@@ -267,6 +278,82 @@ def test_a_non_finite_record_is_dropped_counted_on_the_device_and_reported(corne
             r = render(cornell_box, 2, 1, 8, chains=64, start="naive")
     assert len(planted) > 1 and r.stats["nonfinite_samples"] == len(planted)
     assert np.isfinite(r.image).all() and r.image.sum() > 0
+
+
+def test_a_non_finite_splat_is_left_out_of_the_films_and_reported(cornell_box, monkeypatch):
+    """A NaN planted in one chain's splat weights at every Metropolis iteration (after
+    mlt_splat_weights): the record film leaves every splat of that chain out and counts it
+    (record_film.cl), the render reports them as dropped (a bug) and its image stays finite."""
+    import pyopencl as cl
+    from toolkit.core.layout import MltMode
+    from toolkit.techniques.mlt import Mlt
+    planted, accept = [], Mlt.accept
+
+    def accept_with_a_nan(tech, c, it):
+        accept(tech, c, it)
+        if it["mode"] == MltMode.MUTATE:
+            cl.enqueue_copy(tech.queue, c.splat_weights, np.float32([np.nan, np.nan, np.nan, 0.0]))
+            planted.append(1)
+    monkeypatch.setattr(Mlt, "accept", accept_with_a_nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("default", DroppedSamplesWarning)
+        with pytest.warns(DroppedSamplesWarning):
+            r = render(cornell_box, 2, 1, 8, chains=64, start="naive")
+    assert len(planted) == 2 and r.stats["nonfinite_samples"] >= len(planted)
+    assert np.isfinite(r.image).all() and r.image.sum() > 0
+
+
+def test_a_current_store_too_small_is_never_written_past_and_is_reported(cornell_box, monkeypatch):
+    """If the host's bound on the current states' records were wrong, mlt_keep_records writes no
+    record past the store (it counts them: MltTally.STORE_OVERFLOW) and the render raises."""
+    from toolkit.techniques import mlt_chains
+    next_store = mlt_chains.Chains.next_store
+
+    def too_small(chains, proposed):
+        next_store(chains, proposed)
+        chains.stores[1] = mlt_chains.RecordStore(chains.memory, chains.count, 1)
+        chains.memory.fill_ints(chains.stores[1].total, 0)
+        return chains.stores[1]
+    monkeypatch.setattr(mlt_chains.Chains, "next_store", too_small)
+    with pytest.raises(RuntimeError, match="a bug"):
+        render(cornell_box, 2, 1, 8, chains=64, start="naive")
+
+
+# -- the iteration on the device: the same bits, b ---------------------------------------------------
+
+def test_one_seed_gives_the_same_image_bits(cornell_box):
+    """The splats are summed in exact integer fixed point (cl/record_film.cl) and the current
+    records are stored in whatever order the atomics hand out places: the image does not depend on it."""
+    first, second = (render(cornell_box, 4, 7, 8, chains=96, start=start) for start in ("pool", "pool"))
+    assert np.array_equal(first.image, second.image) and first.image.sum() > 0
+    assert not np.array_equal(first.image, render(cornell_box, 4, 8, 8, chains=96, start="pool").image)
+
+
+def test_b_summed_on_the_device_equals_the_hosts_float64_sum_of_the_large_steps(cornell_box, monkeypatch):
+    """b's sum is exact fixed point on the device (units of 2^-48 of a power of two near the
+    brightest light: each f rounded by at most 2^-49 of it), read once at the end: it equals the
+    float64 sum of the same large steps' f (read here, after each iteration) within float rounding.
+    The large steps: every proposal of the start's iterations (a picked start is not one) and
+    those mutations whose MltChain.large_step is set."""
+    import pyopencl as cl
+    from toolkit.core.layout import MLT_CHAIN, MltMode
+    from toolkit.techniques.mlt import Mlt
+    large, accept = [], Mlt.accept
+
+    def accept_noting_large_steps(tech, c, it):
+        active = int(it["active"])
+        f = np.empty(active, np.float32)
+        cl.enqueue_copy(tech.queue, f, c.f_proposal)
+        chains = tech.memory.read_structs(MLT_CHAIN, c.records, active)
+        if it["mode"] != MltMode.PICKED:
+            large.append(f[chains["large_step"] != 0].astype(np.float64))
+        accept(tech, c, it)
+    monkeypatch.setattr(Mlt, "accept", accept_noting_large_steps)
+    r = render(cornell_box, 4, 3, 8, chains=64, start="pool", candidates=4)
+    steps = np.concatenate(large)
+    mlt = r.stats["mlt"]
+    assert mlt["large_steps"] == len(steps) > 64 * 4
+    assert mlt["b"] == pytest.approx(steps.mean(), rel=1e-6)
 
 
 # -- chain counts at the extremes --------------------------------------------------------------------

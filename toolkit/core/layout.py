@@ -206,8 +206,8 @@ MLT_CHAIN = Record("MltChain", [
     ("accepted", "int"),        # 1: this iteration's proposal became the current state
     ("acceptance", "float"),    # a = min(1, f(proposal) / f(current)): the proposal's splat weight
     ("candidates", "float"),    # start = resample: sum of f over the candidates seen so far
-    ("f_proposal", "float"),    # this iteration's proposal's f (cl/mlt_contribution.h), for the host's splats and b
-    ("dims_proposal", "int"),   # the dimensions it used (start = pool picks from the candidates')
+    ("f_proposal", "float"),    # this iteration's proposal's f (cl/mlt_contribution.h), as mlt_accept saw it
+    ("dims_proposal", "int"),   # the dimensions it used
 ], "One Metropolis chain (cl/mlt.h); its primary-sample vector is stored apart, dimension-major.")
 
 MLT_ITERATION = Record("MltIteration", [
@@ -304,6 +304,7 @@ class MltMode(IntEnum):
     MUTATE = 0          # the Metropolis step: large step with probability large_step, else a small step
     START = 1           # start = naive: one large step, always accepted
     CANDIDATE = 2       # start = resample: a large step, kept with probability f / (sum of f so far)
+    PICKED = 3          # start = pool: the picked candidate evaluated again (its records), always accepted, not in b
 
 
 class MltTally(IntEnum):
@@ -311,6 +312,9 @@ class MltTally(IntEnum):
     read once at the end of the render: the index of each in the tallies buffer."""
     NONFINITE = 0       # records dropped for a non-finite value (DroppedSamplesWarning)
     OVERFLOW = 1        # proposals that read more than max_dims dimensions
+    ACCEPTED = 2        # accepted mutations (MltMode.MUTATE): the acceptance rate
+    LARGE_STEPS = 3     # large steps whose f is in b's sum (cl/mlt_splat.h): b = sum / LARGE_STEPS
+    STORE_OVERFLOW = 4  # records a current store had no room for: the host's bound is wrong, a bug (raised)
 
 
 NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"),

@@ -1,16 +1,21 @@
 """Metropolis light transport: many independent primary-sample-space chains (Kelemen et al. 2002)
 over the bidirectional estimator, as in the talk's slides "Metropolis Light Transport" and
 "Startup Bias". Kernels: cl/mlt.cl (cl/mlt.h: mutation and acceptance; cl/mlt_contribution.h:
-each proposal's f, summed on the device from its records; the BDPT kernels of
-cl/bdpt_parallel_connect.cl built with -DMLT=1 read their uniforms from the chains' vectors).
+each proposal's f, summed on the device from its records; cl/mlt_splat.h: the splats, the
+current states' records and b; the BDPT kernels of cl/bdpt_parallel_connect.cl built with
+-DMLT=1 read their uniforms from the chains' vectors).
 
-One iteration, read like the slide:
+One iteration, read like the slide, every step of it on the device:
     mutate every chain (large step with probability `large_step`, else a small step);
     evaluate all proposals as one batch of BDPT samples (BDPT's evaluator, bdpt_evaluator.py:
         compacted walks, parallel connect; the records go to the chains, not to an image,
-        and each proposal's f is summed from them on the device);
-    accept or reject per chain (on the device; the host reads the decisions, with each proposal's f);
+        and each proposal's f is summed from them);
+    accept or reject per chain;
     splat the proposal with weight a and the current state with weight 1 - a.
+While the chains iterate the host waits for nothing: it reads one count per iteration, behind the
+kernels and looked at iterations later (how many records the current states keep: mlt_chains.py
+Chains.next_store), and the films, b and the tallies once at the end (for start = pool, also the
+candidates' f once, to pick the starts).
 
 The estimator. A sample x (a point of primary sample space [0, 1)^D: the image position, the
 light sample, every scattering decision) has the contribution h_j(x) to pixel j, the sum of
@@ -60,13 +65,23 @@ together in proportion to f (systematic resampling: chains x N candidates, `chai
 spaced draws on the cumulative f), and every chain weighs 1. The chains then start distributed
 like f / b up to the resampling of a finite pool: a bias of O(1 / (chains x N)), like the ratio
 above, with no weights to add variance. A bright candidate may start several chains; they part
-with their first mutations.
+with their first mutations. The candidates' records are not kept: the picked ones are evaluated
+once more from their vectors (MltMode.PICKED: the same path, so the same records; not counted in b).
 
-Splats (pixel, value) are added on the host in float64 (bdpt_evaluator.per_pixel_sums): no float
-atomics. Each chain's current state keeps its records on the host until it is replaced. Each
-proposal's f is the float32 sum of its records' luminance on the device, in the order the connect
-phase wrote them (cl/mlt_contribution.h: the same bits every run); the records dropped for a
-non-finite value and the proposals past max_dims are counted there too, and read at the end.
+Splats are summed on the device, into two record films (toolkit/opencl/record_film.py: exact
+128-bit fixed point per pixel and channel, so the order of the additions changes no bit; no float
+atomics): the Metropolis splats, scaled by the final b when the image is made, and with `combine`
+the large steps' own. A splat is a record (value, pixel) with its weight in .w (cl/mlt_splat.h).
+Each proposal's records go to a proposal store on the device, and each chain's current state keeps
+its records in a current store, rebuilt after each acceptance from the accepted proposals' records
+and the kept states'; the host bounds the stores' sizes from the records proposed and a read of the
+current store's size queued LAG iterations before (never waited for while the device is behind).
+Each proposal's f is the float32 sum of its records' luminance on the device, in the order the
+connect phase wrote them (cl/mlt_contribution.h: the same bits every run). b's sum is exact too:
+each large step's f, in fixed point, added with integer atomics to one 128-bit sum
+(cl/mlt_splat.h); b before each iteration, for the combination's weights, is computed from it on
+the device. The records dropped for a non-finite value, the proposals past max_dims, the accepted
+mutations and the large steps are counted there too, and read at the end, with b's sum.
 
 Options (keyword arguments of toolkit.render(..., options=...)):
 
@@ -93,14 +108,14 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.core.sample_dims import used_dims
-from toolkit.core.layout import MLT_CHAIN, MLT_ITERATION, MltMode, MltTally
+from toolkit.core.layout import FILM_ACCUMULATOR, MLT_CHAIN, MLT_ITERATION, MltMode, MltTally
 from toolkit.core.validate import InputError, finite_number, whole_number
 from toolkit.opencl.work_sizes import device_work_sizes
 from toolkit.techniques.base import pixel_count
-from toolkit.techniques.bdpt_evaluator import BdptEvaluator, BdptPoolTechnique, per_pixel_sums
+from toolkit.opencl.record_film import RecordFilm, film_word_bits, unit_exponent_for
+from toolkit.techniques.bdpt_evaluator import BdptEvaluator, BdptPoolTechnique
 from toolkit.techniques.bdpt_parallel_connect import ParallelConnect
-from toolkit.techniques.mlt_chains import (Chains, ProposalSink, Proposals, records_of_picks,
-                                           systematic_picks)
+from toolkit.techniques.mlt_chains import Chains, ProposalSink, systematic_picks
 
 STARTS = ("naive", "resample", "pool")
 
@@ -135,7 +150,8 @@ class Mlt(BdptPoolTechnique):
                            time_limit, small_step, kwargs)
         defines = {"MLT": True, "MLT_MAX_DIMS": self.max_dims, **step_defines(self.small_step),
                    # cl/mlt_proposals.h mlt_index: a CPU reads a vertex's dimensions from one cache line
-                   "MLT_CHAIN_MAJOR": bool(queue.device.type & cl.device_type.CPU)}
+                   "MLT_CHAIN_MAJOR": bool(queue.device.type & cl.device_type.CPU),
+                   "FILM_WORD_BITS": film_word_bits(queue.device)}   # b's exact sum (cl/mlt_splat.h)
         super().__init__(queue, device_scene, defines, pool_size, coalesced_scatter, **kwargs)
         if self.chain_count is None:   # enough to fill the device, no more (toolkit/opencl/work_sizes.py mlt_chains)
             self.chain_count = min(device_work_sizes(queue.device, self.max_vertices).chains, self.pool_size)
@@ -146,7 +162,7 @@ class Mlt(BdptPoolTechnique):
             # (8 per iteration instead of 1 on covered_lamp 64x64; 1.65 -> 1.43 BDPT samples per mutation).
             # Else BDPT's 0.6.
             regenerate_fraction = 1.0 if self.chain_count <= self.pool_size else 0.6
-        self.bdpt = BdptEvaluator(self.bdpt_context, ParallelConnect(self.bdpt_context, read_slots=True),
+        self.bdpt = BdptEvaluator(self.bdpt_context, ParallelConnect(self.bdpt_context),
                                   self.pool_size, regenerate_fraction, self.max_vertices)
         self.last_chains = None   # the chains of the last render, for its stats
         self.total = 0            # the render's mutations in all (begin_render)
@@ -181,6 +197,9 @@ class Mlt(BdptPoolTechnique):
 
     def begin_render(self, camera, seed, spp):
         self.total = pixel_count(camera) * spp          # mutations in all
+        if self.total + self.candidates * min(self.chain_count, self.total) >= 2 ** 31:
+            raise InputError(f"mlt counts its mutations and large steps in 32-bit integers on the device: "
+                             f"{self.total:,} mutations are too many; render fewer pixels or samples per pixel")
         self.started = time.perf_counter()
         self.begin(camera, seed, min(self.chain_count, self.total))
 
@@ -196,10 +215,9 @@ class Mlt(BdptPoolTechnique):
 
     def end_render(self, film):
         c, pixels = self.last_chains, film.width * film.height
-        c.read_tallies(self.memory)   # the non-finite records and dimension overflows, counted on the device
         # spp as made (whole samples per pixel; fewer than asked when time_limit stopped it)
-        film.add_pass(self.image(c).reshape(film.height, film.width, 3), max(1, c.mutations // pixels),
-                      nonfinite=c.nonfinite)
+        image = self.image(c)      # reads the films, b and the tallies: the render's only reads of its chains
+        film.add_pass(image.reshape(film.height, film.width, 3), max(1, c.mutations // pixels), nonfinite=c.nonfinite)
         self.queue.finish()
 
     def out_of_time(self, start, c):
@@ -208,61 +226,81 @@ class Mlt(BdptPoolTechnique):
 
     def begin(self, camera, seed, count):
         """The chains' memory and their first states (`start`)."""
-        ctx, n = self.queue.context, self.memory.padded(count)
-        vectors = 4 * n * self.max_dims
-        c = Chains(count, seed, camera, cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
-                   cl.Buffer(ctx, cl.mem_flags.READ_WRITE, vectors),
-                   cl.Buffer(ctx, cl.mem_flags.READ_WRITE, MLT_CHAIN.dtype.itemsize * n),
-                   cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 4 * n), self.memory.int_buffer(count),
-                   self.memory.int_buffer(len(MltTally), fill=0), pixel_count(camera))
+        ctx, n, mem = self.queue.context, self.memory.padded(count), self.memory
+        vectors, pixels = 4 * n * self.max_dims, pixel_count(camera)
+        unit = unit_exponent_for(self.scene.scene.emission_of.max())
+        films = tuple(RecordFilm(self.queue, pixels, self.local_size, self.sources.toolkit_only(), unit_exponent=e)
+                      for e in (0, unit))   # the Metropolis splats are h / f, about 1; the large steps' in f's units
+        buffer = lambda size: cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size)
+        c = Chains(count, seed, camera, mem, current=buffer(vectors), proposal=buffer(vectors),
+                   records=buffer(MLT_CHAIN.dtype.itemsize * n), f_proposal=buffer(4 * n),
+                   dims_proposal=mem.int_buffer(count), tallies=mem.int_buffer(len(MltTally), fill=0),
+                   weight=buffer(4 * n), splat_weights=buffer(16 * n),
+                   b_sum=mem.int_buffer(FILM_ACCUMULATOR.dtype.itemsize // 4, fill=0), b_estimate=buffer(4),
+                   films=films, pixels=pixels)
         cl.enqueue_fill_buffer(self.queue, c.records, np.int32(0), 0, MLT_CHAIN.dtype.itemsize * n)
+        cl.enqueue_fill_buffer(self.queue, c.weight, np.float32(1), 0, 4 * n)
+        cl.enqueue_fill_buffer(self.queue, c.b_estimate, np.float32(0), 0, 4)
         self.last_chains = c
         if self.start == "naive":
             self.iterate(c, count, MltMode.START)
         elif self.start == "pool":
             first = c.iteration
-            candidates = [self.iterate(c, count, MltMode.START) for _ in range(self.candidates)]
-            self.start_from_pool(c, candidates, first)
+            f, dims = self.memory.int_buffer(count * self.candidates), self.memory.int_buffer(count * self.candidates)
+            for k in range(self.candidates):        # each candidate's f and dims kept, entry k * count + chain
+                self.iterate(c, count, MltMode.START)
+                for src, dst in ((c.f_proposal, f), (c.dims_proposal, dims)):
+                    cl.enqueue_copy(self.queue, dst, src, byte_count=4 * count, dst_offset=4 * count * k)
+            self.start_from_pool(c, f, dims, first)
         else:
             for _ in range(self.candidates):
                 self.iterate(c, count, MltMode.CANDIDATE)
-            if c.candidate_sum.any():
-                c.weight = c.candidate_sum / c.candidate_sum.mean()
+            self.kernels.launch("mlt_resample_weights", count, it=self.iteration_args(c, count, MltMode.CANDIDATE),
+                                chains=c.records, b_sum=c.b_sum, unit_exponent=np.int32(c.films[1].unit_exponent),
+                                weight=c.weight)
         return c
 
-    def iterate(self, c, active, mode):
-        """One iteration of the first `active` chains, as on the slide; returns its Proposals."""
+    def iteration_args(self, c, active, mode):
+        """The MltIteration record of the chains' next iteration."""
         it = MLT_ITERATION.zeros(1)[0]
         it["seed"], it["iteration"], it["chains"], it["active"] = c.seed, c.iteration, c.count, active
         it["large_step"], it["mode"] = self.large_step, int(mode)
-        self.mutate(c, it)                               # every chain proposes (large or small step)
-        records = self.evaluate_proposals(c, active)     # all proposals as one batch of BDPT samples
-        decisions = self.accept(c, it)                   # accept or reject per chain
-        proposals = Proposals(records, decisions["f_proposal"].astype(np.float64), decisions["dims_proposal"])
-        self.splat(c, decisions, proposals, mode)        # proposal with weight a, current state with 1 - a
-        c.iteration += 1
-        return proposals
+        return it
 
-    def start_from_pool(self, c, candidates, first):
+    def iterate(self, c, active, mode):
+        """One iteration of the first `active` chains, as on the slide, all of it on the device."""
+        it = self.iteration_args(c, active, mode)
+        if mode != MltMode.PICKED:
+            self.mutate(c, it)                           # every chain proposes (large or small step)
+        proposed = self.evaluate_proposals(c, active)    # all proposals as one batch of BDPT samples
+        self.accept(c, it)                               # accept or reject per chain
+        self.splat(c, it, proposed)                      # proposal with weight a, current state with 1 - a
+        if mode != MltMode.PICKED:                       # a picked start's evaluation draws no new numbers
+            c.iteration += 1
+        if mode == MltMode.MUTATE:
+            c.mutations += active
+
+    def start_from_pool(self, c, f_buffer, dims, first):
         """start = pool: every chain's first state drawn from all the chains' candidates (large
-        steps: `candidates` iterations from iteration `first`, each the Proposals of iterate) in
-        proportion to f, by systematic resampling; each chain's splat weight stays 1."""
+        steps: `candidates` iterations from iteration `first`, their f and dims in `f_buffer` and
+        `dims`, entry k * count + chain) in proportion to f, by systematic resampling; the picked
+        candidates are evaluated again (for their records) and accepted. Each chain's splat weight
+        stays 1. The host reads the candidates' f once, for the picks."""
         count = c.count
-        f = np.concatenate([x.f for x in candidates])           # entry k * count + chain
+        f = np.empty(count * self.candidates, np.float32)
+        cl.enqueue_copy(self.queue, f, f_buffer)
+        f = f.astype(np.float64)
         if not f.sum() > 0:
             return                                               # no light found: keep the naive start
         pick = systematic_picks(f, count, np.random.default_rng([int(c.seed), 0x706f6f6c]))
-        dims = np.concatenate([x.dims for x in candidates])[pick]
-        src_chain, src_iteration = pick % count, first + pick // count
         ctx, flags = self.queue.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR
-        it = MLT_ITERATION.zeros(1)[0]
-        it["seed"], it["chains"], it["active"] = c.seed, count, count
-        upload = lambda x, dtype: cl.Buffer(ctx, flags, hostbuf=np.ascontiguousarray(x, dtype))
-        self.kernels.launch("mlt_start_from", count, it=it, current=c.current, chains=c.records,
-                            src_chain=upload(src_chain, np.int32), src_iteration=upload(src_iteration, np.int32),
-                            f=upload(f[pick], np.float32), dims=upload(dims, np.int32))
-        c.f_current = f[pick].astype(np.float64)
-        c.current_records = records_of_picks(candidates, pick, count)   # the chosen candidates' records
+        upload = lambda x: cl.Buffer(ctx, flags, hostbuf=np.ascontiguousarray(x, np.int32))
+        picked_dims = np.empty(count * self.candidates, np.int32)
+        cl.enqueue_copy(self.queue, picked_dims, dims)
+        self.kernels.launch("mlt_start_from", count, it=self.iteration_args(c, count, MltMode.START),
+                            proposal=c.proposal, src_chain=upload(pick % count),
+                            src_iteration=upload(first + pick // count), dims=upload(picked_dims[pick]))
+        self.iterate(c, count, MltMode.PICKED)
 
     # --- the stages of an iteration, one kernel (or one BDPT evaluation) each ------------------
 
@@ -275,64 +313,65 @@ class Mlt(BdptPoolTechnique):
 
     def evaluate_proposals(self, c, active):
         """The proposals as one batch of BDPT samples (sample id = chain, random numbers from the
-        proposals' vectors): their f and dimensions summed on the device, their records returned
-        with their chains (ProposalSink)."""
+        proposals' vectors): their f and dimensions summed on the device, their records kept there
+        with their chains (ProposalSink). Returns how many records they have."""
         p = self.bdpt.start_pass(c.camera, c.seed, c.iteration, active, sampler_args={"mlt_primary": c.proposal},
                                  vector_stride=c.count)
-        sink = ProposalSink(self.kernels, c, active)
+        sink = ProposalSink(self.kernels, c, active, p.pool.size)
         self.bdpt.evaluate(p, sink)
         return sink.records()
 
     def accept(self, c, it):
-        """mlt_accept (cl/mlt.h) with the proposals' f and dimensions (on the device since the
-        connect phases); returns the chain records (MltChain: acceptance, accepted, large_step, and
-        the proposal's f and dims of each chain)."""
+        """mlt_splat_weights (cl/mlt_splat.h: each chain's splat weights from a, before the current
+        state changes; the large steps' f into b), then mlt_accept (cl/mlt.h) with the proposals' f
+        and dimensions (on the device since the connect phases)."""
         active = int(it["active"])
+        self.kernels.launch("mlt_splat_weights", active, it=it, chains=c.records, f_proposal=c.f_proposal,
+                            weight=c.weight, b_estimate=c.b_estimate, combine=np.int32(self.combine),
+                            unit_exponent=np.int32(c.films[1].unit_exponent), splat_weights=c.splat_weights,
+                            b_sum=c.b_sum, tallies=c.tallies)
         self.kernels.launch("mlt_accept", active, it=it, current=c.current, proposal=c.proposal, chains=c.records,
                             f_proposal=c.f_proposal, dims_proposal=c.dims_proposal)
         if self.count_simd:
             self.recorder.before_step("accept", active)
-        return self.memory.read_structs(MLT_CHAIN, c.records, active)
 
-    def splat(self, c, decisions, proposals, mode):
-        """Expected-value splats (MUTATE only), the large steps' f for b, and the new current states."""
-        large = decisions["large_step"] != 0
-        b_before = c.b
-        c.large_sum += float(proposals.f[large].sum())
-        c.large_count += int(large.sum())
-        accepted = decisions["accepted"] != 0
-        if mode == MltMode.CANDIDATE:
-            c.candidate_sum[:len(decisions)] += proposals.f
-        if mode == MltMode.MUTATE:
-            self.splat_mutation(c, decisions["acceptance"].astype(np.float64), large, proposals, b_before)
-            c.mutations += len(decisions)
-            c.accepted += int(accepted.sum())
-        c.replace_accepted(accepted, proposals)
-
-    def splat_mutation(self, c, a, large, proposals, b_before):
-        """The proposal splats with weight a, the current state with 1 - a (times the chain's
-        weight). With `combine`, a sample z (proposal or current) is weighted 1 / (f(z) + p b')
-        instead of 1 / f(z), and a large step's proposal adds b' / (f(y) + p b') to the large
-        steps' own sum (Kelemen's combination; module docstring); b' is b as estimated before
-        this iteration."""
-        active, f, records = len(a), proposals.f, proposals.records
-        weight = c.weight[:active]
-        mix = self.large_step * b_before if self.combine else 0.0   # p b': the large steps' density, in f's units
-        d_prop, d_cur = f + mix, c.f_current[:active] + mix
-        w_prop = np.divide(a * weight, d_prop, out=np.zeros(active), where=d_prop > 0)
-        w_cur = np.divide((1.0 - a) * weight, d_cur, out=np.zeros(active), where=d_cur > 0)
-        current = c.current_records.where(c.current_records.chain < active)
-        v = np.concatenate([records.values * w_prop[records.chain][:, None],
-                            current.values * w_cur[current.chain][:, None]])
-        c.splats += per_pixel_sums(v, np.concatenate([records.pixels, current.pixels]), len(c.splats))
-        if self.combine:
-            w_large = np.divide(b_before * large, d_prop, out=np.zeros(active), where=d_prop > 0)
-            ours = records.where(large[records.chain])
-            c.large_splats += per_pixel_sums(ours.values * w_large[ours.chain][:, None], ours.pixels,
-                                             len(c.splats))
+    def splat(self, c, it, proposed):
+        """The expected-value splats into the films (MUTATE only): the proposals' records with
+        weight a, the current states' with 1 - a and, with `combine`, the large steps' own; then
+        the accepted proposals' records become the current states' (mlt_keep_records), and b is
+        estimated for the next iteration. All on the device (cl/mlt_splat.h)."""
+        active, (metropolis, large) = int(it["active"]), c.films
+        current = c.stores[0]
+        if it["mode"] == MltMode.MUTATE:
+            for store, count, component, film in ((c.proposals, proposed, 0, metropolis),
+                                                  (current, min(c.bound, current.capacity), 1, metropolis),
+                                                  (c.proposals, proposed if self.combine else 0, 2, large)):
+                if count:
+                    self.kernels.launch("mlt_weigh_records", count, capacity=np.int32(count), total=store.total,
+                                        active=np.int32(active), component=np.int32(component),
+                                        splat_weights=c.splat_weights, record_chain=store.chain,
+                                        record_value=store.value)
+                    film.add(store.value, store.pixel, count, weighted=True)
+        nxt = c.next_store(proposed)
+        self.kernels.launch("mlt_keep_records", c.count, it=it, chains=c.records, proposal_span=c.proposals.span,
+                            proposal_value=c.proposals.value, proposal_pixel=c.proposals.pixel,
+                            current_span=current.span, current_value=current.value, current_pixel=current.pixel,
+                            next_span=nxt.span, next_value=nxt.value, next_pixel=nxt.pixel, next_chain=nxt.chain,
+                            next_total=nxt.total, capacity=np.int32(nxt.capacity), tallies=c.tallies)
+        c.kept(nxt)
+        self.kernels.launch("mlt_estimate_b", 1, b_sum=c.b_sum, unit_exponent=np.int32(c.films[1].unit_exponent),
+                            tallies=c.tallies, b_estimate=c.b_estimate)
 
     def image(self, c):
-        """P / M * (b * the Metropolis splats + the large steps' splats): the estimator of the module docstring."""
+        """P / M * (b * the Metropolis splats + the large steps' splats): the estimator of the module
+        docstring. Reads the films (each resolved into the host's float64 sums, after which the
+        device's start again at zero), b and the tallies."""
+        for film, total in zip(c.films, (c.splats, c.large_splats)):
+            sums, read = film.resolve()
+            read.wait()
+            total += sums[:, :3]
+            c.film_dropped += int(sums[:, 3].sum())
+        c.read_tallies()
         return (c.splats * c.b + c.large_splats) * (len(c.splats) / max(c.mutations, 1))
 
     # --- measuring --------------------------------------------------------------------------

@@ -1,136 +1,179 @@
-"""The host's side of mlt's chains (toolkit/techniques/mlt.py): their device memory and current
-states, the records that belong to chains, one iteration's evaluated proposals, and the sink
-that keeps BDPT's connection records with their chains."""
+"""The host's side of mlt's chains (toolkit/techniques/mlt.py): their device memory (every chain's
+state, the records that belong to chains, the films and b) and the sink that keeps BDPT's
+connection records with their chains, on the device."""
 from dataclasses import dataclass, field
 
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.layout import MltTally
+from toolkit.core.layout import FILM_FRACTION_BITS, MltTally
 from toolkit.core.sample_dims import BDPT_FIRST_SCATTER_DIM   # the dimension table the kernels read
+from toolkit.techniques.pass_end import LAG
 
 
-@dataclass
-class ChainRecords:
-    """Connection records that belong to chains."""
-    values: np.ndarray     # (n, 3) float64 RGB (MIS-weighted)
-    pixels: np.ndarray     # (n,) the pixel each record lands on
-    chain: np.ndarray      # (n,) the chain (the BDPT sample id) each record belongs to
+class RecordStore:
+    """Connection records that belong to chains, on the device (cl/mlt_splat.h): per record its
+    value (float4; .w is its splat weight, set before each splat), pixel (-1: none) and chain; per
+    chain its span (int2: where its records start, how many there are); and `total`, the records in the store
+    (an int on the device). `capacity`: the records it can hold."""
 
-    @classmethod
-    def empty(cls):
-        return cls(np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64))
-
-    def where(self, keep):
-        """The records where `keep` (a mask or indices) holds."""
-        return ChainRecords(self.values[keep], self.pixels[keep], self.chain[keep])
-
-    def then(self, more):
-        """These records followed by `more`."""
-        return ChainRecords(*(np.concatenate([a, b]) for a, b in
-                              ((self.values, more.values), (self.pixels, more.pixels), (self.chain, more.chain))))
+    def __init__(self, memory, chains, capacity):
+        ctx = memory.queue.context
+        self.capacity = capacity
+        self.value = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 16 * max(1, capacity))
+        self.pixel, self.chain = memory.int_buffer(capacity, fill=-1), memory.int_buffer(capacity)
+        self.span = memory.int_buffer(2 * chains, fill=0)
+        self.total = memory.int_buffer(1, fill=0)
 
 
-@dataclass
-class Proposals:
-    """One iteration's proposals, evaluated as a batch of BDPT samples (sample id = chain)."""
-    records: ChainRecords  # every connection record of every proposal
-    f: np.ndarray          # (active,) scalar contribution of each proposal: luminance of its records, >= 0 (float32)
-    dims: np.ndarray       # (active,) primary-sample dimensions each proposal used, at most max_dims
+def store_capacity(n):
+    """Room for at least n records: a power of two (a store grows seldom)."""
+    return 1 << max(12, (int(n) - 1).bit_length())
 
 
 class ProposalSink:
-    """Where BDPT's connect phases put the proposals' records (sample id = chain). Each proposal's
-    contribution f and used dimensions are summed on the device, in the chains' f_proposal and
-    dims_proposal (cl/mlt_contribution.h, mlt_proposal_sums: no record is read for them); the
-    records themselves go to the host, with their chains, for the splats."""
+    """Where BDPT's connect phases put the proposals' records (sample id = chain). On the device,
+    mlt_proposal_sums (cl/mlt_contribution.h) sums each proposal's contribution f and used
+    dimensions into the chains' f_proposal and dims_proposal, and copies its records to the
+    proposal store, one connect phase after another: nothing is read back."""
 
-    def __init__(self, kernels, chains, active):
-        self.kernels, self.chains, self.active = kernels, chains, active
-        self.parts = []                                    # ChainRecords of each connect phase
+    def __init__(self, kernels, chains, active, pool):
+        self.kernels, self.chains, self.active, self.pool = kernels, chains, active, pool
+        self.total = 0                                     # records stored: the connect phases' so far
         queue = kernels.queue
-        # a proposal that never connects has f = 0 and used the start's dimensions
+        # a proposal that never connects has f = 0, used the start's dimensions and has no records
         cl.enqueue_fill_buffer(queue, chains.f_proposal, np.float32(0), 0, 4 * active)
         cl.enqueue_fill_buffer(queue, chains.dims_proposal, np.int32(BDPT_FIRST_SCATTER_DIM), 0, 4 * active)
+        cl.enqueue_fill_buffer(queue, chains.proposals.span, np.int32(0), 0, 8 * active)
 
     def add(self, connections):
-        """Connections with their slots (ParallelConnect(read_slots=True)); none: nothing connected."""
-        if connections.slots is None:
+        """The records of one connect phase (on the device: Connections' buffers)."""
+        if connections.count == 0:
             return
-        c, pool = self.chains, len(connections.slots)
+        c, pool = self.chains, self.pool
+        store = c.proposal_store_for(self.total + connections.count, self.total)
+        # a record the phase did not write (none today: count is exact) splats nothing
+        cl.enqueue_fill_buffer(self.kernels.queue, store.pixel, np.int32(-1), 4 * self.total, 4 * connections.count)
         self.kernels.launch("mlt_proposal_sums", pool, pool=np.int32(pool), slots=connections.slot_buffer,
                             counts=connections.count_buffer, firsts=connections.first_buffer,
                             record_value=connections.value_buffer, record_pixel=connections.pixel_buffer,
-                            f_proposal=c.f_proposal, dims_proposal=c.dims_proposal, tallies=c.tallies)
-        counts, slots = connections.slot_records, connections.slots
-        done = counts > 0
-        chain = np.repeat(slots["sample_id"][done], counts[done])
-        values = connections.values[:, :3]
-        # as the device's sums: a record without a pixel, or non-finite (counted there), adds nothing
-        ok = (connections.pixels >= 0) & np.isfinite(values).all(1)
-        self.parts.append(ChainRecords(values[ok].astype(np.float64), connections.pixels[ok], chain[ok]))
+                            f_proposal=c.f_proposal, dims_proposal=c.dims_proposal, tallies=c.tallies,
+                            store_base=np.int32(self.total), store_value=store.value, store_pixel=store.pixel,
+                            store_chain=store.chain, proposal_span=store.span)
+        self.total += connections.count
 
     def records(self):
-        """The proposals' records, with their chains (f and dims stay on the device: mlt_accept
-        reads them there, and the host gets them with the chains' decisions, MltChain)."""
-        if not self.parts:
-            return ChainRecords.empty()
-        return ChainRecords(*(np.concatenate(x) for x in zip(*((r.values, r.pixels, r.chain) for r in self.parts))))
+        """The records stored (their total, also on the device for the kernels that read it)."""
+        cl.enqueue_fill_buffer(self.kernels.queue, self.chains.proposals.total, np.int32(self.total), 0, 4)
+        return self.total
 
 
 @dataclass
 class Chains:
-    """The chains' device memory and the host's view of their current states: whole once made
-    (the host's arrays for `count` chains and `pixels` pixels start empty), then changed only by
-    the iterations."""
+    """The chains' device memory, all of their state: the host keeps only counts it knows without
+    reading (iterations, mutations) and what bounds the stores' sizes."""
     count: int
     seed: np.uint32          # the render's seed
     camera: np.void          # Camera record
+    memory: object           # the technique's DeviceMemory
     current: cl.Buffer       # float[max_dims][count]: the current states' primary-sample vectors
     proposal: cl.Buffer      # float[max_dims][count]: this iteration's proposals
     records: cl.Buffer       # MltChain[count]
     f_proposal: cl.Buffer    # float[count]: each proposal's f, summed on the device (ProposalSink)
     dims_proposal: cl.Buffer  # int[count]: the dimensions each proposal used, likewise
     tallies: cl.Buffer       # int[len(MltTally)]: the render's counts kept on the device, read at its end
+    weight: cl.Buffer        # float[count]: each chain's splat weight, 1 or w_c / mean(w) (start = resample)
+    splat_weights: cl.Buffer  # float4[count]: this iteration's weights (cl/mlt_splat.h mlt_splat_weights)
+    b_sum: cl.Buffer         # FilmAccumulator[1]: the exact sum of the large steps' f (red channel)
+    b_estimate: cl.Buffer    # float[1]: b before this iteration
+    films: tuple             # RecordFilms of the Metropolis splats (times b at the end) and the large steps' own
     pixels: int              # of the image the chains splat into
     iteration: int = 0
-    f_current: np.ndarray = field(init=False)          # float64 f of each current state
-    current_records: ChainRecords = field(init=False)  # the current states' connection records
-    splats: np.ndarray = field(init=False)         # (pixels, 3) float64 sum of the Metropolis splats (times b at the end)
-    large_splats: np.ndarray = field(init=False)   # (pixels, 3) float64 sum of the large steps' own splats (combine)
-    candidate_sum: np.ndarray = field(init=False)  # start = resample: sum of f over each chain's candidates
-    weight: np.ndarray = field(init=False)         # each chain's splat weight: 1, or w_c / mean(w) (resample)
-    large_sum: float = 0.0              # sum of f over the large steps (for b)
-    large_count: int = 0
-    accepted: int = 0
     mutations: int = 0
-    overflow: int = 0                   # proposals that read more than max_dims dimensions (read_tallies)
-    nonfinite: int = 0                  # records dropped for a non-finite value (read_tallies)
+    overflow: int = 0        # proposals that read more than max_dims dimensions (read_tallies)
+    nonfinite: int = 0       # records dropped for a non-finite value (read_tallies, and the films)
+    accepted: int = 0        # accepted mutations (read_tallies)
+    large_count: int = 0     # large steps in b (read_tallies)
+    b_total: float = 0.0     # their sum of f (read_tallies)
+    film_dropped: int = 0    # splats the films left out (not finite, or beyond FILM_RECORD_LIMIT): a bug
+    proposals: RecordStore = field(init=False)  # this iteration's proposals' records
+    stores: list = field(init=False)            # the current states' records, and the next ones' (swapped)
+    bound: int = 0           # at least the records of the current store (next_store)
+    rebuilds: int = 0        # current stores made so far (a picked start's iteration makes one too)
+    added: list = field(init=False)             # (rebuild, records proposed) since the last total read
+    pending: list = field(init=False)           # (rebuild, PendingRead of that current store's total)
+    splats: np.ndarray = field(init=False)        # (pixels, 3) float64: the Metropolis splats resolved so far
+    large_splats: np.ndarray = field(init=False)  # (pixels, 3) float64: the large steps' own, likewise
 
     def __post_init__(self):
-        self.f_current = np.zeros(self.count)
-        self.current_records = ChainRecords.empty()
+        self.proposals = RecordStore(self.memory, self.count, store_capacity(1))
+        self.stores = [RecordStore(self.memory, self.count, store_capacity(1)) for _ in range(2)]
+        self.added, self.pending = [], []
         self.splats, self.large_splats = np.zeros((self.pixels, 3)), np.zeros((self.pixels, 3))
-        self.candidate_sum, self.weight = np.zeros(self.count), np.ones(self.count)
 
-    def read_tallies(self, memory):
-        """The counts the kernels kept (MltTally), read once: at the end of the render."""
-        tallies = memory.read_ints(self.tallies, len(MltTally))
+    def proposal_store_for(self, n, kept):
+        """The proposal store, grown to hold n records if needed (its first `kept` copied over)."""
+        if n > self.proposals.capacity:
+            old, self.proposals = self.proposals, RecordStore(self.memory, self.count, store_capacity(n))
+            q = self.memory.queue
+            for name, size in (("value", 16), ("pixel", 4), ("chain", 4)):
+                if kept:
+                    cl.enqueue_copy(q, getattr(self.proposals, name), getattr(old, name), byte_count=size * kept)
+            cl.enqueue_copy(q, self.proposals.span, old.span, byte_count=8 * self.count)
+        return self.proposals
+
+    def next_store(self, proposed):
+        """The store the next current states go to: room for the current ones and this iteration's
+        `proposed` records (every chain keeps one or the other), its total at zero. The bound on the
+        current store's records comes from a read of its total queued LAG iterations ago (never waited
+        for before the device is past it), plus every record proposed since."""
+        while self.pending and (len(self.pending) > LAG or self.pending[0][1].event.command_execution_status
+                                == cl.command_execution_status.COMPLETE):
+            rebuild, read = self.pending.pop(0)
+            self.added = [(k, n) for k, n in self.added if k > rebuild]
+            self.bound = min(self.bound, int(read.result()) + sum(n for _, n in self.added))
+        self.bound += proposed
+        self.added.append((self.rebuilds, proposed))
+        store = self.stores[1]
+        if store.capacity < self.bound:
+            store = self.stores[1] = RecordStore(self.memory, self.count, store_capacity(self.bound))
+        else:
+            self.memory.fill_ints(store.pixel, -1)
+        self.memory.fill_ints(store.total, 0)
+        return store
+
+    def kept(self, store):
+        """The next store is now the current one; its total is read behind the kernels (next_store)."""
+        self.stores = [store, self.stores[0]]
+        self.pending.append((self.rebuilds, self.memory.read_later(store.total, np.int32)))
+        self.rebuilds += 1
+
+    def read_tallies(self):
+        """The counts the kernels kept (MltTally) and b's sum, read once: at the end of the render."""
+        tallies = self.memory.read_ints(self.tallies, len(MltTally))
         self.nonfinite, self.overflow = int(tallies[MltTally.NONFINITE]), int(tallies[MltTally.OVERFLOW])
+        self.accepted, self.large_count = int(tallies[MltTally.ACCEPTED]), int(tallies[MltTally.LARGE_STEPS])
+        if tallies[MltTally.STORE_OVERFLOW]:
+            raise RuntimeError(f"mlt: {tallies[MltTally.STORE_OVERFLOW]} records found no room in the current "
+                               f"states' store (Chains.next_store's bound is wrong): a bug, please report it")
+        words = np.empty(4, np.uint32)
+        cl.enqueue_copy(self.memory.queue, words, self.b_sum)
+        self.b_total = exact_fixed_point(words, self.films[1].unit_exponent)
+        self.nonfinite += self.film_dropped
 
     @property
     def b(self):
-        """The estimate of b: the mean f of the large steps so far."""
-        return self.large_sum / max(self.large_count, 1)
+        """The estimate of b: the mean f of the large steps (as of read_tallies)."""
+        return self.b_total / max(self.large_count, 1)
 
-    def replace_accepted(self, accepted, proposals):
-        """The accepted proposals (mask over the first chains) become those chains' current states."""
-        active = len(accepted)
-        replaced = np.zeros(self.count, bool)
-        replaced[:active] = accepted
-        kept = self.current_records.where(~replaced[self.current_records.chain])
-        self.current_records = kept.then(proposals.records.where(replaced[proposals.records.chain]))
-        self.f_current[:active][accepted] = proposals.f[accepted]
+
+def exact_fixed_point(words, unit_exponent):
+    """The value of a record film's 128-bit sum (four uint32 words, least significant first, two's
+    complement, units of 2^-FILM_FRACTION_BITS of 2^unit_exponent) as a float64."""
+    n = sum(int(w) << (32 * k) for k, w in enumerate(words))
+    if n >= 1 << 127:
+        n -= 1 << 128
+    return float(n) * 2.0 ** (int(unit_exponent) - FILM_FRACTION_BITS)
 
 
 def systematic_picks(f, count, rng):
@@ -139,16 +182,3 @@ def systematic_picks(f, count, rng):
     cdf = np.cumsum(f)
     pick = np.searchsorted(cdf, (rng.random() + np.arange(count)) / count * cdf[-1], side="right")
     return np.minimum(pick, len(f) - 1)
-
-
-def records_of_picks(candidates, pick, count):
-    """The records of the picked candidates (entry k * count + chain of `candidates`, a list of
-    Proposals), as the records of chains 0 .. count - 1 (a candidate picked by several chains is
-    copied to each)."""
-    key = np.concatenate([k * count + x.records.chain for k, x in enumerate(candidates)])
-    order = np.argsort(key, kind="stable")
-    lo, hi = np.searchsorted(key[order], pick, "left"), np.searchsorted(key[order], pick, "right")
-    n = hi - lo
-    rows = order[np.repeat(lo - np.cumsum(n) + n, n) + np.arange(n.sum())]
-    return ChainRecords(np.concatenate([x.records.values for x in candidates])[rows],
-                        np.concatenate([x.records.pixels for x in candidates])[rows], np.repeat(np.arange(count), n))

@@ -1,0 +1,134 @@
+/* The splats of Metropolis's chains, and b, on the device (host: toolkit/techniques/mlt.py, whose
+ * docstring derives the weights). Nothing here is read back during the render: the host reads
+ * the two films and b once, for the image.
+ *
+ * Records. A chain's proposal keeps its connection records (value, pixel) in the proposal store,
+ * copied there by mlt_proposal_sums (cl/mlt_contribution.h); its current state keeps its records
+ * in the current store. Each store is three arrays, one entry per record: value (float4, .w is
+ * the record's splat weight, set before each splat), pixel (-1: none) and chain; and per chain
+ * its span (int2: the first entry and the count of its records). After the acceptance mlt_keep_records writes the
+ * next current store: each chain's accepted proposal's records, or its old current records.
+ *
+ * Splats. mlt_splat_weights gives every chain three weights (before mlt_accept, which overwrites
+ * the current state's f): the proposal's a w / (f(y) + p b'), the current state's (1 - a) w /
+ * (f(x) + p b') and, with Kelemen's combination, a large step's own b' / (f(y) + p b'); w is the
+ * chain's weight (start = resample), b' the estimate of b before this iteration. mlt_weigh_records
+ * puts one of them in each record's .w, and the record film (cl/record_film.cl) adds value * .w:
+ * exact integer sums, so the image's bits do not depend on the order of the additions.
+ *
+ * b, the mean f of the large steps, is summed exactly too: each large step adds its f, in fixed
+ * point (units of 2^unit_exponent, the record film's fixed_point), to one 128-bit integer with
+ * integer atomics, and counts itself in tallies[MLT_TALLY_LARGE_STEPS]; mlt_estimate_b turns the
+ * sum into the float b' that the next iteration weighs with. */
+#ifndef MLT_SPLAT_H
+#define MLT_SPLAT_H
+
+#include "common.h"
+#include "fixed_point_128.h"
+#include "mlt.h"
+
+/* Every active chain's splat weights (.x proposal, .y current state, .z a large step's own; zero
+ * outside MLT_MUTATE) and its large step's f into b's sum. Launched before mlt_accept. */
+__kernel void mlt_splat_weights(const MltIteration it, __global const MltChain* chains,
+                                __global const float* f_proposal, __global const float* weight,
+                                __global const float* b_estimate, const int combine, const int unit_exponent,
+                                __global float4* splat_weights, __global FilmAccumulator* b_sum,
+                                __global int* tallies)
+{
+    int c = get_global_id(0);
+    if (c >= it.active) return;
+    MltChain chain = chains[c];
+    float fy = f_proposal[c];
+    bool large = chain.large_step != 0;
+    float4 w = (float4)(0.0f);
+    if (it.mode == MLT_MUTATE) {
+        float a = mlt_acceptance(chain.f_current, fy);
+        float b = b_estimate[0];
+        float mix = combine ? it.large_step * b : 0.0f;   /* p b': the large steps' density, in f's units */
+        float d_proposal = fy + mix, d_current = chain.f_current + mix;
+        w.x = d_proposal > 0.0f ? a * weight[c] / d_proposal : 0.0f;
+        w.y = d_current > 0.0f ? (1.0f - a) * weight[c] / d_current : 0.0f;
+        w.z = combine && large && d_proposal > 0.0f ? b / d_proposal : 0.0f;
+    }
+    splat_weights[c] = w;
+    if (large && it.mode != MLT_PICKED) {        /* a picked start is evaluated again, not a new sample */
+        float units = fy * ldexp(1.0f, -unit_exponent);
+        if (units > FILM_RECORD_LIMIT) {          /* far brighter than any light: a bug, reported */
+            atomic_inc(&tallies[MLT_TALLY_NONFINITE]);
+            units = 0.0f;
+        }
+        uint4 x = fixed_point(units);
+        if (!is_zero_128(x)) atomic_add_128(channel_words(b_sum, 0, 0), x);
+        atomic_inc(&tallies[MLT_TALLY_LARGE_STEPS]);
+    }
+}
+
+/* One work-item: b' = b's sum / the large steps so far, for the next iteration's weights. */
+__kernel void mlt_estimate_b(__global FilmAccumulator* b_sum, const int unit_exponent,
+                             __global const int* tallies, __global float* b_estimate)
+{
+    if (get_global_id(0) != 0) return;
+    float sum = ldexp(fixed_to_float(load_128(channel_words(b_sum, 0, 0))), unit_exponent);
+    b_estimate[0] = sum / (float)max(tallies[MLT_TALLY_LARGE_STEPS], 1);
+}
+
+/* start = resample: chain c's weight w_c / mean(w) with w_c its candidates' sum of f; the mean
+ * over the chains is b's sum over the count of chains (the start's large steps are the candidates).
+ * All zero (no light found): the weights stay 1. */
+__kernel void mlt_resample_weights(const MltIteration it, __global const MltChain* chains,
+                                   __global FilmAccumulator* b_sum, const int unit_exponent, __global float* weight)
+{
+    int c = get_global_id(0);
+    if (c >= it.active) return;
+    float sum = ldexp(fixed_to_float(load_128(channel_words(b_sum, 0, 0))), unit_exponent);
+    if (sum > 0.0f) weight[c] = chains[c].candidates * (float)it.chains / sum;
+}
+
+/* Record i of a store gets the weight `component` (0 proposal, 1 current, 2 large step) of its
+ * chain, or 0 for a chain that is not active in this iteration. `total`: the store's records
+ * (on the device; the launch may cover more). */
+__kernel void mlt_weigh_records(const int capacity, __global const int* total, const int active,
+                                const int component, __global const float4* splat_weights,
+                                __global const int* record_chain, __global float4* record_value)
+{
+    int i = get_global_id(0);
+    if (i >= min(capacity, total[0])) return;
+    int c = record_chain[i];
+    float4 w = c < active ? splat_weights[c] : (float4)(0.0f);
+    record_value[i].w = component == 0 ? w.x : component == 1 ? w.y : w.z;
+}
+
+/* The next current store: chain c keeps its accepted proposal's records, or its current ones
+ * (chains past it.active did not mutate). Entries are taken with an atomic counter, next_total:
+ * their order changes from run to run, the film's integer sums do not. Counts the accepted
+ * mutations, and the records past `capacity` (none: the host bounds the store's size). */
+__kernel void mlt_keep_records(const MltIteration it, __global const MltChain* chains,
+                               __global const int2* proposal_span, __global const float4* proposal_value,
+                               __global const int* proposal_pixel, __global const int2* current_span,
+                               __global const float4* current_value, __global const int* current_pixel,
+                               __global int2* next_span, __global float4* next_value, __global int* next_pixel,
+                               __global int* next_chain, __global int* next_total, const int capacity,
+                               __global int* tallies)
+{
+    int c = get_global_id(0);
+    if (c >= it.chains) return;
+    bool accepted = c < it.active && chains[c].accepted;
+    if (accepted && it.mode == MLT_MUTATE) atomic_inc(&tallies[MLT_TALLY_ACCEPTED]);
+    int2 span = accepted ? proposal_span[c] : current_span[c];    /* (first record, count) */
+    __global const float4* value = accepted ? proposal_value : current_value;
+    __global const int* pixel = accepted ? proposal_pixel : current_pixel;
+    int first = span.y > 0 ? atomic_add(next_total, span.y) : 0;
+    if (first + span.y > capacity) {       /* the host's bound was wrong: never written past, reported */
+        atomic_add(&tallies[MLT_TALLY_STORE_OVERFLOW], span.y);
+        next_span[c] = (int2)(0, 0);
+        return;
+    }
+    for (int k = 0; k < span.y; ++k) {
+        next_value[first + k] = value[span.x + k];
+        next_pixel[first + k] = pixel[span.x + k];
+        next_chain[first + k] = c;
+    }
+    next_span[c] = (int2)(first, span.y);
+}
+
+#endif
