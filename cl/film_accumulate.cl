@@ -9,21 +9,21 @@
 #pragma OPENCL EXTENSION cl_khr_fp64 : enable
 #include "common.h"
 
-/* One work-item per pixel: sums and sums_sq hold 3 doubles per pixel (r, g, b), missing and
- * dropped the pixel's counts so far (FilmPixel's fields of the same names). */
+/* One work-item per pixel: sums holds 6 doubles per pixel (the sums of r, g, b, then of their
+ * squares), counts 2 ints (the samples missing, then dropped: FilmPixel's fields of those names). */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
-void film_accumulate(__global const FilmPixel* pass, const int pixels, __global double* sums,
-                     __global double* sums_sq, __global int* missing, __global int* dropped)
+void film_accumulate(__global const FilmPixel* pass, const int pixels, __global double* sums, __global int* counts)
 {
     int p = get_global_id(0);
     if (p >= pixels) return;
     FilmPixel f = pass[p];
-    sums[3 * p + 0] += (double)f.sum.x;
-    sums[3 * p + 1] += (double)f.sum.y;
-    sums[3 * p + 2] += (double)f.sum.z;
-    sums_sq[3 * p + 0] += (double)f.sum_sq.x;
-    sums_sq[3 * p + 1] += (double)f.sum_sq.y;
-    sums_sq[3 * p + 2] += (double)f.sum_sq.z;
-    missing[p] += f.missing;
-    dropped[p] += f.dropped;
+    __global double* s = sums + 6 * p;
+    s[0] += (double)f.sum.x;
+    s[1] += (double)f.sum.y;
+    s[2] += (double)f.sum.z;
+    s[3] += (double)f.sum_sq.x;
+    s[4] += (double)f.sum_sq.y;
+    s[5] += (double)f.sum_sq.z;
+    counts[2 * p] += f.missing;
+    counts[2 * p + 1] += f.dropped;
 }

@@ -42,12 +42,12 @@ class DeviceFilm:
         self.kernel = program.kernel(built, "film_accumulate")
         context, flags = queue.context, cl.mem_flags.READ_WRITE
         size = program.padded(self.pixels, local_size)
-        self.sums, self.sums_sq = (cl.Buffer(context, flags, 3 * 8 * size) for _ in range(2))
-        self.missing, self.dropped = (cl.Buffer(context, flags, 4 * size) for _ in range(2))
-        for buffer in (self.sums, self.sums_sq, self.missing, self.dropped):
+        # per pixel: the sums of r, g, b and of their squares; the samples missing and dropped
+        self.sums, self.counts = cl.Buffer(context, flags, 6 * 8 * size), cl.Buffer(context, flags, 2 * 4 * size)
+        for buffer in (self.sums, self.counts):
             cl.enqueue_fill_buffer(queue, buffer, np.uint8(0), 0, buffer.size)
         self.samples = 0       # the samples added so far (all pixels): the error's figure
-        self.args = (np.int32(self.pixels), self.sums, self.sums_sq, self.missing, self.dropped)
+        self.args = (np.int32(self.pixels), self.sums, self.counts)
 
     def add(self, pass_sums, samples):
         """Queue the addition of a pass's FilmPixel buffer (`samples` samples per pixel); nothing waits."""
@@ -57,14 +57,12 @@ class DeviceFilm:
     def read(self):
         """(sums, sums of squares (pixels, 3) float64, the samples dropped as non-finite), behind the
         queued passes. Raises RuntimeError if a sample was never written (a sample-accounting bug)."""
-        missing, dropped = np.empty(self.pixels, np.int32), np.empty(self.pixels, np.int32)
-        sums, sums_sq = np.empty((self.pixels, 3)), np.empty((self.pixels, 3))
-        for out, buffer in ((sums, self.sums), (sums_sq, self.sums_sq), (missing, self.missing),
-                            (dropped, self.dropped)):
-            cl.enqueue_copy(self.queue, out, buffer, is_blocking=False)
+        sums, counts = np.empty((self.pixels, 6)), np.empty((self.pixels, 2), np.int32)
+        cl.enqueue_copy(self.queue, sums, self.sums, is_blocking=False)
+        cl.enqueue_copy(self.queue, counts, self.counts, is_blocking=False)
         self.queue.finish()
-        never = int(missing.sum(dtype=np.int64))
-        if never:
-            raise RuntimeError(f"{self.owner}: {never} of {self.samples} samples were never written "
+        missing, dropped = counts.sum(0, dtype=np.int64)
+        if missing:
+            raise RuntimeError(f"{self.owner}: {missing} of {self.samples} samples were never written "
                                "(sample accounting bug)")
-        return sums, sums_sq, int(dropped.sum(dtype=np.int64))
+        return sums[:, :3].copy(), sums[:, 3:].copy(), int(dropped)

@@ -102,9 +102,9 @@ class Technique:
         `paths`: trace into `hits`, then shade; pt_inplace_regen and multi-pass compaction share it."""
         k = self.kernels
         k.launch("extend_in_place_trace", length, **k.scene_args(), pass_args=pass_args,
-                 stream_length=np.int32(length), paths=paths, alive=alive, hits=hits, lane_counts=lane_counts)
+                 stream_length=k.int32(length), paths=paths, alive=alive, hits=hits, lane_counts=lane_counts)
         k.launch("extend_in_place_shade", length, **k.scene_args(), pass_args=pass_args,
-                 stream_length=np.int32(length), paths=paths, alive=alive, hits=hits, radiance=radiance,
+                 stream_length=k.int32(length), paths=paths, alive=alive, hits=hits, radiance=radiance,
                  lane_counts=lane_counts)
 
     def render(self, width, height, spp, seed=0, progress=None):

@@ -134,7 +134,7 @@ class PtCompactRegen(Technique):
         fit in the stream's `size`; the step's record counts them (the device decides how many).
         The launch covers the first `paths` entries (a bound of the stream's length, paths_at_most)."""
         self.kernels.launch("pt_compact_regen_generate", paths, cam=camera, pass_args=pass_args,
-                            stream_size=np.int32(size), last_counts=mem.last_counts, counts=mem.counts,
+                            stream_size=self.kernels.int32(size), last_counts=mem.last_counts, counts=mem.counts,
                             stream=mem.stream, alive=mem.alive)
 
     def extend_and_compact(self, pass_args, paths, mem):

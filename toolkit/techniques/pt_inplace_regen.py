@@ -69,7 +69,7 @@ class PtInplaceRegen(Technique):
             # Regenerate: every free slot starts the next sample of the budget, if one is left.
             cl.enqueue_fill_buffer(self.queue, mem.any_alive, np.int32(0), 0, 4)
             self.kernels.launch("pt_inplace_regen_regenerate", slots, cam=camera, pass_args=pass_args,
-                                slots=np.int32(slots), next_sample=mem.next_sample, paths=mem.paths, alive=mem.alive,
+                                slots=self.kernels.int32(slots), next_sample=mem.next_sample, paths=mem.paths, alive=mem.alive,
                                 any_alive=mem.any_alive, regenerated=mem.regenerated)
             if self.count_simd and not self.count_regenerate(mem, slots, budget):
                 break   # budget spent and every path has ended
