@@ -357,10 +357,10 @@ def _fingerprint(value):
     """What identifies a kernel argument's value: a buffer by identity, a numpy scalar or record
     by its bytes (copied: a record may be changed in place between launches); anything else is
     set at every launch."""
+    if isinstance(value, np.generic):
+        return (value.dtype, value.tobytes())
     if isinstance(value, cl.MemoryObjectHolder):
         return value
-    if isinstance(value, np.generic):
-        return (value.dtype.str, value.tobytes())
     return object()
 
 
@@ -415,14 +415,17 @@ def launch(queue, kernel, n, *args, local_size=LOCAL_SIZE):
     values = state.values
     if len(args) != len(values):
         raise TypeError(f"{state.name} takes {len(values)} arguments, {len(args)} given")
+    by_identity = state.by_identity
     for i, value in enumerate(args):
-        if value is values[i] and state.by_identity[i]:
+        previous = values[i]
+        if value is previous and by_identity[i]:
             continue
         fingerprint = _fingerprint(value)
         if not _same_fingerprint(state.fingerprints[i], fingerprint):
             state.own.set_arg(i, value)
             state.fingerprints[i] = fingerprint
-        values[i], state.by_identity[i] = value, _kept_by_identity(value)
+        if value is not previous:
+            values[i], by_identity[i] = value, _kept_by_identity(value)
     event = cl.enqueue_nd_range_kernel(queue, state.own, (padded(n, local_size),), (local_size,))
     if queue.recording is not None:
         kernel_times.note(queue, state.name, event)   # kept only while a phase timing records
