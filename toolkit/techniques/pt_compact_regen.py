@@ -57,7 +57,7 @@ class PtCompactRegen(Technique):
     family = "pt"
     source = "pt_compact_regen.cl"
 
-    reads_every = 4      # steps between the host's looks at the device's counts (counters off: pass_end.py)
+    reads_every = 8      # steps between the host's looks at the device's counts (counters off: pass_end.py)
 
     def __init__(self, *args, compaction="immediate", stream_size=None, **kwargs):
         checked_size("stream_size", stream_size)     # its range now, before the build; the device's memory after

@@ -37,7 +37,7 @@ class PtInplaceRegen(Technique):
     family = "pt"
     source = "pt_inplace_regen.cl"
 
-    reads_every = 4      # steps between the host's looks at the "any path alive" flag (counters off: pass_end.py)
+    reads_every = 8      # steps between the host's looks at the "any path alive" flag (counters off: pass_end.py)
 
     def __init__(self, *args, stream_size=None, **kwargs):
         checked_size("stream_size", stream_size)     # its range now, before the build; the device's memory after
