@@ -89,6 +89,8 @@ def test_devices_lists_devices_and_the_pick():
     assert "The toolkit would pick:" in result.stdout
     # which way each device sums BDPT's records (toolkit/opencl/record_film.py: film_path)
     assert "BDPT's film (connection records summed per pixel on the device): exact 128-bit" in result.stdout
+    # and where the path tracers' film adds its passes (toolkit/opencl/device_film.py: film_path)
+    assert "path tracers' film (each pass's sums per pixel): float64 sums " in result.stdout
 
 
 @pytest.mark.parametrize("args,complaint", [

@@ -62,10 +62,13 @@ def test_only_the_recording_thread_is_counted(queue):
     assert traffic.reads == 1
 
 
-def test_pt_naive_known_counts_per_pass(cornell_box):
-    """pt_naive, counters off, one sample per pixel per pass: each pass fills its output, launches
-    its kernel and the film's sum (2 launches), and queues one asynchronous read of a FilmPixel per
-    pixel; no pass blocks. The extra passes of the second render cost exactly that."""
+def test_pt_naive_known_counts_per_pass_with_the_film_on_the_host(cornell_box, monkeypatch):
+    """pt_naive, counters off, one sample per pixel per pass, the film added on the host (a device
+    without float64): each pass fills its output, launches its kernel and the film's sum (2
+    launches), and queues one asynchronous read of a FilmPixel per pixel; no pass blocks. The
+    extra passes of the second render cost exactly that."""
+    from toolkit.techniques.base import Technique
+    monkeypatch.setattr(Technique, "film_on_device", False)
     width, height = 8, 4
     options = dict(resolution=(width, height), technique_options={"pass_spp": 1})
     first = metered_render(cornell_box, "pt_naive", options_of(options, spp=2))
@@ -81,6 +84,30 @@ def test_pt_naive_known_counts_per_pass(cornell_box):
     assert extra["launches_per_million"] == pytest.approx(2e6 / (width * height))
     assert extra["blocking_per_pass"] == 0 and extra["launches_per_pass"] == 2
     assert 0 < extra["kernel_share"] <= 1
+
+
+def test_pt_naive_known_counts_per_pass_with_the_film_on_the_device(cornell_box, queue):
+    """The same where the device has float64 (toolkit/opencl/device_film.py): each pass launches
+    its kernel, the film's sum and its addition to the film on the device (3 launches); the film
+    fills its two buffers once and is read once, at the end: 6 doubles and 2 ints per pixel, in
+    two reads. The extra passes read nothing."""
+    from toolkit.opencl.device_film import has_fp64
+    if not has_fp64(queue.device):
+        pytest.skip("the device has no cl_khr_fp64: its film is added on the host")
+    width, height = 8, 4
+    options = dict(resolution=(width, height), technique_options={"pass_spp": 1})
+    first = metered_render(cornell_box, "pt_naive", options_of(options, spp=2))
+    second = metered_render(cornell_box, "pt_naive", options_of(options, spp=5))
+    assert (first["passes"], second["passes"]) == (2, 5)
+    for r in (first, second):
+        assert r["launches"] == 3 * r["passes"] and r["fills"] == r["passes"] + 2
+        assert r["reads"] == 2 and r["blocking_reads"] == 0
+        assert r["read_bytes"] == width * height * (6 * 8 + 2 * 4)
+        assert r["samples"] == width * height * r["passes"]
+    extra = costs(first, second)
+    assert extra["read_bytes_per_sample"] == 0 and extra["reads_per_million"] == 0
+    assert extra["launches_per_million"] == pytest.approx(3e6 / (width * height))
+    assert extra["blocking_per_pass"] == 0 and extra["launches_per_pass"] == 3
 
 
 def options_of(fields, **more):
@@ -139,7 +166,10 @@ def test_bench_host_on_the_command_line():
     assert lines[0].startswith("host meter: cornell_box 16x8")
     report = json.loads(lines[-1])
     row = report["techniques"]["pt_naive"]
-    assert row["spp"] == [2, 8] and row["blocking_per_pass"] == 0 and row["launches_per_pass"] == 2
+    from toolkit.opencl.device import get_queue
+    from toolkit.opencl.device_film import has_fp64
+    film_launches = 2 if has_fp64(get_queue().device) else 1    # the film's sum, and its addition on the device
+    assert row["spp"] == [2, 8] and row["blocking_per_pass"] == 0 and row["launches_per_pass"] == 1 + film_launches
     assert row["read_bytes_per_sample"] == 0   # 8 spp in one pass: no more reads than 2 spp
     refused = run_cli("bench", "--gpu-sizes")
     assert refused.returncode == 2 and "--gpu-sizes applies to the host meter only" in refused.stderr

@@ -118,8 +118,9 @@ def test_the_host_never_waits_for_a_count_and_an_iteration_allocates_nothing(mon
         per_render[stream_size] = summary(traffic.events)["allocs"]
     print(f"{technique}: {READ_BYTES[technique]} bytes read every {every} iteration(s), never waited for; "
           f"buffers allocated per render {per_render[256]}")
-    # The render's buffers: a fixed small number, made in the first pass only.
-    assert per_render[256] == per_render[1024] <= 16
+    # The render's buffers: a fixed small number, made in the first pass only (with the film's
+    # two on the device, toolkit/opencl/device_film.py).
+    assert per_render[256] == per_render[1024] <= 18
 
 
 @pytest.mark.parametrize("technique", sorted(EXTEND))

@@ -312,3 +312,33 @@ def test_a_compilers_notice_about_itself_is_no_warning():
            "The function may be inlined when called.\n"
            "<source>:12:5: warning: unused variable 'x'\n")
     assert warning_lines(log) == ["<source>:12:5: warning: unused variable 'x'"]
+
+
+ARGS_CL = """typedef struct { int a; int b; } Pair;
+__kernel void args(const int n, const Pair pair, __global int* out) {
+    if (get_global_id(0) == 0) { out[0] = n; out[1] = pair.a; out[2] = pair.b; }
+}
+"""
+
+
+def test_launch_sets_what_changed_and_sees_a_record_changed_in_place(queue, tmp_path):
+    """launch skips an argument given as the very object of the last launch (a buffer, a number)
+    but a record (np.void) may change in place: it is compared by its bytes every time."""
+    built = program.build(queue, write(tmp_path, "args.cl", ARGS_CL), {}, directory=tmp_path)
+    kernel = program.kernel(built, "args")
+    pair = np.zeros(1, np.dtype([("a", np.int32), ("b", np.int32)]))[0]
+    outs = [cl.Buffer(queue.context, cl.mem_flags.READ_WRITE, 12) for _ in range(2)]
+
+    def run(n, out):
+        program.launch(queue, kernel, 1, n, pair, out)
+        got = np.zeros(3, np.int32)
+        cl.enqueue_copy(queue, got, out)
+        return got.tolist()
+    three = np.int32(3)
+    pair["a"], pair["b"] = 1, 2
+    assert run(three, outs[0]) == [3, 1, 2]
+    pair["a"] = 7                                   # the same record object, changed in place
+    assert run(three, outs[0]) == [3, 7, 2]
+    assert run(np.int32(4), outs[0]) == [4, 7, 2]   # an equal or new number, another object
+    assert run(three, outs[1]) == [3, 7, 2]         # another buffer
+    assert run(three, outs[0]) == [3, 7, 2] and run(np.int32(3), outs[1]) == [3, 7, 2]

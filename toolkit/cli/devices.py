@@ -10,6 +10,7 @@ from toolkit.opencl.device import (RANKING, NoOpenCLError, candidates, choose, d
                                    pick_device, probe_note)
 from toolkit.opencl.install_advice import how_to_get_opencl
 from toolkit.opencl.record_film import film_path
+from toolkit.opencl.device_film import film_path as path_tracers_film_path
 from toolkit.opencl.device_model import device_warp_width, is_gpu
 from toolkit.opencl.work_sizes import device_work_sizes
 
@@ -63,7 +64,8 @@ def _device_lines(c):
             *_lanes_lines(c),
             f"       SIMD counters: warps of {width} ({why}; --warp-width overrides)",
             f"       in flight: {device_work_sizes(c.device).text()}; options stream_size / pool_size override",
-            f"       BDPT's film (connection records summed per pixel on the device): {film_path(c.device)}"] + \
+            f"       BDPT's film (connection records summed per pixel on the device): {film_path(c.device)}",
+            f"       path tracers' film (each pass's sums per pixel): {path_tracers_film_path(c.device)}"] + \
         ([f"       probe: {probe_note(c.device)}"] if probe_note(c.device) else [])
 
 

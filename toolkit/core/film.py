@@ -3,7 +3,9 @@
 A float32 accumulator stops growing after ~1e7 additions of similar values, so the device
 only sums one pass (with a compensated sum: cl/film_reduce.cl; BDPT's records as exact
 integers: cl/record_film.cl);
-the passes add up here in float64. Every sample is an independent estimate of its pixel, so the
+the passes add up here in float64, or, on a device with float64, in the same order on the
+device (toolkit/opencl/device_film.py: `keep_on_device`), read when the sums are asked for.
+Every sample is an independent estimate of its pixel, so the
 standard error is sqrt(sample variance / n).
 """
 import numpy as np
@@ -12,19 +14,73 @@ import numpy as np
 class Film:
     def __init__(self, width, height):
         self.width, self.height = width, height
-        self.sum = np.zeros((height * width, 3))
-        self.sum_sq = np.zeros((height * width, 3))
+        self._sum = np.zeros((height * width, 3))
+        self._sum_sq = np.zeros((height * width, 3))
         self.count = np.zeros(height * width, np.int64)
-        self.nonfinite_samples = 0
+        self._nonfinite = 0
+        self.device = None       # the sums kept on a device, if any (keep_on_device)
+        self._device_read = True  # whether _sum, _sum_sq, _nonfinite hold the device's latest sums
         self.passes = 0   # whole-image passes (add_pass) instead of per-sample sums
         self.pass_sum = np.zeros((height * width, 3))
         self.pass_sum_sq = np.zeros((height * width, 3))
+
+    # The per-sample sums: on the host, or read from the device when asked for.
+    @property
+    def sum(self):
+        self.read_device()
+        return self._sum
+
+    @sum.setter
+    def sum(self, value):
+        self._sum = value
+
+    @property
+    def sum_sq(self):
+        self.read_device()
+        return self._sum_sq
+
+    @sum_sq.setter
+    def sum_sq(self, value):
+        self._sum_sq = value
+
+    @property
+    def nonfinite_samples(self):
+        """Samples dropped as non-finite (counted as zeros)."""
+        self.read_device()
+        return self._nonfinite
+
+    @nonfinite_samples.setter
+    def nonfinite_samples(self, value):
+        self._nonfinite = value
+
+    def keep_on_device(self, device_sums):
+        """From now on the per-sample sums live on a device: `device_sums.read()` returns (sums,
+        sums of squares, samples dropped) of every pass so far (toolkit/opencl/device_film.py), and
+        each pass adds there and calls add_device_pass. Only for a film with no sums yet."""
+        if self.count.any() or self.device is not None:
+            raise ValueError("a film's sums move to a device before its first pass, once")
+        self.device = device_sums
+
+    def add_device_pass(self, samples):
+        """A pass of `samples` per pixel was added on the device (keep_on_device)."""
+        self.count += samples
+        self._device_read = False
+
+    def read_device(self):
+        """Bring the device's sums here, if it has passes not read yet; raises what the device's
+        read raises (a sample never written)."""
+        if self._device_read:
+            return
+        self._sum, self._sum_sq, self._nonfinite = self.device.read()
+        self._device_read = True
 
     def add_pixel_sums(self, sums, sums_sq, samples, dropped=0):
         """A pass summed per pixel (on the device: toolkit/opencl/film_reduce.py): the sums and
         the sums of squares of its finite samples (pixels, 3), `samples` per pixel of which
         `dropped` in all were left out as non-finite: they count as zeros, and DroppedSamplesWarning
         reports them (toolkit/api.py)."""
+        if self.device is not None:
+            raise ValueError("this film's sums are kept on a device (keep_on_device)")
         self.sum += sums
         self.sum_sq += sums_sq
         self.count += samples

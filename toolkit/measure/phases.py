@@ -39,6 +39,7 @@ KERNEL_PHASES = {
     "scan_add_block_offsets": ("scan", (), ()),
     "compact_scatter": ("compact (scatter)", (), ()),
     "film_reduce": ("film: sum per pixel", (), ()),
+    "film_accumulate": ("film: add the pass", (), ()),
     "record_film_add": ("film: add records", (), ()),
     "record_film_resolve": ("film: sum per pixel", (), ()),
 }

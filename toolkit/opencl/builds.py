@@ -21,7 +21,7 @@ class Builds:
     def __init__(self, lanes_setting=None):
         self.lanes = lanes_setting   # "on", "off", lanes.HARDWARE or None (lanes.setting_for)
         self.programs = {}           # build key (program.build: source, options, device) -> BuiltProgram
-        self.launched = {}           # (kernel.int_ptr, name) -> (kernel, its own cl.Kernel, argument fingerprints)
+        self.launched = {}           # kernel.int_ptr -> what program.launch keeps of its last launch (_Launched)
         self.bvhs = {}               # (scene name, geometry) -> the host BVH (device_scene.py)
         self.log = []                # (name, seconds, found built in this context) per build() call
         self.lanes_log = []          # (name, lanes setting, {kernel: vector width}) per build() call

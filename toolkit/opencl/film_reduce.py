@@ -27,6 +27,13 @@ class FilmReduction:
     def reduce(self, radiance, pixels, samples, clamp=None):
         """Queue the sums of `samples` samples per pixel in `radiance` (float4, pixel-major) and
         their read; returns (the host's FilmPixel array, the read's event). Nothing waits."""
+        out = self.reduce_on_device(radiance, pixels, samples, clamp)
+        result = FILM_PIXEL.zeros(pixels)
+        return result, cl.enqueue_copy(self.queue, result, out, is_blocking=False)
+
+    def reduce_on_device(self, radiance, pixels, samples, clamp=None):
+        """Queue the sums as `reduce` does, without the read: returns the device's FilmPixel buffer
+        (one per image size, refilled by the next pass: the queue is in order), for a DeviceFilm."""
         out = self._sums.get(pixels)
         if out is None:
             out = self._sums[pixels] = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
@@ -34,5 +41,4 @@ class FilmReduction:
         limit = np.float32(np.inf if clamp is None else clamp)
         program.launch(self.queue, self.kernel, pixels, radiance, np.int32(pixels), np.int32(samples), limit, out,
                        local_size=self.local_size)
-        result = FILM_PIXEL.zeros(pixels)
-        return result, cl.enqueue_copy(self.queue, result, out, is_blocking=False)
+        return out

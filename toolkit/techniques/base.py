@@ -9,6 +9,7 @@ from toolkit.opencl.device_model import resolve_warp_width
 from toolkit.opencl.work_sizes import CPU_POOL_SIZE, CPU_STREAM_SIZE, check_fits, device_work_sizes
 from toolkit.core.film import Film
 from toolkit.opencl.film_reduce import FilmReduction
+from toolkit.opencl.device_film import DeviceFilm, has_fp64
 from toolkit.core.layout import LONGEST_SUBPATH
 from toolkit.techniques.device_memory import DeviceMemory
 from toolkit.techniques.kernels import Kernels
@@ -34,6 +35,9 @@ class Technique:
     target_batch = 1 << 18
     _collecting = None   # (read event, what adds the pass to the film once read) of the pass queued last
     film_reduction = None   # the FilmReduction of collect, made at its first pass
+    # Whether collect keeps a path tracer's film on the device (device_film.py); None: where the
+    # device has float64. False: each pass's sums are read back and added on the host.
+    film_on_device = None
 
     def __init__(self, queue, device_scene, warp_width=None, count_simd=True, extra_defines=None,
                  local_size=program.LOCAL_SIZE, general=False, pass_spp=None, sources=None, binary_cache=True):
@@ -98,9 +102,9 @@ class Technique:
         `paths`: trace into `hits`, then shade; pt_inplace_regen and multi-pass compaction share it."""
         k = self.kernels
         k.launch("extend_in_place_trace", length, **k.scene_args(), pass_args=pass_args,
-                 stream_length=np.int32(length), paths=paths, alive=alive, hits=hits, lane_counts=lane_counts)
+                 stream_length=k.int32(length), paths=paths, alive=alive, hits=hits, lane_counts=lane_counts)
         k.launch("extend_in_place_shade", length, **k.scene_args(), pass_args=pass_args,
-                 stream_length=np.int32(length), paths=paths, alive=alive, hits=hits, radiance=radiance,
+                 stream_length=k.int32(length), paths=paths, alive=alive, hits=hits, radiance=radiance,
                  lane_counts=lane_counts)
 
     def render(self, width, height, spp, seed=0, progress=None):
@@ -122,9 +126,11 @@ class Technique:
         self._collecting = None   # a render stopped by an error leaves no pass for this one
 
     def end_render(self, film):
-        """After the last pass: its samples reach the film."""
+        """After the last pass: its samples reach the film (read from the device if kept there:
+        a sample never written raises here)."""
         self.finish_collect()
         self.queue.finish()
+        film.read_device()
 
     def spp_per_pass(self, pixels, spp):
         """Samples per pixel in one pass (one launch batch) of an image of `pixels` pixels."""
@@ -137,15 +143,27 @@ class Technique:
         raise NotImplementedError
 
     def collect(self, film, buffer, n):
-        """Sum the pass's `n` samples per pixel on the device (toolkit/opencl/film_reduce.py) and
-        queue the read of the sums, behind the pass's kernels; every sample must have been
-        written once. The sums reach the film at the next collect (after the next pass's kernels
-        are queued) or at finish_collect: so the host adds one pass to the film while the device
-        runs the next, instead of the device waiting. The queue is in order, so the next pass's
-        refill of `buffer` waits for the sums."""
+        """Sum the pass's `n` samples per pixel on the device (toolkit/opencl/film_reduce.py);
+        every sample must have been written once. Where the device has float64 the sums are added
+        to the film there (device_film.py) and nothing is read until the film is asked for.
+        Else the read of the sums is queued behind the pass's kernels and they reach the film at
+        the next collect (after the next pass's kernels are queued) or at finish_collect: so the
+        host adds one pass to the film while the device runs the next, instead of the device
+        waiting. The queue is in order, so the next pass's refill of `buffer` waits for the sums."""
         pixels = film.width * film.height
         if self.film_reduction is None:
             self.film_reduction = FilmReduction(self.queue, self.local_size, self.sources.toolkit_only())
+        if self.film_on_device is None:
+            self.film_on_device = has_fp64(self.queue.device)
+        if self.film_on_device:
+            if film.device is None:
+                film.keep_on_device(DeviceFilm(self.queue, pixels, self.local_size, self.sources.toolkit_only(),
+                                               owner=self.name))
+            film.device.add(self.film_reduction.reduce_on_device(buffer, pixels, n // pixels, self.clamp),
+                            n // pixels)
+            film.add_device_pass(n // pixels)
+            self.queue.flush()    # start the queued work now, not at the next wait
+            return
         result, done = self.film_reduction.reduce(buffer, pixels, n // pixels, self.clamp)
         self.collect_later(done, lambda: self.add_pixel_sums(film, result, n // pixels))
 

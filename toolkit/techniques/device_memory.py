@@ -26,9 +26,11 @@ class DeviceMemory:
 
     def output_buffer(self, n):
         """One float4 per sample of the pass, pre-filled with .w = -1 ("not written yet"); made
-        once per pass size and refilled by every pass (the in-order queue runs collect's read of it first)."""
-        buf = self.reused(("output", n), lambda: cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
-                                                            16 * self.padded(n)))
+        once, at the largest pass's size (a render's first pass: only its last is smaller), and
+        refilled by every pass (the in-order queue runs collect's sums of it first)."""
+        buf = self._reused.get("output")
+        if buf is None or buf.size < 16 * self.padded(n):
+            buf = self._reused["output"] = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 16 * self.padded(n))
         cl.enqueue_fill_buffer(self.queue, buf, np.array([0, 0, 0, -1], np.float32), 0, 16 * self.padded(n))
         return buf
 

@@ -57,7 +57,7 @@ class PtCompactRegen(Technique):
     family = "pt"
     source = "pt_compact_regen.cl"
 
-    reads_every = 4      # steps between the host's looks at the device's counts (counters off: pass_end.py)
+    reads_every = 8      # steps between the host's looks at the device's counts (counters off: pass_end.py)
 
     def __init__(self, *args, compaction="immediate", stream_size=None, **kwargs):
         checked_size("stream_size", stream_size)     # its range now, before the build; the device's memory after
@@ -134,7 +134,7 @@ class PtCompactRegen(Technique):
         fit in the stream's `size`; the step's record counts them (the device decides how many).
         The launch covers the first `paths` entries (a bound of the stream's length, paths_at_most)."""
         self.kernels.launch("pt_compact_regen_generate", paths, cam=camera, pass_args=pass_args,
-                            stream_size=np.int32(size), last_counts=mem.last_counts, counts=mem.counts,
+                            stream_size=self.kernels.int32(size), last_counts=mem.last_counts, counts=mem.counts,
                             stream=mem.stream, alive=mem.alive)
 
     def extend_and_compact(self, pass_args, paths, mem):

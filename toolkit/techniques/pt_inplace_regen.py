@@ -37,7 +37,7 @@ class PtInplaceRegen(Technique):
     family = "pt"
     source = "pt_inplace_regen.cl"
 
-    reads_every = 4      # steps between the host's looks at the "any path alive" flag (counters off: pass_end.py)
+    reads_every = 8      # steps between the host's looks at the "any path alive" flag (counters off: pass_end.py)
 
     def __init__(self, *args, stream_size=None, **kwargs):
         checked_size("stream_size", stream_size)     # its range now, before the build; the device's memory after
@@ -69,7 +69,7 @@ class PtInplaceRegen(Technique):
             # Regenerate: every free slot starts the next sample of the budget, if one is left.
             cl.enqueue_fill_buffer(self.queue, mem.any_alive, np.int32(0), 0, 4)
             self.kernels.launch("pt_inplace_regen_regenerate", slots, cam=camera, pass_args=pass_args,
-                                slots=np.int32(slots), next_sample=mem.next_sample, paths=mem.paths, alive=mem.alive,
+                                slots=self.kernels.int32(slots), next_sample=mem.next_sample, paths=mem.paths, alive=mem.alive,
                                 any_alive=mem.any_alive, regenerated=mem.regenerated)
             if self.count_simd and not self.count_regenerate(mem, slots, budget):
                 break   # budget spent and every path has ended
