@@ -16,11 +16,12 @@ import pytest
 from toolkit.cli import main
 from toolkit.core.validate import InputError
 from toolkit.opencl import program
+from toolkit.opencl.device_film import has_fp64
 from toolkit.techniques import TECHNIQUES
 from toolkit.verify import gpu_programs, offline_build, offline_report
 from toolkit.verify.gpu_compiler_reports import amdgcn_kernels, ptxas_kernels
 from toolkit.verify.gpu_occupancy import warps_per_sm
-from toolkit.verify.gpu_programs import HostBuild, host_builds
+from toolkit.verify.gpu_programs import HostBuild, host_builds, stand_in_device
 
 SUBSET = dict(scenes=["cornell_spheres"], techniques=[*TECHNIQUES, "bdpt_parallel_connect/direct_scatter"],
               counters=(True,))
@@ -44,6 +45,8 @@ def test_the_host_code_gives_every_program_with_a_gpus_defines():
         builds = host_builds(vendor)
         names = {build.name for build in builds}
         shared = {"compact.cl", "film_reduce.cl", "record_film.cl"}
+        # the path tracers' device film: on a GPU with float64 (the MI210 model), not without (the H200 model)
+        shared |= {"film_accumulate.cl"} if has_fp64(stand_in_device(vendor)) else set()
         assert {cls.source for cls in TECHNIQUES.values()} | shared == names
         for build in builds:
             assert not any(o.startswith(("-DBUILTINS_ARE_CALLS", "-DMLT_CHAIN_MAJOR")) for o in build.options), build.options
@@ -205,7 +208,8 @@ def test_command_prints_the_table_and_writes_the_json(tmp_path, monkeypatch, cap
     report = json.loads(out.read_text())
     assert report["command"] == f"python -m toolkit gpucheck --offline --json {out}"
     rows = {(row["target"], row["kernel"]): row for row in report["kernels"]}
-    assert set(rows) == {(t, k) for t in ("nvptx64", "amdgcn") for k in ("pt_naive_render", "film_reduce")}
+    assert set(rows) == {(t, k) for t in ("nvptx64", "amdgcn") for k in ("pt_naive_render", "film_reduce")} \
+        | {("amdgcn", "film_accumulate")}    # the device film: the MI210 model has float64
     for (target, kernel), row in rows.items():
         assert row["ok"] and row["error"] is None
         if target == "amdgcn" or report["ptxas"]:     # without ptxas, nvptx64's figures are None

@@ -35,10 +35,17 @@ class DeviceFilm:
     each pass's FilmPixel buffer, `read` the sums so far. `owner` names the technique in the error
     about a sample never written."""
 
+    source = "film_accumulate.cl"
+
+    @staticmethod
+    def defines(local_size):
+        """The defines its program is built with (the offline GPU build builds it so too)."""
+        return {"LOCAL_SIZE": local_size}
+
     def __init__(self, queue, pixels, local_size=program.LOCAL_SIZE, sources=None, owner="a path tracer"):
         """`sources`: where the build finds cl/'s files (program.Sources; None: cl/)."""
         self.queue, self.pixels, self.local_size, self.owner = queue, int(pixels), local_size, owner
-        built = program.build(queue, "film_accumulate.cl", {"LOCAL_SIZE": local_size}, directory=sources)
+        built = program.build(queue, self.source, self.defines(local_size), directory=sources)
         self.kernel = program.kernel(built, "film_accumulate")
         context, flags = queue.context, cl.mem_flags.READ_WRITE
         size = program.padded(self.pixels, local_size)

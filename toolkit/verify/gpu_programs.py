@@ -22,13 +22,16 @@ from toolkit.opencl import lanes, program
 from toolkit.opencl.builds import Builds
 from toolkit.opencl.device_model import AMD_VENDOR_ID, NVIDIA_VENDOR_ID
 from toolkit.opencl.device_scene import DeviceScene
+from toolkit.opencl.device_film import DeviceFilm, has_fp64
 from toolkit.opencl.film_reduce import FilmReduction
 from toolkit.opencl.record_film import RecordFilm
 from toolkit.techniques import TECHNIQUES, VARIANTS, get_technique
 
 # The GPUs the offline build compiles for, as the host would see them through OpenCL: the
 # properties it reads to pick defines and work sizes. The H200 is the one of results/gpu/; the
-# MI210 is a CDNA2 card (gfx90a), the AMD target of libclc's amdgcn bitcode.
+# MI210 is a CDNA2 card (gfx90a), the AMD target of libclc's amdgcn bitcode. The H200 model lists no 64-bit
+# atomics nor float64 and the MI210 both, so that each film path (record_film.cl's 32- and 64-bit
+# atomics, the path tracers' host and device films) is built for one of them.
 GPU_MODELS = {
     "nvidia": dict(name="NVIDIA H200 (offline model)", vendor="NVIDIA Corporation", vendor_id=NVIDIA_VENDOR_ID,
                    platform="NVIDIA CUDA", max_compute_units=132, global_mem_size=141 * 2**30,
@@ -37,7 +40,7 @@ GPU_MODELS = {
     "amd": dict(name="AMD Instinct MI210 (offline model)", vendor="Advanced Micro Devices, Inc.",
                 vendor_id=AMD_VENDOR_ID, platform="AMD Accelerated Parallel Processing", max_compute_units=104,
                 global_mem_size=64 * 2**30, max_mem_alloc_size=48 * 2**30,
-                extensions="cl_amd_device_attribute_query cl_khr_int64_base_atomics", simd_per_compute_unit_amd=4,
+                extensions="cl_amd_device_attribute_query cl_khr_int64_base_atomics cl_khr_fp64", simd_per_compute_unit_amd=4,
                 wavefront_width_amd=64),
 }
 
@@ -119,6 +122,8 @@ def host_builds(vendor, scenes=None, techniques=None, counters=COUNT_SIMD):
                         tech = cls(queue, device_scene, count_simd=count_simd, **options)
                         if tech.family == "pt":   # the path tracers' collect builds it at the first pass
                             FilmReduction(queue, tech.local_size)
+                            if has_fp64(device):   # and, where the device has float64, its film
+                                program.build(queue, DeviceFilm.source, DeviceFilm.defines(tech.local_size))
                         if tech.family == "bdpt":   # BDPT's first pass builds its film
                             RecordFilm(queue, 1, tech.local_size)
                     except (AttributeError, TypeError) as error:
