@@ -39,7 +39,7 @@ __kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool,
     int slot = gid;
     BdptSlot sample = slots[slot];
     int connections = 0, steps = 0;
-    if (sample.live == SLOT_TERMINATED) {   /* otherwise still walking (or idle): nothing to connect */
+    if (sample.live == SLOT_CONNECTING) {   /* otherwise still walking, waiting or idle: nothing to connect */
         int n_eye = sample.eye_vertices, n_light = sample.light_vertices;
         int own_pixel = sample.pixel;
         __global const BdptVertex* eye = eye_vertices + vertex_index(slot, 0);

@@ -8,13 +8,18 @@ One pass, read like the talk's slides:
     repeat:
         extend the eye stream and the light stream by one vertex each (compacted at once);
         when enough samples have terminated (default 60%):
-            connect their subpaths (the connect phase), hand the records to the sink,
+            list them, connect their subpaths (the connect phase), hand the records to the sink,
             then regenerate them.
-The streams' lengths stay on the device (WalkCounter): a walk step reads them there, and the host
-reads the counters behind the walk, LAG steps late (toolkit/techniques/pass_end.py), so it never
-waits for a count before a launch; it learns that enough samples have terminated a few steps late
-(with the SIMD counters on, at once: it reads every step's counters). It waits only at a connect
-phase, for the terminated slots and the streams' lengths that regeneration appends to.
+The counts stay on the device, and the host never waits for one before a launch. The streams'
+lengths (WalkCounter): a walk step reads them there, and the host reads the counters behind the
+walk, LAG steps late (toolkit/techniques/pass_end.py); it learns that enough samples have
+terminated a few steps late (with the SIMD counters on, at once: it reads every step's counters).
+Then it lists the terminated samples on the device (the connect phase's record counts and their
+scan, bdpt_mark_terminated, the compaction of the list) and queues the read of the two counts
+it needs (listed samples, records), and goes on walking: LAG steps later it has them, without the
+device having waited, and queues the connect phase and the regeneration. The samples that
+terminate meanwhile wait for the next connect phase (SLOT_TERMINATED; the listed ones are
+SLOT_CONNECTING); regeneration appends to the streams after the lengths on the device.
 Light-tracing (t = 1) contributions land on other pixels: every connection writes a record
 (pixel, value) on the device, and the sink decides where it goes: bdpt's ImageSink adds it to
 the pass's image there (toolkit/opencl/record_film.py: exact integer sums, no float atomics),
@@ -84,6 +89,21 @@ class SamplePool:
 
 
 @dataclass
+class Listing:
+    """The terminated samples listed on the device for a connect phase (BdptEvaluator.list_terminated):
+    their slots, and the read of the two counts the host needs (listed slots, records), queued
+    at walk step `step` and looked at LAG steps later."""
+    slots: cl.Buffer          # int[pool]: the listed slots, the first `count` of it
+    counts: object            # PendingRead of int[2]: (listed slots, the connect phase's records)
+    step: int
+
+    def result(self):
+        """(slots, listed slots, records)."""
+        count, records = (int(x) for x in self.counts.result())
+        return self.slots, count, records
+
+
+@dataclass
 class PassState:
     """One pass: the pool, the kernel arguments every launch shares, and the sample budget."""
     pool: SamplePool
@@ -94,6 +114,8 @@ class PassState:
     next_id: int = 0          # next sample to start
     in_flight: int = 0        # slots whose sample is not connected yet
     reads: list = field(default_factory=list)   # the walk's counters, read behind it (oldest first)
+    steps: int = 0            # walk steps so far
+    listed: Listing = None    # the terminated samples listed for the next connect phase, if any
 
     @property
     def pixels(self):
@@ -171,11 +193,12 @@ class BdptPoolTechnique(Technique):
 
 @dataclass
 class BdptEvaluator:
-    """The walk of BDPT's kernels (launched through `ctx`) and a connect phase:
-    `connect(p, count)` evaluates the connections of the `count` terminated samples of pass `p`
-    and returns their Connections."""
+    """The walk of BDPT's kernels (launched through `ctx`) and a connect phase: `connect.prepare(p)`
+    queues the record counts of pass `p`'s terminated samples and their scan, and returns a one-int
+    buffer that holds the records' total; `connect(p, count, records)` evaluates the connections of
+    the `count` samples listed then (`records` records) and returns their Connections."""
     ctx: BdptContext           # the kernels, memory, SIMD recorder and compactor of the technique that built them
-    connect: object            # the connect phase: (PassState, count) -> Connections
+    connect: object            # the connect phase: prepare(PassState) -> total buffer; (PassState, count, records) -> Connections
     pool_size: int             # samples in flight
     regenerate_fraction: float  # connect (and regenerate) once this share of the samples in flight has terminated
     max_vertices: int          # per subpath (MAX_VERTICES)
@@ -193,9 +216,13 @@ class BdptEvaluator:
         self.regenerate(p, p.pool.all_slots, p.pool.size)        # every slot starts a sample
         while p.in_flight > 0:
             counters = self.walk(p)                               # one vertex more on every subpath
-            if counters is not None and self.enough_terminated(p, counters):
-                slots, count = self.terminated_slots(p)           # postponed regeneration:
-                sink.add(self.connect(p, count))                  #   connect the terminated samples,
+            if p.listed is None:
+                if counters is not None and self.enough_terminated(p, counters):
+                    p.listed = self.list_terminated(p)            # postponed regeneration: list the terminated samples
+            elif p.steps >= p.listed.step + LAG:                  # their counts, read while the walk went on:
+                slots, count, records = p.listed.result()
+                p.listed = None
+                sink.add(self.connect(p, count, records))         #   connect them,
                 self.regenerate(p, slots, count)                  #   then start new ones in their slots
 
     def enough_terminated(self, p, counters):
@@ -240,36 +267,37 @@ class BdptEvaluator:
                                 hostbuf=np.arange(size, dtype=np.int32))))
 
     def regenerate(self, p, slots, count):
-        """bdpt_regenerate: the `count` terminated slots listed in `slots` start the next
-        samples of the budget (the rest go idle); the new subpaths join the end of the streams,
-        whose lengths the host knows here (terminated_slots read them)."""
+        """bdpt_regenerate: the `count` slots listed in `slots` start the next samples of the
+        budget (the rest go idle); the new subpaths join the end of the streams, after the lengths
+        on the device, and bdpt_regenerated adds them to those lengths. The host knows only a
+        bound on the lengths, which grows by the new subpaths."""
         ctx = self.ctx
         fresh = min(count, p.budget - p.next_id)
         if count:
-            r = BDPT_REGENERATION.record(count=count, fresh=fresh, first_id=p.next_id,
-                                         eye_base=p.pool.eye.length, light_base=p.pool.light.length)
+            r = BDPT_REGENERATION.record(count=count, fresh=fresh, first_id=p.next_id)
             ctx.kernels.launch("bdpt_regenerate", count, **ctx.kernels.scene_args(), cam=p.camera,
                         pass_args=p.args, r=r, slot_list=slots, eye_stream=p.pool.eye.current,
                         light_stream=p.pool.light.current, eye_vertices=p.pool.eye.vertices,
-                        light_vertices=p.pool.light.vertices, slots=p.pool.slots, **p.sampler_args)
-        p.pool.eye.length += fresh
-        p.pool.light.length += fresh
+                        light_vertices=p.pool.light.vertices, slots=p.pool.slots, counters=p.pool.counters,
+                        **p.sampler_args)
+            ctx.kernels.launch("bdpt_regenerated", 1, counters=p.pool.counters, fresh=np.int32(fresh),
+                               count=np.int32(count))
+        for stream in (p.pool.eye, p.pool.light):    # a stream holds at most one subpath per slot
+            stream.length = min(stream.length + fresh, p.pool.size)
         p.next_id += fresh
         p.in_flight += fresh - count
-        counters = p.pool.counters     # the new lengths on the device, and no sample terminated since
-        for index, value in ((WalkCounter.TERMINATED_SAMPLES, 0), (WalkCounter.EYE_LENGTH, p.pool.eye.length),
-                             (WalkCounter.LIGHT_LENGTH, p.pool.light.length)):
-            cl.enqueue_fill_buffer(ctx.queue, counters, np.int32(value), 4 * index, 4)
-        p.reads.clear()                # reads queued before this say nothing of the samples now in flight
+        p.reads.clear()                # reads queued before this counted the regenerated samples as terminated
         if ctx.recorder.on and fresh:
             ctx.recorder.simd.add_stream_step("generate", fresh)
 
     def walk(self, p):
         """One random-walk step of both streams (bdpt_extend, compacted at once). Returns the walk's
         counters (WalkCounter) as read LAG steps ago, or None while no read is that old; with the
-        SIMD counters on, this step's, read at once."""
+        SIMD counters on, this step's, read at once. No read while listed samples wait for their
+        connect phase."""
         ctx = self.ctx
         counters = p.pool.counters
+        p.steps += 1
         cl.enqueue_fill_buffer(ctx.queue, counters, np.int32(0), 0, 4 * WalkCounter.TERMINATED_SAMPLES)
         for stream in (p.pool.eye, p.pool.light):
             if stream.length:
@@ -279,6 +307,8 @@ class BdptEvaluator:
                         dst_offset=4 * WalkCounter.EYE_LENGTH)
         if ctx.recorder.on:
             return self.lengths_known(p, ctx.memory.read_ints(counters, len(WalkCounter)))
+        if p.listed is not None:       # nothing to decide until the listed samples are connected
+            return None
         p.reads.append(ctx.memory.read_later(counters, (np.int32, len(WalkCounter))))
         if len(p.reads) <= LAG:
             return None
@@ -303,17 +333,21 @@ class BdptEvaluator:
         self.count_walk_step(p, stream)
         stream.advance()
 
-    def terminated_slots(self, p):
-        """bdpt_mark_terminated, then compaction: (the list of terminated slots, its length). The
-        host waits here, once per connect phase, for that length and for the streams' lengths."""
-        ctx = self.ctx
-        counters = ctx.memory.read_ints(p.pool.counters, len(WalkCounter))
-        p.pool.eye.length = int(counters[WalkCounter.EYE_LENGTH])
-        p.pool.light.length = int(counters[WalkCounter.LIGHT_LENGTH])
-        ctx.kernels.launch("bdpt_mark_terminated", p.pool.size, pool=np.int32(p.pool.size),
-                    slots=p.pool.slots, flags=p.pool.terminated)
-        listed = ctx.memory.reused(("terminated_list", p.pool.size), lambda: ctx.memory.int_buffer(p.pool.size))
-        return ctx.compactor.compact_indices(p.pool.terminated, p.pool.size, method="immediate", out=listed)
+    def list_terminated(self, p):
+        """The terminated samples, listed on the device for the next connect phase: its record
+        counts and their scan (connect.prepare, while the samples are SLOT_TERMINATED), then
+        bdpt_mark_terminated (they become SLOT_CONNECTING) and the compaction of their slots. The
+        two counts the host needs go to one small buffer, read behind the next steps (a Listing)."""
+        ctx, pool = self.ctx, p.pool.size
+        records = self.connect.prepare(p)
+        ctx.kernels.launch("bdpt_mark_terminated", pool, pool=np.int32(pool), slots=p.pool.slots,
+                           flags=p.pool.terminated)
+        mem = ctx.memory
+        listed, counts = mem.reused(("listing", pool), lambda: (mem.int_buffer(pool), mem.int_buffer(2)))
+        listed, count = ctx.compactor.compact_on_device(p.pool.terminated, pool, listed, method="immediate")
+        cl.enqueue_copy(ctx.queue, counts, count, byte_count=4)
+        cl.enqueue_copy(ctx.queue, counts, records, byte_count=4, dst_offset=4)
+        return Listing(listed, mem.read_later(counts, (np.int32, 2)), p.steps)
 
     # --- measuring and inspecting ------------------------------------------------------------
 
@@ -360,13 +394,14 @@ def read_buffer(queue, buffer, out):
 
 def scan_slot_counts(ctx, p, kernel, label):
     """Launch `kernel`, which writes a count per pool slot (records a connect phase will write),
-    and scan the counts: (counts, firsts, total) with firsts[k] = sum of counts[0 .. k - 1].
+    and scan the counts on the device: (counts, firsts, total) with firsts[k] = sum of counts[0 .. k - 1]
+    and `total` a one-int buffer (valid until the compactor's next call: copy it).
     The buffers are kept under `label` and reused by the next connect phases."""
     pool = p.pool.size
     mem = ctx.memory
     counts, firsts = mem.reused((label, pool), lambda: (mem.int_buffer(pool), mem.int_buffer(pool)))
     ctx.kernels.launch(kernel, pool, pool=np.int32(pool), slots=p.pool.slots, counts=counts)
-    firsts, total = ctx.compactor.exclusive_scan(counts, pool, out=firsts)
+    firsts, total = ctx.compactor.exclusive_scan_on_device(counts, pool, out=firsts)
     return counts, firsts, total
 
 
