@@ -113,7 +113,7 @@ class PassState:
     sampler_args: dict = field(default_factory=dict)  # by name: the random-number kernels' extra (BDPT_SAMPLER_PARAM)
     next_id: int = 0          # next sample to start
     in_flight: int = 0        # slots whose sample is not connected yet
-    reads: list = field(default_factory=list)   # the walk's counters, read behind it (oldest first)
+    check: tuple = None       # (the read of the walk's counters queued behind a step, that step), until looked at
     steps: int = 0            # walk steps so far
     listed: Listing = None    # the terminated samples listed for the next connect phase, if any
 
@@ -243,6 +243,8 @@ class BdptEvaluator:
         args = BDPT_PASS.record(seed=seed, sample_base=sample_base, pool=pool.size, capacity=pool.capacity,
                                 chains=vector_stride)
         cl.enqueue_fill_buffer(ctx.queue, pool.counters, np.int32(0), 0, 4 * len(WalkCounter))
+        # every slot counts as terminated, so that the first regeneration (of them all) leaves 0
+        cl.enqueue_fill_buffer(ctx.queue, pool.counters, np.int32(pool.size), 4 * WalkCounter.TERMINATED_SAMPLES, 4)
         pool.eye.length = pool.light.length = 0     # the streams' lengths: 0 here and on the device
         # every slot "terminated", nothing to connect
         self.last_pass = PassState(pool, camera, args, budget, dict(sampler_args or {}), in_flight=pool.size)
@@ -286,15 +288,15 @@ class BdptEvaluator:
             stream.length = min(stream.length + fresh, p.pool.size)
         p.next_id += fresh
         p.in_flight += fresh - count
-        p.reads.clear()                # reads queued before this counted the regenerated samples as terminated
+        p.check = None                 # a read queued before this counted the regenerated samples as terminated
         if ctx.recorder.on and fresh:
             ctx.recorder.simd.add_stream_step("generate", fresh)
 
     def walk(self, p):
         """One random-walk step of both streams (bdpt_extend, compacted at once). Returns the walk's
-        counters (WalkCounter) as read LAG steps ago, or None while no read is that old; with the
-        SIMD counters on, this step's, read at once. No read while listed samples wait for their
-        connect phase."""
+        counters (WalkCounter) as read LAG steps ago (one read at a time), or None when no read is
+        that old; with the SIMD counters on, this step's, read at once. No read while listed
+        samples wait for their connect phase."""
         ctx = self.ctx
         counters = p.pool.counters
         p.steps += 1
@@ -309,10 +311,13 @@ class BdptEvaluator:
             return self.lengths_known(p, ctx.memory.read_ints(counters, len(WalkCounter)))
         if p.listed is not None:       # nothing to decide until the listed samples are connected
             return None
-        p.reads.append(ctx.memory.read_later(counters, (np.int32, len(WalkCounter))))
-        if len(p.reads) <= LAG:
+        # One read at a time: looked at LAG steps after it was queued, the next one queued then.
+        if p.check is None:
+            p.check = (ctx.memory.read_later(counters, (np.int32, len(WalkCounter))), p.steps)
+        if p.steps < p.check[1] + LAG:
             return None
-        return self.lengths_known(p, p.reads.pop(0).result())
+        read, p.check = p.check[0], None
+        return self.lengths_known(p, read.result())
 
     def lengths_known(self, p, counters):
         """The streams can hold no more subpaths than a read of the counters says (they only shrink
