@@ -420,12 +420,18 @@ def connect_args(p, firsts, values, pixels, lane_counts):
 
 
 def record_buffers(ctx, n, *more):
-    """Device memory for n records (float4 values, int pixels, and `more(capacity)` buffers);
-    it grows by powers of two and is reused by the next connect phases."""
-    capacity = 1 << max(12, (n - 1).bit_length())
-    return ctx.memory.reused(("records", capacity), lambda: (
-        cl.Buffer(ctx.queue.context, cl.mem_flags.READ_WRITE, 16 * capacity), ctx.memory.int_buffer(capacity),
-        *(make(capacity) for make in more)))
+    """Device memory for n records (float4 values, int pixels, and `more(capacity)` buffers), reused
+    by the next connect phases. Made with room for half as many again (in powers of two), so that
+    the later connect phases of a render, about the size of its first, rarely outgrow it: a new
+    buffer costs the host at its first launch (a device allocates it then). Outgrown, it is replaced."""
+    held = ctx.memory.reused("records", dict)     # {"capacity": records, "buffers": (values, pixels, *more)}
+    if held.get("capacity", 0) < n:
+        capacity = 1 << max(12, (n + n // 2 - 1).bit_length())
+        held.clear()                               # the old buffers go (the queued commands still hold them)
+        held.update(capacity=capacity, buffers=(
+            cl.Buffer(ctx.queue.context, cl.mem_flags.READ_WRITE, 16 * capacity), ctx.memory.int_buffer(capacity),
+            *(make(capacity) for make in more)))
+    return held["buffers"]
 
 
 def per_pixel_sums(values, pixels, npix):
