@@ -270,14 +270,17 @@ __kernel void bdpt_regenerated(volatile __global int* counters, const int fresh,
     counters[TERMINATED_SAMPLES] -= count;
 }
 
-/* flags[i] = 1 for pool slots whose sample has terminated and waits for its connections; they
- * become SLOT_CONNECTING, so the slots that terminate while the host queues further walk steps
- * before their connect phase (bdpt_evaluator.py) wait for the next one. */
-__kernel void bdpt_mark_terminated(const int pool, __global BdptSlot* slots, __global int* flags)
+/* If at least `threshold` samples have terminated (counters[TERMINATED_SAMPLES]: the device
+ * decides, the host reads no count first), flags[i] = 1 for the pool slots whose sample has
+ * terminated and waits for its connections, else 0 everywhere. The flagged slots become
+ * SLOT_CONNECTING, so the slots that terminate while the host queues further walk steps before
+ * their connect phase (bdpt_evaluator.py) wait for the next one. */
+__kernel void bdpt_mark_terminated(const int pool, const int threshold, __global const int* counters,
+                                   __global BdptSlot* slots, __global int* flags)
 {
     int gid = get_global_id(0);
     if (gid >= pool) return;
-    int terminated = slots[gid].live == SLOT_TERMINATED;
+    int terminated = counters[TERMINATED_SAMPLES] >= threshold && slots[gid].live == SLOT_TERMINATED;
     if (terminated) slots[gid].live = SLOT_CONNECTING;
     flags[gid] = terminated;
 }

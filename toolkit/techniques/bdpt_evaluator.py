@@ -10,21 +10,24 @@ One pass, read like the talk's slides:
         when enough samples have terminated (default 60%):
             list them, connect their subpaths (the connect phase), hand the records to the sink,
             then regenerate them.
-The counts stay on the device, and the host never waits for one before a launch. The streams'
-lengths (WalkCounter): a walk step reads them there, and the host reads the counters behind the
-walk, LAG steps late (toolkit/techniques/pass_end.py); it learns that enough samples have
-terminated a few steps late (with the SIMD counters on, at once: it reads every step's counters).
-Then it lists the terminated samples on the device (the connect phase's record counts and their
-scan, bdpt_mark_terminated, the compaction of the list) and queues the read of the two counts
-it needs (listed samples, records), and goes on walking: LAG steps later it has them, without the
-device having waited, and queues the connect phase and the regeneration. The samples that
-terminate meanwhile wait for the next connect phase (SLOT_TERMINATED; the listed ones are
-SLOT_CONNECTING); regeneration appends to the streams after the lengths on the device.
+The counts stay on the device, and the host never waits for one before a launch: a walk step
+reads the streams' lengths there (WalkCounter), and whether enough samples have terminated is
+decided there too. The host lists the terminated samples on the device (the connect phase's record
+counts and their scan; bdpt_mark_terminated, which marks them only if enough have terminated;
+the compaction of their slots), queues one read of the counts it needs (listed samples, records,
+the walk's counters) and goes on walking: LAG steps later it has them without the device having
+waited, and queues the connect phase and the regeneration (or, if too few had terminated, lists
+again). It lists as many steps after a regeneration as the last successful listing took, so a
+connect phase costs one read (toolkit/techniques/pass_end.py says why reads are looked at late).
+The samples that terminate meanwhile wait for the next connect phase (SLOT_TERMINATED; the listed
+ones are SLOT_CONNECTING); regeneration appends to the streams after the lengths on the device.
+With the SIMD counters on, the host also reads every step's counters at once (exact launch sizes).
 Light-tracing (t = 1) contributions land on other pixels: every connection writes a record
 (pixel, value) on the device, and the sink decides where it goes: bdpt's ImageSink adds it to
 the pass's image there (toolkit/opencl/record_film.py: exact integer sums, no float atomics),
 mlt's reads its records back.
 """
+import math
 import numbers
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -91,16 +94,20 @@ class SamplePool:
 @dataclass
 class Listing:
     """The terminated samples listed on the device for a connect phase (BdptEvaluator.list_terminated):
-    their slots, and the read of the two counts the host needs (listed slots, records), queued
-    at walk step `step` and looked at LAG steps later."""
+    their slots, and the read of what the host needs, queued at walk step `step` and looked at LAG
+    steps later: the listed slots (0: too few had terminated), the connect phase's records, and
+    the walk's counters (WalkCounter) as they were."""
     slots: cl.Buffer          # int[pool]: the listed slots, the first `count` of it
-    counts: object            # PendingRead of int[2]: (listed slots, the connect phase's records)
+    counts: object            # PendingRead of int[LISTING_INTS]
     step: int
 
     def result(self):
-        """(slots, listed slots, records)."""
-        count, records = (int(x) for x in self.counts.result())
-        return self.slots, count, records
+        """(slots, listed slots, records, the walk's counters)."""
+        counts = self.counts.result()
+        return self.slots, int(counts[0]), int(counts[1]), counts[2:]
+
+
+LISTING_INTS = 2 + len(WalkCounter)   # what a Listing reads: listed slots, records, the walk's counters
 
 
 @dataclass
@@ -113,8 +120,8 @@ class PassState:
     sampler_args: dict = field(default_factory=dict)  # by name: the random-number kernels' extra (BDPT_SAMPLER_PARAM)
     next_id: int = 0          # next sample to start
     in_flight: int = 0        # slots whose sample is not connected yet
-    check: tuple = None       # (the read of the walk's counters queued behind a step, that step), until looked at
     steps: int = 0            # walk steps so far
+    regenerated_at: int = 0   # the step of the last regeneration
     listed: Listing = None    # the terminated samples listed for the next connect phase, if any
 
     @property
@@ -203,6 +210,7 @@ class BdptEvaluator:
     regenerate_fraction: float  # connect (and regenerate) once this share of the samples in flight has terminated
     max_vertices: int          # per subpath (MAX_VERTICES)
     last_pass: PassState = None   # kept for inspection (tests, notebooks): the vertex memory of the last samples
+    listing_delay: int = 1     # steps after a regeneration to list: as many as the last successful listing took
     uncompacted: PhaseCounter = field(init=False)   # the walk as it would be without compaction
 
     def __post_init__(self):
@@ -215,21 +223,20 @@ class BdptEvaluator:
         """Every sample of the pass's budget, through the pool; `sink.add` gets each connect phase's records."""
         self.regenerate(p, p.pool.all_slots, p.pool.size)        # every slot starts a sample
         while p.in_flight > 0:
-            counters = self.walk(p)                               # one vertex more on every subpath
+            self.walk(p)                                          # one vertex more on every subpath
             if p.listed is None:
-                if counters is not None and self.enough_terminated(p, counters):
-                    p.listed = self.list_terminated(p)            # postponed regeneration: list the terminated samples
-            elif p.steps >= p.listed.step + LAG:                  # their counts, read while the walk went on:
-                slots, count, records = p.listed.result()
-                p.listed = None
-                sink.add(self.connect(p, count, records))         #   connect them,
-                self.regenerate(p, slots, count)                  #   then start new ones in their slots
+                if p.steps >= p.regenerated_at + self.listing_delay:
+                    p.listed = self.list_terminated(p)            # postponed regeneration: list the terminated
+            elif p.steps >= p.listed.step + LAG:                  #   samples if enough; their counts, read late:
+                slots, count, records = self.listing_read(p)
+                if count:
+                    sink.add(self.connect(p, count, records))     #   connect them,
+                    self.regenerate(p, slots, count)              #   then start new ones in their slots
 
-    def enough_terminated(self, p, counters):
-        """Whether the walk's `counters` (a step's, maybe some steps old) say it is time to connect:
-        the share regenerate_fraction of the samples in flight has terminated, or every one has."""
-        return (counters[WalkCounter.TERMINATED_SAMPLES] >= self.regenerate_fraction * p.in_flight
-                or counters[WalkCounter.EYE_LENGTH] == counters[WalkCounter.LIGHT_LENGTH] == 0)
+    def threshold(self, p):
+        """Terminated samples that make a connect phase worth it: the share regenerate_fraction of
+        the samples in flight (so once every one has terminated, whatever the share)."""
+        return max(1, math.ceil(self.regenerate_fraction * p.in_flight))
 
     # --- the stages of a pass, one kernel each ---------------------------------------------
 
@@ -288,15 +295,14 @@ class BdptEvaluator:
             stream.length = min(stream.length + fresh, p.pool.size)
         p.next_id += fresh
         p.in_flight += fresh - count
-        p.check = None                 # a read queued before this counted the regenerated samples as terminated
+        p.regenerated_at = p.steps
         if ctx.recorder.on and fresh:
             ctx.recorder.simd.add_stream_step("generate", fresh)
 
     def walk(self, p):
-        """One random-walk step of both streams (bdpt_extend, compacted at once). Returns the walk's
-        counters (WalkCounter) as read LAG steps ago (one read at a time), or None when no read is
-        that old; with the SIMD counters on, this step's, read at once. No read while listed
-        samples wait for their connect phase."""
+        """One random-walk step of both streams (bdpt_extend, compacted at once), each launched over
+        a bound on its length that the host knows (the kernel reads the length on the device);
+        with the SIMD counters on, the counters are read at once, and the bounds are exact."""
         ctx = self.ctx
         counters = p.pool.counters
         p.steps += 1
@@ -308,23 +314,28 @@ class BdptEvaluator:
         cl.enqueue_copy(ctx.queue, counters, counters, byte_count=8, src_offset=4 * WalkCounter.EYE_SURVIVORS,
                         dst_offset=4 * WalkCounter.EYE_LENGTH)
         if ctx.recorder.on:
-            return self.lengths_known(p, ctx.memory.read_ints(counters, len(WalkCounter)))
-        if p.listed is not None:       # nothing to decide until the listed samples are connected
-            return None
-        # One read at a time: looked at LAG steps after it was queued, the next one queued then.
-        if p.check is None:
-            p.check = (ctx.memory.read_later(counters, (np.int32, len(WalkCounter))), p.steps)
-        if p.steps < p.check[1] + LAG:
-            return None
-        read, p.check = p.check[0], None
-        return self.lengths_known(p, read.result())
+            self.lengths_known(p, ctx.memory.read_ints(counters, len(WalkCounter)))
 
     def lengths_known(self, p, counters):
         """The streams can hold no more subpaths than a read of the counters says (they only shrink
         until the next regeneration): later steps launch over that many."""
         p.pool.eye.length = min(p.pool.eye.length, int(counters[WalkCounter.EYE_LENGTH]))
         p.pool.light.length = min(p.pool.light.length, int(counters[WalkCounter.LIGHT_LENGTH]))
-        return counters
+
+    def listing_read(self, p):
+        """The listing's read, looked at: (slots, listed slots, records). The walk's counters read
+        with it bound the streams' lengths. Listed: the next listing follows the next regeneration
+        by as many steps as this one followed the last. None listed (too few had terminated): the
+        next listing is at once, as if the regeneration had been that many steps before, so the
+        steps waited here add to the delay when it succeeds."""
+        slots, count, records, counters = p.listed.result()
+        if count:
+            self.listing_delay = max(1, p.listed.step - p.regenerated_at)
+        else:
+            p.regenerated_at = p.steps - self.listing_delay    # list again at once
+        p.listed = None
+        self.lengths_known(p, counters)
+        return slots, count, records
 
     def extend(self, p, stream):
         """bdpt_extend: one vertex more on every subpath of `stream` (the launch covers
@@ -339,20 +350,22 @@ class BdptEvaluator:
         stream.advance()
 
     def list_terminated(self, p):
-        """The terminated samples, listed on the device for the next connect phase: its record
-        counts and their scan (connect.prepare, while the samples are SLOT_TERMINATED), then
-        bdpt_mark_terminated (they become SLOT_CONNECTING) and the compaction of their slots. The
-        two counts the host needs go to one small buffer, read behind the next steps (a Listing)."""
+        """The terminated samples, listed on the device for the next connect phase, if there are
+        enough of them (threshold): its record counts and their scan (connect.prepare, while the
+        samples are SLOT_TERMINATED), then bdpt_mark_terminated (they become SLOT_CONNECTING, if
+        enough) and the compaction of their slots. What the host needs goes to one small buffer,
+        read behind the next steps (a Listing)."""
         ctx, pool = self.ctx, p.pool.size
         records = self.connect.prepare(p)
-        ctx.kernels.launch("bdpt_mark_terminated", pool, pool=np.int32(pool), slots=p.pool.slots,
-                           flags=p.pool.terminated)
+        ctx.kernels.launch("bdpt_mark_terminated", pool, pool=np.int32(pool), threshold=np.int32(self.threshold(p)),
+                           counters=p.pool.counters, slots=p.pool.slots, flags=p.pool.terminated)
         mem = ctx.memory
-        listed, counts = mem.reused(("listing", pool), lambda: (mem.int_buffer(pool), mem.int_buffer(2)))
+        listed, counts = mem.reused(("listing", pool), lambda: (mem.int_buffer(pool), mem.int_buffer(LISTING_INTS)))
         listed, count = ctx.compactor.compact_on_device(p.pool.terminated, pool, listed, method="immediate")
         cl.enqueue_copy(ctx.queue, counts, count, byte_count=4)
         cl.enqueue_copy(ctx.queue, counts, records, byte_count=4, dst_offset=4)
-        return Listing(listed, mem.read_later(counts, (np.int32, 2)), p.steps)
+        cl.enqueue_copy(ctx.queue, counts, p.pool.counters, byte_count=4 * len(WalkCounter), dst_offset=8)
+        return Listing(listed, mem.read_later(counts, (np.int32, LISTING_INTS)), p.steps)
 
     # --- measuring and inspecting ------------------------------------------------------------
 
