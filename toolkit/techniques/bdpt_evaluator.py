@@ -122,6 +122,7 @@ class PassState:
     in_flight: int = 0        # slots whose sample is not connected yet
     steps: int = 0            # walk steps so far
     regenerated_at: int = 0   # the step of the last regeneration
+    retry: int = 0            # steps before the next listing after one that listed none (doubles each time)
     listed: Listing = None    # the terminated samples listed for the next connect phase, if any
 
     @property
@@ -235,7 +236,11 @@ class BdptEvaluator:
 
     def threshold(self, p):
         """Terminated samples that make a connect phase worth it: the share regenerate_fraction of
-        the samples in flight (so once every one has terminated, whatever the share)."""
+        the samples in flight (so once every one has terminated, whatever the share). Once the
+        budget is spent, regeneration starts nothing: every one (one connect phase, not a tail of
+        ever smaller ones)."""
+        if p.next_id >= p.budget:
+            return p.in_flight
         return max(1, math.ceil(self.regenerate_fraction * p.in_flight))
 
     # --- the stages of a pass, one kernel each ---------------------------------------------
@@ -326,13 +331,14 @@ class BdptEvaluator:
         """The listing's read, looked at: (slots, listed slots, records). The walk's counters read
         with it bound the streams' lengths. Listed: the next listing follows the next regeneration
         by as many steps as this one followed the last. None listed (too few had terminated): the
-        next listing is at once, as if the regeneration had been that many steps before, so the
-        steps waited here add to the delay when it succeeds."""
+        next listing is at once, then after 1, 2, 4, ... steps, as if the regeneration had been
+        that much before, so the steps waited add to the delay when it succeeds."""
         slots, count, records, counters = p.listed.result()
         if count:
-            self.listing_delay = max(1, p.listed.step - p.regenerated_at)
-        else:
-            p.regenerated_at = p.steps - self.listing_delay    # list again at once
+            self.listing_delay, p.retry = max(1, p.listed.step - p.regenerated_at), 0
+        else:                          # list again after 0, 1, 2, 4, ... steps (the longest subpaths of a pass's end)
+            p.regenerated_at = p.steps + p.retry - self.listing_delay
+            p.retry = max(1, 2 * p.retry)
         p.listed = None
         self.lengths_known(p, counters)
         return slots, count, records
