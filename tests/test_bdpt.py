@@ -254,12 +254,14 @@ def test_a_scene_a_million_times_darker_or_brighter_gives_the_same_bits_scaled(c
 @pytest.mark.parametrize("technique", ["bdpt_naive_connect", "bdpt_parallel_connect"])
 def test_a_non_finite_record_is_dropped_and_reported_never_in_the_image(cornell_box, technique, monkeypatch):
     """A NaN planted in the first record of every connect phase (on the device, before the sink
-    adds it): each is counted and reported (DroppedSamplesWarning), and the image stays finite."""
+    adds it): each is counted and reported (DroppedSamplesWarning), and the image stays finite.
+    A pool of a third of the pass's samples makes several connect phases."""
     from toolkit.api import DroppedSamplesWarning
     from toolkit.techniques import bdpt_base
     planted = plant_nan_in_every_connect_phase(monkeypatch, bdpt_base.ImageSink)
     with pytest.warns(DroppedSamplesWarning):
-        r = toolkit.render(cornell_box, technique=technique, spp=2, seed=1, resolution=(12, 8), count_simd=False)
+        r = toolkit.render(cornell_box, technique=technique, spp=2, seed=1, resolution=(12, 8), count_simd=False,
+                           technique_options={"pool_size": 64})
     assert len(planted) > 1 and r.stats["nonfinite_samples"] == len(planted)
     assert np.isfinite(r.image).all() and r.image.sum() > 0
 
