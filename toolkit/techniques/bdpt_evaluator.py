@@ -236,11 +236,9 @@ class BdptEvaluator:
 
     def threshold(self, p):
         """Terminated samples that make a connect phase worth it: the share regenerate_fraction of
-        the samples in flight (so once every one has terminated, whatever the share). Once the
-        budget is spent, regeneration starts nothing: every one (one connect phase, not a tail of
-        ever smaller ones)."""
-        if p.next_id >= p.budget:
-            return p.in_flight
+        the samples in flight (so once every one has terminated, whatever the share). Also once
+        the budget is spent, as the talk's postponed regeneration: the connect phases of a pass's
+        end keep their idle lanes (the naive connect's lesson)."""
         return max(1, math.ceil(self.regenerate_fraction * p.in_flight))
 
     # --- the stages of a pass, one kernel each ---------------------------------------------
