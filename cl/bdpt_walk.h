@@ -201,17 +201,17 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
 /* Start new samples in the pool slots listed in `slot_list` (those bdpt_mark_terminated
  * listed): the first r.fresh get samples r.first_id, r.first_id + 1, ... (consecutive pixels);
  * the rest go idle (budget spent). Writes z_0 (camera) and y_0 (point on a light) and appends
- * both subpaths to their streams, after the counters[EYE_ and LIGHT_LENGTH] subpaths there: the
- * lengths are read on the device, so the host needs not know them (bdpt_regenerated then adds
- * the new subpaths to them). */
+ * both subpaths to their streams, after the subpaths there: slot_list[pass_args.pool] and
+ * [pass_args.pool + 1] hold the streams' lengths (copied from the walk's counters on the device,
+ * so the host needs not know them; bdpt_regenerated then adds the new subpaths to them). */
 __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const BdptRegeneration r,
                               __global const int* slot_list, __global void* eye_stream, __global void* light_stream,
                               __global BdptVertex* eye_vertices, __global BdptVertex* light_vertices,
-                              __global BdptSlot* slots, __global const int* counters BDPT_SAMPLER_PARAM)
+                              __global BdptSlot* slots BDPT_SAMPLER_PARAM)
 {
     int gid = get_global_id(0);
     if (gid >= r.count) return;
-    const int eye_base = counters[EYE_LENGTH], light_base = counters[LIGHT_LENGTH];
+    const int eye_base = slot_list[pass_args.pool], light_base = slot_list[pass_args.pool + 1];
     int slot = slot_list[gid];
     int id = bdpt_regeneration_sample(&r, gid);
     if (id < 0) { slots[slot].live = SLOT_IDLE; return; }

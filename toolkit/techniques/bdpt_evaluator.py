@@ -89,6 +89,7 @@ class SamplePool:
     counters: cl.Buffer       # int[len(WalkCounter)]: each stream's length and survivors, terminated samples
     lane_counts: cl.Buffer    # LaneCounts[size]: one walk step or connect phase (COUNT_SIMD)
     all_slots: cl.Buffer      # 0 .. size - 1: the slot list of the first regeneration
+    regeneration_list: cl.Buffer   # int[size + 2]: the slots to regenerate (listed there), then the streams' lengths
 
 
 @dataclass
@@ -274,7 +275,7 @@ class BdptEvaluator:
             size, capacity, stream(0), stream(1),
             slots=cl.Buffer(context, cl.mem_flags.READ_WRITE, BDPT_SLOT.dtype.itemsize * mem.padded(size)),
             terminated=mem.int_buffer(size), counters=mem.int_buffer(len(WalkCounter)),
-            lane_counts=mem.lane_counts_buffer(size),
+            lane_counts=mem.lane_counts_buffer(size), regeneration_list=mem.int_buffer(size + 2),
             all_slots=cl.Buffer(context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                                 hostbuf=np.arange(size, dtype=np.int32))))
 
@@ -283,15 +284,19 @@ class BdptEvaluator:
         budget (the rest go idle); the new subpaths join the end of the streams, after the lengths
         on the device, and bdpt_regenerated adds them to those lengths. The host knows only a
         bound on the lengths, which grows by the new subpaths."""
-        ctx = self.ctx
+        ctx, pool = self.ctx, p.pool
         fresh = min(count, p.budget - p.next_id)
         if count:
+            listed = pool.regeneration_list    # the slots (list_terminated lists them there), then the lengths
+            if slots is not listed:
+                cl.enqueue_copy(ctx.queue, listed, slots, byte_count=4 * count)
+            cl.enqueue_copy(ctx.queue, listed, pool.counters, byte_count=8, src_offset=4 * WalkCounter.EYE_LENGTH,
+                            dst_offset=4 * pool.size)
             r = BDPT_REGENERATION.record(count=count, fresh=fresh, first_id=p.next_id)
             ctx.kernels.launch("bdpt_regenerate", count, **ctx.kernels.scene_args(), cam=p.camera,
-                        pass_args=p.args, r=r, slot_list=slots, eye_stream=p.pool.eye.current,
-                        light_stream=p.pool.light.current, eye_vertices=p.pool.eye.vertices,
-                        light_vertices=p.pool.light.vertices, slots=p.pool.slots, counters=p.pool.counters,
-                        **p.sampler_args)
+                        pass_args=p.args, r=r, slot_list=listed, eye_stream=pool.eye.current,
+                        light_stream=pool.light.current, eye_vertices=pool.eye.vertices,
+                        light_vertices=pool.light.vertices, slots=pool.slots, **p.sampler_args)
             ctx.kernels.launch("bdpt_regenerated", 1, counters=p.pool.counters, fresh=np.int32(fresh),
                                count=np.int32(count))
         for stream in (p.pool.eye, p.pool.light):    # a stream holds at most one subpath per slot
@@ -364,8 +369,9 @@ class BdptEvaluator:
         ctx.kernels.launch("bdpt_mark_terminated", pool, pool=np.int32(pool), threshold=np.int32(self.threshold(p)),
                            counters=p.pool.counters, slots=p.pool.slots, flags=p.pool.terminated)
         mem = ctx.memory
-        listed, counts = mem.reused(("listing", pool), lambda: (mem.int_buffer(pool), mem.int_buffer(LISTING_INTS)))
-        listed, count = ctx.compactor.compact_on_device(p.pool.terminated, pool, listed, method="immediate")
+        counts = mem.reused(("listing", pool), lambda: mem.int_buffer(LISTING_INTS))
+        listed, count = ctx.compactor.compact_on_device(p.pool.terminated, pool, p.pool.regeneration_list,
+                                                        method="immediate")
         cl.enqueue_copy(ctx.queue, counts, count, byte_count=4)
         cl.enqueue_copy(ctx.queue, counts, records, byte_count=4, dst_offset=4)
         cl.enqueue_copy(ctx.queue, counts, p.pool.counters, byte_count=4 * len(WalkCounter), dst_offset=8)
