@@ -44,12 +44,8 @@ from toolkit.opencl.work_sizes import checked_size
 from toolkit.techniques.base import Technique, pixel_count
 from toolkit.techniques.device_memory import DeviceMemory
 from toolkit.techniques.kernels import Kernels
+from toolkit.techniques.pass_end import LAG
 from toolkit.techniques.simd_recorder import SimdRecorder
-
-# Walk steps between a listing and the look at its read: the device has that step queued behind the
-# read when the host waits for it, so it never waits for the host (toolkit/techniques/pass_end.py);
-# one is enough, since the host then queues the connect phase while the device runs that step.
-LAG = 1
 
 
 def walk_defines(scene, longest, coalesced_scatter):
