@@ -6,17 +6,20 @@
  * (bdpt_walk.h).
  * Kernels this technique launches, in the order of one pass (toolkit/techniques/bdpt_evaluator.py):
  *   bdpt_regenerate        cl/bdpt_walk.h   start samples in free pool slots
+ *   bdpt_regenerated       cl/bdpt_walk.h   add them to the streams' lengths on the device
  *   bdpt_extend            cl/bdpt_walk.h   one random-walk step of the eye or the light stream
- *   bdpt_mark_terminated   cl/bdpt_walk.h   flag the slots that wait for their connections
- *   the compaction         toolkit/opencl/compaction.py (cl/compact.cl): list the flagged slots
- *   bdpt_naive_connect_splats  here         how many light-tracing (t = 1) records each slot writes
+ *   bdpt_naive_connect_splats  here         how many light-tracing (t = 1) records each terminated slot writes
  *   the exclusive scan     toolkit/opencl/compaction.py (cl/compact.cl): where each slot's records start
- *   bdpt_naive_connect     here             every (s, t) strategy of a terminated sample, in its slot's work-item
- * The scan only packs the records, so that the host reads back the records written and not
+ *   bdpt_mark_terminated   cl/bdpt_walk.h   if enough have terminated, flag their slots (SLOT_CONNECTING)
+ *   the compaction         toolkit/opencl/compaction.py (cl/compact.cl): list the flagged slots
+ *   (more walk steps, while the host's read of the counts comes back)
+ *   bdpt_naive_connect     here             every (s, t) strategy of a listed sample, in its slot's work-item
+ * The scan only packs the records, so that the film adds the records written and not
  * MAX_VERTICES places per slot; the connections themselves are evaluated the plain way. */
 #include "bdpt_walk.h"
 
-/* Light-tracing records of each slot: one per s = 1 .. n_light (t = 1) if its sample terminated. */
+/* Light-tracing records of each slot: one per s = 1 .. n_light (t = 1) if its sample terminated
+ * (counted before bdpt_mark_terminated makes the listed ones SLOT_CONNECTING). */
 __kernel void bdpt_naive_connect_splats(const int pool, __global const BdptSlot* slots, __global int* counts)
 {
     int gid = get_global_id(0);
@@ -39,7 +42,7 @@ __kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool,
     int slot = gid;
     BdptSlot sample = slots[slot];
     int connections = 0, steps = 0;
-    if (sample.live == SLOT_TERMINATED) {   /* otherwise still walking (or idle): nothing to connect */
+    if (sample.live == SLOT_CONNECTING) {   /* otherwise still walking, waiting or idle: nothing to connect */
         int n_eye = sample.eye_vertices, n_light = sample.light_vertices;
         int own_pixel = sample.pixel;
         __global const BdptVertex* eye = eye_vertices + vertex_index(slot, 0);

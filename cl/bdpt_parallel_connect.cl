@@ -12,11 +12,13 @@
  *   local 0 -> (s, t) = (1, 1), local 1 -> (0, 2), local 2 -> (1, 2)   (k + 1 = (t - 1)(n_light + 1) + s).
  * Kernels this technique launches, in the order of one pass (toolkit/techniques/bdpt_evaluator.py):
  *   bdpt_regenerate              cl/bdpt_walk.h   start samples in free pool slots
+ *   bdpt_regenerated             cl/bdpt_walk.h   add them to the streams' lengths on the device
  *   bdpt_extend                  cl/bdpt_walk.h   one random-walk step of the eye or the light stream
- *   bdpt_mark_terminated         cl/bdpt_walk.h   flag the slots that wait for their connections
- *   the compaction               toolkit/opencl/compaction.py (cl/compact.cl): list the flagged slots
  *   bdpt_parallel_connect_count  here             step 1
  *   the exclusive scan           toolkit/opencl/compaction.py (cl/compact.cl): step 2
+ *   bdpt_mark_terminated         cl/bdpt_walk.h   if enough have terminated, flag their slots (SLOT_CONNECTING)
+ *   the compaction               toolkit/opencl/compaction.py (cl/compact.cl): list the flagged slots
+ *   (more walk steps, while the host's read of the counts comes back)
  *   bdpt_parallel_connect        here             step 3 */
 #include "bdpt_walk.h"
 

@@ -149,7 +149,8 @@ HELPER bool subpath_extend(const SceneView* scene, Subpath* p, BdptSampler* rng,
  * so it never waits for a count before the next launch.
  * A slot's `live` counts its subpaths still walking (SlotState in toolkit/core/layout.py):
  * SLOT_BOTH_WALKING after regeneration, SLOT_ONE_WALKING, SLOT_TERMINATED when both have
- * ended (it waits for its connections), SLOT_IDLE when the pass's budget left it empty. */
+ * ended (it waits for its connections), SLOT_CONNECTING once listed for a connect phase,
+ * SLOT_IDLE when the pass's budget left it empty. */
 
 /* One random-walk step over a compacted subpath stream (eye or light) of counters[EYE_ or
  * LIGHT_LENGTH] subpaths; the launch may cover more (a bound the host knows), and a work-group
@@ -197,10 +198,12 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
 #endif
 }
 
-/* Start new samples in the terminated pool slots listed in `slot_list`: the first r.fresh get
- * samples r.first_id, r.first_id + 1, ... (consecutive pixels); the rest go idle (budget spent).
- * Writes z_0 (camera) and y_0 (point on a light) and appends both subpaths to their streams
- * at r.eye_base + i and r.light_base + i. */
+/* Start new samples in the pool slots listed in `slot_list` (those bdpt_mark_terminated
+ * listed): the first r.fresh get samples r.first_id, r.first_id + 1, ... (consecutive pixels);
+ * the rest go idle (budget spent). Writes z_0 (camera) and y_0 (point on a light) and appends
+ * both subpaths to their streams, after the subpaths there: slot_list[pass_args.pool] and
+ * [pass_args.pool + 1] hold the streams' lengths (copied from the walk's counters on the device,
+ * so the host needs not know them; bdpt_regenerated then adds the new subpaths to them). */
 __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const BdptRegeneration r,
                               __global const int* slot_list, __global void* eye_stream, __global void* light_stream,
                               __global BdptVertex* eye_vertices, __global BdptVertex* light_vertices,
@@ -208,6 +211,7 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pas
 {
     int gid = get_global_id(0);
     if (gid >= r.count) return;
+    const int eye_base = slot_list[pass_args.pool], light_base = slot_list[pass_args.pool + 1];
     int slot = slot_list[gid];
     int id = bdpt_regeneration_sample(&r, gid);
     if (id < 0) { slots[slot].live = SLOT_IDLE; return; }
@@ -227,7 +231,7 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pas
     Subpath e = {.origin = (float4)(eye_pos, camera_pdf_dir(&cam, w)), .dir = (float4)(w, 0.0f),
                  .beta = (float4)(1.0f), .prev_pos = (float4)(eye_pos, 0.0f), .prev_normal = (float4)(forward, 0.0f),
                  .slot = slot, .vertices = 1, .prev_flags = VERTEX_CAMERA};
-    subpath_store(subpath_soa(eye_stream, pass_args.capacity), r.eye_base + gid, &e);
+    subpath_store(subpath_soa(eye_stream, pass_args.capacity), eye_base + gid, &e);
 
     /* Light subpath: y_0 on a light (chosen by power), then a cosine-weighted direction. */
     LightSample ls = sample_light(&scene, bdpt_sample(&rng, BDPT_DIM_LIGHT_PICK),
@@ -248,19 +252,37 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pas
     Subpath l = {.origin = (float4)(offset_point(&scene, ls.p, ls.n, dir), emit_local.z * INV_PI),
                  .dir = (float4)(dir, 0.0f), .beta = (float4)(beta, max3(beta)), .prev_pos = (float4)(ls.p, 0.0f),
                  .prev_normal = (float4)(ls.n, 0.0f), .slot = slot, .vertices = 1, .prev_flags = VERTEX_LIGHT};
-    subpath_store(subpath_soa(light_stream, pass_args.capacity), r.light_base + gid, &l);
+    subpath_store(subpath_soa(light_stream, pass_args.capacity), light_base + gid, &l);
 
     BdptSlot started = {.live = SLOT_BOTH_WALKING, .sample_id = id, .eye_vertices = 1, .light_vertices = 1,
                         .pixel = pixel};
     slots[slot] = started;
 }
 
-/* flags[i] = 1 for pool slots whose sample has terminated and waits for its connections. */
-__kernel void bdpt_mark_terminated(const int pool, __global const BdptSlot* slots, __global int* flags)
+/* After bdpt_regenerate (one work-item): the `fresh` new subpaths join the streams' lengths, and
+ * the `count` regenerated slots no longer count as terminated (samples that terminated since
+ * bdpt_mark_terminated listed them still do: they wait for the next connect phase). */
+__kernel void bdpt_regenerated(volatile __global int* counters, const int fresh, const int count)
+{
+    if (get_global_id(0) != 0) return;
+    counters[EYE_LENGTH] += fresh;
+    counters[LIGHT_LENGTH] += fresh;
+    counters[TERMINATED_SAMPLES] -= count;
+}
+
+/* If at least `threshold` samples have terminated (counters[TERMINATED_SAMPLES]: the device
+ * decides, the host reads no count first), flags[i] = 1 for the pool slots whose sample has
+ * terminated and waits for its connections, else 0 everywhere. The flagged slots become
+ * SLOT_CONNECTING, so the slots that terminate while the host queues further walk steps before
+ * their connect phase (bdpt_evaluator.py) wait for the next one. */
+__kernel void bdpt_mark_terminated(const int pool, const int threshold, __global const int* counters,
+                                   __global BdptSlot* slots, __global int* flags)
 {
     int gid = get_global_id(0);
     if (gid >= pool) return;
-    flags[gid] = slots[gid].live == SLOT_TERMINATED;
+    int terminated = counters[TERMINATED_SAMPLES] >= threshold && slots[gid].live == SLOT_TERMINATED;
+    if (terminated) slots[gid].live = SLOT_CONNECTING;
+    flags[gid] = terminated;
 }
 
 #endif

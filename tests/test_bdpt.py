@@ -254,12 +254,14 @@ def test_a_scene_a_million_times_darker_or_brighter_gives_the_same_bits_scaled(c
 @pytest.mark.parametrize("technique", ["bdpt_naive_connect", "bdpt_parallel_connect"])
 def test_a_non_finite_record_is_dropped_and_reported_never_in_the_image(cornell_box, technique, monkeypatch):
     """A NaN planted in the first record of every connect phase (on the device, before the sink
-    adds it): each is counted and reported (DroppedSamplesWarning), and the image stays finite."""
+    adds it): each is counted and reported (DroppedSamplesWarning), and the image stays finite.
+    A pool of a third of the pass's samples makes several connect phases."""
     from toolkit.api import DroppedSamplesWarning
     from toolkit.techniques import bdpt_base
     planted = plant_nan_in_every_connect_phase(monkeypatch, bdpt_base.ImageSink)
     with pytest.warns(DroppedSamplesWarning):
-        r = toolkit.render(cornell_box, technique=technique, spp=2, seed=1, resolution=(12, 8), count_simd=False)
+        r = toolkit.render(cornell_box, technique=technique, spp=2, seed=1, resolution=(12, 8), count_simd=False,
+                           technique_options={"pool_size": 64})
     assert len(planted) > 1 and r.stats["nonfinite_samples"] == len(planted)
     assert np.isfinite(r.image).all() and r.image.sum() > 0
 
@@ -282,3 +284,44 @@ def test_the_host_reads_a_pixel_per_pass_not_the_records(cornell_box, technique,
     image_reads = [n for n in reads if n == 16 * width * height]
     assert len(image_reads) == spp                          # one per pass
     assert all(n <= 64 for n in reads if n != 16 * width * height), sorted(reads)[-5:]
+
+
+@pytest.mark.parametrize("technique", ["bdpt_naive_connect", "bdpt_parallel_connect"])
+def test_a_pass_never_waits_for_a_count_and_reads_once_per_connect_phase(cornell_box, technique, monkeypatch):
+    """The connect decision stays on the device (bdpt_evaluator.py): the host lists the terminated
+    samples there and reads what it needs (listed slots, records, the walk's counters) once per
+    listing, LAG steps later. So no read blocks, and a render reads once per connect phase, once
+    per pass for its image, and a few times more for listings that found too few terminated (a
+    pass's first, and its end's longest subpaths). Before: three blocking reads per connect phase
+    and a read of the walk's counters every step. A pool of 64 makes many connect phases."""
+    from toolkit.opencl.traffic import Traffic
+    from toolkit.techniques import bdpt_base
+    phases, add = [], bdpt_base.ImageSink.add
+
+    def counted(sink, connections):
+        phases.append(connections.count)
+        add(sink, connections)
+    monkeypatch.setattr(bdpt_base.ImageSink, "add", counted)
+    toolkit.render(cornell_box, technique=technique, spp=1, resolution=(8, 8), count_simd=False)   # built
+    phases.clear()
+    passes = 2
+    with Traffic() as traffic:
+        toolkit.render(cornell_box, technique=technique, spp=4, seed=2, resolution=(24, 16), count_simd=False,
+                       technique_options={"pool_size": 64, "pass_spp": 4 // passes})
+    phases = [n for n in phases if n]
+    assert len(phases) > 20
+    assert traffic.blocking_reads == 0 and traffic.drains == passes     # the drains: each pass's image, read late
+    assert passes + len(phases) <= traffic.reads <= passes + len(phases) + 3 * passes
+
+
+@pytest.mark.parametrize("technique", ["bdpt_naive_connect", "bdpt_parallel_connect"])
+def test_the_pool_size_changes_the_schedule_not_the_image_bits(cornell_box, technique):
+    """Every sample of a pass is connected exactly once, whenever its connect phase comes: a pool of
+    40 (many connect phases, samples that terminate while others are listed wait for the next one,
+    listings that find too few) gives the same bits as a pool that holds the whole pass, because
+    a sample's records depend only on its id and the film's sums are exact (record_film.py)."""
+    def image(pool):
+        return toolkit.render(cornell_box, technique=technique, spp=2, seed=6, resolution=(16, 12), count_simd=False,
+                              technique_options={"pool_size": pool}).image
+    whole = image(16 * 12 * 2)
+    assert whole.sum() > 0 and np.array_equal(image(40), whole)

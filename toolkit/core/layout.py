@@ -195,8 +195,6 @@ BDPT_REGENERATION = Record("BdptRegeneration", [
     ("count", "int"),           # terminated slots listed for regeneration
     ("fresh", "int"),           # the first `fresh` of them start new samples; the rest go idle
     ("first_id", "int"),        # id of the first new sample (the others follow, consecutive pixels)
-    ("eye_base", "int"),        # where the new eye subpaths go in the eye stream
-    ("light_base", "int"),      # where the new light subpaths go in the light stream
 ], "One regeneration step of the BDPT pool.")
 
 MLT_CHAIN = Record("MltChain", [
@@ -277,6 +275,7 @@ class VertexFlag(IntFlag):
 
 class SlotState(IntEnum):
     """BdptSlot.live: how many of the sample's subpaths still walk, or idle (cl/bdpt_walk.h)."""
+    CONNECTING = -2     # listed for the connect phase queued next (bdpt_mark_terminated): no longer counted as terminated
     IDLE = -1           # no sample (the pass's budget is spent)
     TERMINATED = 0      # both subpaths ended: the sample waits for its connections
     ONE_WALKING = 1

@@ -46,9 +46,15 @@ def sized_options(technique, gpu_sizes):
     return {name: size for name, size in GPU_SIZES.items() if name in takes}
 
 
-def metered_render(scene, technique, options):
+def metered_render(scene, technique, options, warm_up=None):
     """One render under the meter: the traffic figures (traffic.Traffic), its wall seconds, the
-    kernels' device seconds, its samples and its passes."""
+    kernels' device seconds, its samples and its passes. `warm_up`: options of a small render
+    made first, unmeasured: it builds the kernels, and its launches replace the kernels' last
+    arguments (program.launch keeps them), which frees the device memory of the render before
+    (a BDPT pool's vertex memory at a GPU's sizes is gigabytes: freeing it took this CPU's host
+    0.2 to 0.4 s, which the next metered render's first launch would pay)."""
+    if warm_up is not None:
+        render(scene, technique, warm_up)
     cls = get_technique(technique)[0]
     with counted_passes(cls) as passes, Traffic() as traffic:
         result = render(scene, technique, with_fields(options, count_simd=False, time_phases=True))
@@ -109,8 +115,8 @@ def costs(first, second):
 def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_sizes=False, **fields):
     """The host meter's report: for each technique, its renders at N and GROWTH x N samples per pixel
     (N: spp_of(technique, spp)) and what the extra samples cost (`costs`). `options`: a RenderOptions
-    (its fields as keywords on top); resolution None is RESOLUTION. Each technique is built first by a
-    small render, so no build is measured."""
+    (its fields as keywords on top); resolution None is RESOLUTION. A small render precedes each measured one
+    (metered_render's warm_up), so no build and no freeing of the render before is measured."""
     options = with_fields(options, **fields)
     options = with_fields(options, resolution=options.resolution or RESOLUTION)
     scene = as_scene(scene)
@@ -119,10 +125,9 @@ def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_si
     for technique in techniques:
         own = {**options.technique_options, **sized_options(technique, gpu_sizes)}
         base = with_fields(options, technique_options=own)
-        render(scene, technique, with_fields(base, spp=1, resolution=(16, 16), count_simd=False))   # builds
         n = spp_of(technique, spp)
-        first = metered_render(scene, technique, with_fields(base, spp=n))
-        second = metered_render(scene, technique, with_fields(base, spp=GROWTH * n))
+        first, second = (metered_render(scene, technique, with_fields(base, spp=k), warm_up=with_fields(
+            base, spp=1, resolution=(16, 16), count_simd=False)) for k in (n, GROWTH * n))
         report["device"] = describe(get_queue(base.device, base.lanes).device)
         report["techniques"][technique] = {"spp": [n, GROWTH * n], "renders": [first, second],
                                            **costs(first, second)}

@@ -28,6 +28,7 @@ KERNEL_PHASES = {
     "pt_compact_regen_shadow": ("shadow rays", ("shadow",), ("shadow",)),
     "pt_compact_regen_gather": ("compact (gather)", ("compact",), ()),
     "bdpt_regenerate": ("regenerate", ("generate",), ()),
+    "bdpt_regenerated": ("regenerate", (), ()),
     "bdpt_extend": ("walk + compact", ("walk", "compact"), ("closest",)),
     "bdpt_mark_terminated": ("find terminated", (), ()),
     "bdpt_naive_connect_splats": ("connect: count records", (), ()),

@@ -88,20 +88,25 @@ class Compactor:
                            "work_groups": -(-n // self.local_size), "launches": self._launches}
         return out, count
 
-    def compact_on_device(self, alive_flags, n, out):
-        """The multi-pass compaction of compact_indices without reading the count back: `alive_flags`
-        and `out` are buffers of at least n int32. Returns ``(out, count)``, `count` a one-int buffer
-        on the device that holds the number of survivors until this compactor's next call: the
-        kernels queued next read it (a launch over the whole stream whose work-items past the count
-        return at once), so the host never waits for it."""
+    def compact_on_device(self, alive_flags, n, out, method="multipass"):
+        """compact_indices without reading the count back: `alive_flags` and `out` are buffers of at
+        least n int32. Returns ``(out, count)``, `count` a one-int buffer on the device that holds the
+        number of survivors until this compactor's next call: the kernels queued next read it (a
+        launch over the whole stream whose work-items past the count return at once), or a copy
+        keeps it, so the host never waits for it."""
+        if method not in METHODS:
+            raise ValueError(f"method must be one of {METHODS}, not {method!r}")
         flags, n = self._device_flags(alive_flags, n)
         if out.size < _INT * n:
             raise ValueError(f"out holds {out.size // _INT} ints, the stream needs {n}")
         if n == 0:
             raise ValueError("compact_on_device needs a stream of at least one item")
         self._launches = 0
-        count = self._multipass_on_device(flags, n, out)
-        self.last_stats = {"method": "multipass", "n": n, "count": None,
+        if method == "immediate":
+            count = self._immediate_on_device(flags, n, out)
+        else:
+            count = self._multipass_on_device(flags, n, out)
+        self.last_stats = {"method": method, "n": n, "count": None,
                            "work_groups": -(-n // self.local_size), "launches": self._launches}
         return out, count
 
@@ -133,20 +138,32 @@ class Compactor:
         Returns ``(out_buffer, total)``. This is the scan of the multi-pass compaction, usable
         on its own (e.g. the talk's connection counts in parallel bidirectional connect).
         """
-        if out is None:
-            out = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, _INT * max(n, 1))
         if n == 0:
-            return out, 0
-        total = self._scan(values, out, n, as_flags=False)
+            return out if out is not None else cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, _INT), 0
+        out, total = self.exclusive_scan_on_device(values, n, out)
         return out, _read_int(self.queue, total)
+
+    def exclusive_scan_on_device(self, values, n, out=None):
+        """exclusive_scan without reading the total back: ``(out_buffer, total)``, `total` a one-int
+        buffer on the device that holds it until this compactor's next call (n >= 1)."""
+        if n < 1:
+            raise ValueError("exclusive_scan_on_device needs at least one value")
+        if out is None:
+            out = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, _INT * n)
+        return out, self._scan(values, out, n, as_flags=False)
 
     # -- the two methods ----------------------------------------------------------------------
 
     def _immediate(self, flags, n, out):
+        return _read_int(self.queue, self._immediate_on_device(flags, n, out))
+
+    def _immediate_on_device(self, flags, n, out):
+        """One launch: each work-group reserves its survivors' places with one atomic; returns
+        the one-int buffer that holds the count."""
         counter = self._buffer("counter", 1)
         cl.enqueue_fill_buffer(self.queue, counter, np.int32(0), 0, _INT)
         self._launch(self._kernels["compact_immediate"], n, flags, np.int32(n), counter, out)
-        return _read_int(self.queue, counter)
+        return counter
 
     def _multipass(self, flags, n, out):
         return _read_int(self.queue, self._multipass_on_device(flags, n, out))

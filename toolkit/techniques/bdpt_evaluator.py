@@ -8,18 +8,26 @@ One pass, read like the talk's slides:
     repeat:
         extend the eye stream and the light stream by one vertex each (compacted at once);
         when enough samples have terminated (default 60%):
-            connect their subpaths (the connect phase), hand the records to the sink,
+            list them, connect their subpaths (the connect phase), hand the records to the sink,
             then regenerate them.
-The streams' lengths stay on the device (WalkCounter): a walk step reads them there, and the host
-reads the counters behind the walk, LAG steps late (toolkit/techniques/pass_end.py), so it never
-waits for a count before a launch; it learns that enough samples have terminated a few steps late
-(with the SIMD counters on, at once: it reads every step's counters). It waits only at a connect
-phase, for the terminated slots and the streams' lengths that regeneration appends to.
+The counts stay on the device, and the host never waits for one before a launch: a walk step
+reads the streams' lengths there (WalkCounter), and whether enough samples have terminated is
+decided there too. The host lists the terminated samples on the device (the connect phase's record
+counts and their scan; bdpt_mark_terminated, which marks them only if enough have terminated;
+the compaction of their slots), queues one read of the counts it needs (listed samples, records,
+the walk's counters) and goes on walking: LAG steps later it has them without the device having
+waited, and queues the connect phase and the regeneration (or, if too few had terminated, lists
+again). It lists as many steps after a regeneration as the last successful listing took, so a
+connect phase costs one read (toolkit/techniques/pass_end.py says why reads are looked at late).
+The samples that terminate meanwhile wait for the next connect phase (SLOT_TERMINATED; the listed
+ones are SLOT_CONNECTING); regeneration appends to the streams after the lengths on the device.
+With the SIMD counters on, the host also reads every step's counters at once (exact launch sizes).
 Light-tracing (t = 1) contributions land on other pixels: every connection writes a record
 (pixel, value) on the device, and the sink decides where it goes: bdpt's ImageSink adds it to
 the pass's image there (toolkit/opencl/record_film.py: exact integer sums, no float atomics),
 mlt's reads its records back.
 """
+import math
 import numbers
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -81,6 +89,26 @@ class SamplePool:
     counters: cl.Buffer       # int[len(WalkCounter)]: each stream's length and survivors, terminated samples
     lane_counts: cl.Buffer    # LaneCounts[size]: one walk step or connect phase (COUNT_SIMD)
     all_slots: cl.Buffer      # 0 .. size - 1: the slot list of the first regeneration
+    regeneration_list: cl.Buffer   # int[size + 2]: the slots to regenerate (listed there), then the streams' lengths
+
+
+@dataclass
+class Listing:
+    """The terminated samples listed on the device for a connect phase (BdptEvaluator.list_terminated):
+    their slots, and the read of what the host needs, queued at walk step `step` and looked at LAG
+    steps later: the listed slots (0: too few had terminated), the connect phase's records, and
+    the walk's counters (WalkCounter) as they were."""
+    slots: cl.Buffer          # int[pool]: the listed slots, the first `count` of it
+    counts: object            # PendingRead of int[LISTING_INTS]
+    step: int
+
+    def result(self):
+        """(slots, listed slots, records, the walk's counters)."""
+        counts = self.counts.result()
+        return self.slots, int(counts[0]), int(counts[1]), counts[2:]
+
+
+LISTING_INTS = 2 + len(WalkCounter)   # what a Listing reads: listed slots, records, the walk's counters
 
 
 @dataclass
@@ -93,7 +121,10 @@ class PassState:
     sampler_args: dict = field(default_factory=dict)  # by name: the random-number kernels' extra (BDPT_SAMPLER_PARAM)
     next_id: int = 0          # next sample to start
     in_flight: int = 0        # slots whose sample is not connected yet
-    reads: list = field(default_factory=list)   # the walk's counters, read behind it (oldest first)
+    steps: int = 0            # walk steps so far
+    regenerated_at: int = 0   # the step of the last regeneration
+    retry: int = 0            # steps before the next listing after one that listed none (doubles each time)
+    listed: Listing = None    # the terminated samples listed for the next connect phase, if any
 
     @property
     def pixels(self):
@@ -171,15 +202,17 @@ class BdptPoolTechnique(Technique):
 
 @dataclass
 class BdptEvaluator:
-    """The walk of BDPT's kernels (launched through `ctx`) and a connect phase:
-    `connect(p, count)` evaluates the connections of the `count` terminated samples of pass `p`
-    and returns their Connections."""
+    """The walk of BDPT's kernels (launched through `ctx`) and a connect phase: `connect.prepare(p)`
+    queues the record counts of pass `p`'s terminated samples and their scan, and returns a one-int
+    buffer that holds the records' total; `connect(p, count, records)` evaluates the connections of
+    the `count` samples listed then (`records` records) and returns their Connections."""
     ctx: BdptContext           # the kernels, memory, SIMD recorder and compactor of the technique that built them
-    connect: object            # the connect phase: (PassState, count) -> Connections
+    connect: object            # the connect phase: prepare(PassState) -> total buffer; (PassState, count, records) -> Connections
     pool_size: int             # samples in flight
     regenerate_fraction: float  # connect (and regenerate) once this share of the samples in flight has terminated
     max_vertices: int          # per subpath (MAX_VERTICES)
     last_pass: PassState = None   # kept for inspection (tests, notebooks): the vertex memory of the last samples
+    listing_delay: int = 1     # steps after a regeneration to list: as many as the last successful listing took
     uncompacted: PhaseCounter = field(init=False)   # the walk as it would be without compaction
 
     def __post_init__(self):
@@ -192,17 +225,22 @@ class BdptEvaluator:
         """Every sample of the pass's budget, through the pool; `sink.add` gets each connect phase's records."""
         self.regenerate(p, p.pool.all_slots, p.pool.size)        # every slot starts a sample
         while p.in_flight > 0:
-            counters = self.walk(p)                               # one vertex more on every subpath
-            if counters is not None and self.enough_terminated(p, counters):
-                slots, count = self.terminated_slots(p)           # postponed regeneration:
-                sink.add(self.connect(p, count))                  #   connect the terminated samples,
-                self.regenerate(p, slots, count)                  #   then start new ones in their slots
+            self.walk(p)                                          # one vertex more on every subpath
+            if p.listed is None:
+                if p.steps >= p.regenerated_at + self.listing_delay:
+                    p.listed = self.list_terminated(p)            # postponed regeneration: list the terminated
+            elif p.steps >= p.listed.step + LAG:                  #   samples if enough; their counts, read late:
+                slots, count, records = self.listing_read(p)
+                if count:
+                    sink.add(self.connect(p, count, records))     #   connect them,
+                    self.regenerate(p, slots, count)              #   then start new ones in their slots
 
-    def enough_terminated(self, p, counters):
-        """Whether the walk's `counters` (a step's, maybe some steps old) say it is time to connect:
-        the share regenerate_fraction of the samples in flight has terminated, or every one has."""
-        return (counters[WalkCounter.TERMINATED_SAMPLES] >= self.regenerate_fraction * p.in_flight
-                or counters[WalkCounter.EYE_LENGTH] == counters[WalkCounter.LIGHT_LENGTH] == 0)
+    def threshold(self, p):
+        """Terminated samples that make a connect phase worth it: the share regenerate_fraction of
+        the samples in flight (so once every one has terminated, whatever the share). Also once
+        the budget is spent, as the talk's postponed regeneration: the connect phases of a pass's
+        end keep their idle lanes (the naive connect's lesson)."""
+        return max(1, math.ceil(self.regenerate_fraction * p.in_flight))
 
     # --- the stages of a pass, one kernel each ---------------------------------------------
 
@@ -216,6 +254,8 @@ class BdptEvaluator:
         args = BDPT_PASS.record(seed=seed, sample_base=sample_base, pool=pool.size, capacity=pool.capacity,
                                 chains=vector_stride)
         cl.enqueue_fill_buffer(ctx.queue, pool.counters, np.int32(0), 0, 4 * len(WalkCounter))
+        # every slot counts as terminated, so that the first regeneration (of them all) leaves 0
+        cl.enqueue_fill_buffer(ctx.queue, pool.counters, np.int32(pool.size), 4 * WalkCounter.TERMINATED_SAMPLES, 4)
         pool.eye.length = pool.light.length = 0     # the streams' lengths: 0 here and on the device
         # every slot "terminated", nothing to connect
         self.last_pass = PassState(pool, camera, args, budget, dict(sampler_args or {}), in_flight=pool.size)
@@ -235,41 +275,45 @@ class BdptEvaluator:
             size, capacity, stream(0), stream(1),
             slots=cl.Buffer(context, cl.mem_flags.READ_WRITE, BDPT_SLOT.dtype.itemsize * mem.padded(size)),
             terminated=mem.int_buffer(size), counters=mem.int_buffer(len(WalkCounter)),
-            lane_counts=mem.lane_counts_buffer(size),
+            lane_counts=mem.lane_counts_buffer(size), regeneration_list=mem.int_buffer(size + 2),
             all_slots=cl.Buffer(context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                                 hostbuf=np.arange(size, dtype=np.int32))))
 
     def regenerate(self, p, slots, count):
-        """bdpt_regenerate: the `count` terminated slots listed in `slots` start the next
-        samples of the budget (the rest go idle); the new subpaths join the end of the streams,
-        whose lengths the host knows here (terminated_slots read them)."""
-        ctx = self.ctx
+        """bdpt_regenerate: the `count` slots listed in `slots` start the next samples of the
+        budget (the rest go idle); the new subpaths join the end of the streams, after the lengths
+        on the device, and bdpt_regenerated adds them to those lengths. The host knows only a
+        bound on the lengths, which grows by the new subpaths."""
+        ctx, pool = self.ctx, p.pool
         fresh = min(count, p.budget - p.next_id)
         if count:
-            r = BDPT_REGENERATION.record(count=count, fresh=fresh, first_id=p.next_id,
-                                         eye_base=p.pool.eye.length, light_base=p.pool.light.length)
+            listed = pool.regeneration_list    # the slots (list_terminated lists them there), then the lengths
+            if slots is not listed:
+                cl.enqueue_copy(ctx.queue, listed, slots, byte_count=4 * count)
+            cl.enqueue_copy(ctx.queue, listed, pool.counters, byte_count=8, src_offset=4 * WalkCounter.EYE_LENGTH,
+                            dst_offset=4 * pool.size)
+            r = BDPT_REGENERATION.record(count=count, fresh=fresh, first_id=p.next_id)
             ctx.kernels.launch("bdpt_regenerate", count, **ctx.kernels.scene_args(), cam=p.camera,
-                        pass_args=p.args, r=r, slot_list=slots, eye_stream=p.pool.eye.current,
-                        light_stream=p.pool.light.current, eye_vertices=p.pool.eye.vertices,
-                        light_vertices=p.pool.light.vertices, slots=p.pool.slots, **p.sampler_args)
-        p.pool.eye.length += fresh
-        p.pool.light.length += fresh
+                        pass_args=p.args, r=r, slot_list=listed, eye_stream=pool.eye.current,
+                        light_stream=pool.light.current, eye_vertices=pool.eye.vertices,
+                        light_vertices=pool.light.vertices, slots=pool.slots, **p.sampler_args)
+            ctx.kernels.launch("bdpt_regenerated", 1, counters=p.pool.counters, fresh=np.int32(fresh),
+                               count=np.int32(count))
+        for stream in (p.pool.eye, p.pool.light):    # a stream holds at most one subpath per slot
+            stream.length = min(stream.length + fresh, p.pool.size)
         p.next_id += fresh
         p.in_flight += fresh - count
-        counters = p.pool.counters     # the new lengths on the device, and no sample terminated since
-        for index, value in ((WalkCounter.TERMINATED_SAMPLES, 0), (WalkCounter.EYE_LENGTH, p.pool.eye.length),
-                             (WalkCounter.LIGHT_LENGTH, p.pool.light.length)):
-            cl.enqueue_fill_buffer(ctx.queue, counters, np.int32(value), 4 * index, 4)
-        p.reads.clear()                # reads queued before this say nothing of the samples now in flight
+        p.regenerated_at = p.steps
         if ctx.recorder.on and fresh:
             ctx.recorder.simd.add_stream_step("generate", fresh)
 
     def walk(self, p):
-        """One random-walk step of both streams (bdpt_extend, compacted at once). Returns the walk's
-        counters (WalkCounter) as read LAG steps ago, or None while no read is that old; with the
-        SIMD counters on, this step's, read at once."""
+        """One random-walk step of both streams (bdpt_extend, compacted at once), each launched over
+        a bound on its length that the host knows (the kernel reads the length on the device);
+        with the SIMD counters on, the counters are read at once, and the bounds are exact."""
         ctx = self.ctx
         counters = p.pool.counters
+        p.steps += 1
         cl.enqueue_fill_buffer(ctx.queue, counters, np.int32(0), 0, 4 * WalkCounter.TERMINATED_SAMPLES)
         for stream in (p.pool.eye, p.pool.light):
             if stream.length:
@@ -278,18 +322,29 @@ class BdptEvaluator:
         cl.enqueue_copy(ctx.queue, counters, counters, byte_count=8, src_offset=4 * WalkCounter.EYE_SURVIVORS,
                         dst_offset=4 * WalkCounter.EYE_LENGTH)
         if ctx.recorder.on:
-            return self.lengths_known(p, ctx.memory.read_ints(counters, len(WalkCounter)))
-        p.reads.append(ctx.memory.read_later(counters, (np.int32, len(WalkCounter))))
-        if len(p.reads) <= LAG:
-            return None
-        return self.lengths_known(p, p.reads.pop(0).result())
+            self.lengths_known(p, ctx.memory.read_ints(counters, len(WalkCounter)))
 
     def lengths_known(self, p, counters):
         """The streams can hold no more subpaths than a read of the counters says (they only shrink
         until the next regeneration): later steps launch over that many."""
         p.pool.eye.length = min(p.pool.eye.length, int(counters[WalkCounter.EYE_LENGTH]))
         p.pool.light.length = min(p.pool.light.length, int(counters[WalkCounter.LIGHT_LENGTH]))
-        return counters
+
+    def listing_read(self, p):
+        """The listing's read, looked at: (slots, listed slots, records). The walk's counters read
+        with it bound the streams' lengths. Listed: the next listing follows the next regeneration
+        by as many steps as this one followed the last. None listed (too few had terminated): the
+        next listing is at once, then after 1, 2, 4, ... steps, as if the regeneration had been
+        that much before, so the steps waited add to the delay when it succeeds."""
+        slots, count, records, counters = p.listed.result()
+        if count:
+            self.listing_delay, p.retry = max(1, p.listed.step - p.regenerated_at), 0
+        else:                          # list again after 0, 1, 2, 4, ... steps (the longest subpaths of a pass's end)
+            p.regenerated_at = p.steps + p.retry - self.listing_delay
+            p.retry = max(1, 2 * p.retry)
+        p.listed = None
+        self.lengths_known(p, counters)
+        return slots, count, records
 
     def extend(self, p, stream):
         """bdpt_extend: one vertex more on every subpath of `stream` (the launch covers
@@ -303,17 +358,24 @@ class BdptEvaluator:
         self.count_walk_step(p, stream)
         stream.advance()
 
-    def terminated_slots(self, p):
-        """bdpt_mark_terminated, then compaction: (the list of terminated slots, its length). The
-        host waits here, once per connect phase, for that length and for the streams' lengths."""
-        ctx = self.ctx
-        counters = ctx.memory.read_ints(p.pool.counters, len(WalkCounter))
-        p.pool.eye.length = int(counters[WalkCounter.EYE_LENGTH])
-        p.pool.light.length = int(counters[WalkCounter.LIGHT_LENGTH])
-        ctx.kernels.launch("bdpt_mark_terminated", p.pool.size, pool=np.int32(p.pool.size),
-                    slots=p.pool.slots, flags=p.pool.terminated)
-        listed = ctx.memory.reused(("terminated_list", p.pool.size), lambda: ctx.memory.int_buffer(p.pool.size))
-        return ctx.compactor.compact_indices(p.pool.terminated, p.pool.size, method="immediate", out=listed)
+    def list_terminated(self, p):
+        """The terminated samples, listed on the device for the next connect phase, if there are
+        enough of them (threshold): its record counts and their scan (connect.prepare, while the
+        samples are SLOT_TERMINATED), then bdpt_mark_terminated (they become SLOT_CONNECTING, if
+        enough) and the compaction of their slots. What the host needs goes to one small buffer,
+        read behind the next steps (a Listing)."""
+        ctx, pool = self.ctx, p.pool.size
+        records = self.connect.prepare(p)
+        ctx.kernels.launch("bdpt_mark_terminated", pool, pool=np.int32(pool), threshold=np.int32(self.threshold(p)),
+                           counters=p.pool.counters, slots=p.pool.slots, flags=p.pool.terminated)
+        mem = ctx.memory
+        counts = mem.reused(("listing", pool), lambda: mem.int_buffer(LISTING_INTS))
+        listed, count = ctx.compactor.compact_on_device(p.pool.terminated, pool, p.pool.regeneration_list,
+                                                        method="immediate")
+        cl.enqueue_copy(ctx.queue, counts, count, byte_count=4)
+        cl.enqueue_copy(ctx.queue, counts, records, byte_count=4, dst_offset=4)
+        cl.enqueue_copy(ctx.queue, counts, p.pool.counters, byte_count=4 * len(WalkCounter), dst_offset=8)
+        return Listing(listed, mem.read_later(counts, (np.int32, LISTING_INTS)), p.steps)
 
     # --- measuring and inspecting ------------------------------------------------------------
 
@@ -360,13 +422,14 @@ def read_buffer(queue, buffer, out):
 
 def scan_slot_counts(ctx, p, kernel, label):
     """Launch `kernel`, which writes a count per pool slot (records a connect phase will write),
-    and scan the counts: (counts, firsts, total) with firsts[k] = sum of counts[0 .. k - 1].
+    and scan the counts on the device: (counts, firsts, total) with firsts[k] = sum of counts[0 .. k - 1]
+    and `total` a one-int buffer (valid until the compactor's next call: copy it).
     The buffers are kept under `label` and reused by the next connect phases."""
     pool = p.pool.size
     mem = ctx.memory
     counts, firsts = mem.reused((label, pool), lambda: (mem.int_buffer(pool), mem.int_buffer(pool)))
     ctx.kernels.launch(kernel, pool, pool=np.int32(pool), slots=p.pool.slots, counts=counts)
-    firsts, total = ctx.compactor.exclusive_scan(counts, pool, out=firsts)
+    firsts, total = ctx.compactor.exclusive_scan_on_device(counts, pool, out=firsts)
     return counts, firsts, total
 
 
@@ -380,12 +443,18 @@ def connect_args(p, firsts, values, pixels, lane_counts):
 
 
 def record_buffers(ctx, n, *more):
-    """Device memory for n records (float4 values, int pixels, and `more(capacity)` buffers);
-    it grows by powers of two and is reused by the next connect phases."""
-    capacity = 1 << max(12, (n - 1).bit_length())
-    return ctx.memory.reused(("records", capacity), lambda: (
-        cl.Buffer(ctx.queue.context, cl.mem_flags.READ_WRITE, 16 * capacity), ctx.memory.int_buffer(capacity),
-        *(make(capacity) for make in more)))
+    """Device memory for n records (float4 values, int pixels, and `more(capacity)` buffers), reused
+    by the next connect phases. Made with room for half as many again (in powers of two), so that
+    the later connect phases of a render, about the size of its first, rarely outgrow it: a new
+    buffer costs the host at its first launch (a device allocates it then). Outgrown, it is replaced."""
+    held = ctx.memory.reused("records", dict)     # {"capacity": records, "buffers": (values, pixels, *more)}
+    if held.get("capacity", 0) < n:
+        capacity = 1 << max(12, (n + n // 2 - 1).bit_length())
+        held.clear()                               # the old buffers go (the queued commands still hold them)
+        held.update(capacity=capacity, buffers=(
+            cl.Buffer(ctx.queue.context, cl.mem_flags.READ_WRITE, 16 * capacity), ctx.memory.int_buffer(capacity),
+            *(make(capacity) for make in more)))
+    return held["buffers"]
 
 
 def per_pixel_sums(values, pixels, npix):

@@ -21,24 +21,30 @@ class NaiveConnect:
     def __init__(self, ctx, strategy_max_edges=None):
         self.ctx, self.strategy_max_edges = ctx, strategy_max_edges
         self.packed = PhaseCounter(ctx.recorder.warp_width)   # the connect loops with only the terminated samples
+        self.counts = self.firsts = None   # the splat counts of the listed slots and their scan (prepare)
 
-    def __call__(self, p, count):
+    def prepare(self, p):
+        """Where each terminated slot's light-tracing records will go: a scan of their counts (so
+        the records are packed, not MAX_VERTICES + 1 places per slot), on the device. Returns the
+        one-int buffer of the splats' total."""
+        self.counts, self.firsts, splats = scan_slot_counts(self.ctx, p, "bdpt_naive_connect_splats", "splat counts")
+        return splats
+
+    def __call__(self, p, count, splats):
+        """The `count` samples listed (SLOT_CONNECTING) with `splats` light-tracing records (prepare's total)."""
         ctx, pool = self.ctx, p.pool.size
         if count == 0:
             return Connections.none()
-        # Where each terminated slot's light-tracing records go: a scan of their counts, so the
-        # host reads back only the records written (before: MAX_VERTICES + 1 places per slot).
-        counts, firsts, splats = scan_slot_counts(ctx, p, "bdpt_naive_connect_splats", "splat counts")
         # the splats, one eye-path sum per slot, and with per-strategy images a record per eye-path strategy of the short paths
         n = naive_record_count(splats, pool, self.record_strategy_count())
         values, pixels = record_buffers(ctx, n)
         cl.enqueue_fill_buffer(ctx.queue, pixels, np.int32(-1), 0, 4 * n)   # records a slot may leave unwritten
         ctx.kernels.launch("bdpt_naive_connect", pool, **ctx.kernels.scene_args(), cam=p.camera, pool=np.int32(pool),
-                    splats=np.int32(splats), **connect_args(p, firsts, values, pixels, p.pool.lane_counts))
+                    splats=np.int32(splats), **connect_args(p, self.firsts, values, pixels, p.pool.lane_counts))
         self.count_connect(p)
         connections = Connections(n, values, pixels, ctx.queue)
         if self.strategy_max_edges:
-            connections.strategy = self.record_strategies(pool, ctx.memory.read_ints(counts, pool))
+            connections.strategy = self.record_strategies(pool, ctx.memory.read_ints(self.counts, pool))
         return connections
 
     def record_strategy_count(self):

@@ -20,14 +20,19 @@ class ParallelConnect:
     def __init__(self, ctx, strategy_max_edges=None, read_slots=False):
         self.ctx, self.strategy_max_edges = ctx, strategy_max_edges
         self.read_slots = read_slots or bool(strategy_max_edges)
+        self.counts = self.firsts = None   # the listed slots' connection counts and their scan (prepare)
 
-    def __call__(self, p, count):
-        """Every connection of the `count` terminated samples (slots in SLOT_TERMINATED)."""
+    def prepare(self, p):
+        """Steps 1 and 2 on the device for the terminated samples (SLOT_TERMINATED): their
+        connection counts and the scan. Returns the one-int buffer of the connections' total."""
+        self.counts, self.firsts, total = scan_slot_counts(self.ctx, p, "bdpt_parallel_connect_count", "counts")
+        return total
+
+    def __call__(self, p, count, total):
+        """Every connection (`total`, prepare's) of the `count` samples listed then (SLOT_CONNECTING)."""
         ctx, pool = self.ctx, p.pool.size
-        if count == 0:
-            return Connections.none()
-        counts, firsts, total = scan_slot_counts(ctx, p, "bdpt_parallel_connect_count", "counts")
-        if total == 0:
+        counts, firsts = self.counts, self.firsts
+        if count == 0 or total == 0:
             return Connections.none()
         values, pixels, lanes = record_buffers(ctx, total, ctx.memory.lane_counts_buffer)
         ctx.kernels.launch("bdpt_parallel_connect", total, **ctx.kernels.scene_args(), cam=p.camera,
