@@ -94,7 +94,9 @@ __kernel void mlt_weigh_records(const int capacity, __global const int* total, c
     int i = get_global_id(0);
     if (i >= min(capacity, total[0])) return;
     int c = record_chain[i];
-    float4 w = c < active ? splat_weights[c] : (float4)(0.0f);
+    /* c < 0 or past the chains: an entry that mlt_keep_records reserved but did not write (the
+     * store overflowed, which the render reports): weight 0, never an index out of bounds */
+    float4 w = c >= 0 && c < active ? splat_weights[c] : (float4)(0.0f);
     record_value[i].w = component == 0 ? w.x : component == 1 ? w.y : w.z;
 }
 

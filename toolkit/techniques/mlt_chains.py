@@ -21,7 +21,8 @@ class RecordStore:
         ctx = memory.queue.context
         self.capacity = capacity
         self.value = cl.Buffer(ctx, cl.mem_flags.READ_WRITE, 16 * max(1, capacity))
-        self.pixel, self.chain = memory.int_buffer(capacity, fill=-1), memory.int_buffer(capacity)
+        # -1: no record (an entry reserved but never written reads as none)
+        self.pixel, self.chain = memory.int_buffer(capacity, fill=-1), memory.int_buffer(capacity, fill=-1)
         self.span = memory.int_buffer(2 * chains, fill=0)
         self.total = memory.int_buffer(1, fill=0)
 
