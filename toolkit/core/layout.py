@@ -313,14 +313,44 @@ class MltTally(IntEnum):
     OVERFLOW = 1        # proposals that read more than max_dims dimensions
 
 
+class SimdSum(IntEnum):
+    """One row of the SIMD counters' step log (cl/simd_counters.cl, toolkit/opencl/simd_counters.py):
+    what a counting step's lanes add up to, each sum a 64-bit integer held as two 32-bit words (low,
+    high) so that every device can add to it exactly with 32-bit atomics. Lanes are the first LANES
+    of the launch, in warps of W consecutive lanes; `work` is LaneCounts.work (or the one int per lane
+    of an int buffer), `shadow` LaneCounts.shadow_rays; a warp "has" work if any of its lanes has."""
+    LANES = 0               # lanes counted (the step's length: the host's, or read on the device)
+    WORK_LANES = 1          # lanes with work > 0
+    WORK_WARPS = 2          # warps with a lane with work > 0
+    WORK_SUM = 3            # sum of work (a loop's lane-iterations)
+    WORK_WARP_MAX = 4       # sum over warps of the warp's largest work (a loop's iterations per warp)
+    WORK_MAX = 5            # the largest work of any lane
+    CLOSEST_SUM = 6         # sum of closest_steps (BVH traversal of closest-hit rays)
+    CLOSEST_WARP_MAX = 7    # sum over warps of the largest closest_steps
+    SHADOW_LANES = 8        # lanes with shadow_rays > 0
+    SHADOW_WARPS = 9        # warps with such a lane
+    SHADOW_SUM = 10         # sum of shadow_rays
+    SHADOW_STEPS_SUM = 11   # sum of shadow_steps (BVH traversal of shadow rays)
+    SHADOW_STEPS_WARP_MAX = 12   # sum over warps of the largest shadow_steps
+    SLOT_WARPS = 13         # warps of the sample pool holding a lane's slot (BDPT's walk without compaction)
+    PACKED_WARP_MAX = 14    # sum over warps of the largest work, the lanes with work packed side by side
+    WATCH = 15              # WATCH_INTS ints copied from the device as the step was counted (its counts)
+    FIELDS = 20             # fields per row (WATCH .. WATCH + 4 included)
+
+
 NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"),
-                (WalkCounter, ""), (MltMode, "MLT_"), (MltTally, "MLT_TALLY_")]
+                (WalkCounter, ""), (MltMode, "MLT_"), (MltTally, "MLT_TALLY_"), (SimdSum, "SIMD_")]
+SIMD_WATCH_INTS = int(SimdSum.FIELDS - SimdSum.WATCH)   # ints a step's row keeps of the device's counts
 
 # ---- single constants --------------------------------------------------------------------
 
 # The most vertices a BDPT subpath stores (MAX_VERTICES of a scene with unbounded depth): the
 # scene's largest max_depth, the vertex memory's size and mlt's largest max_dims derive from it.
 LONGEST_SUBPATH = 64
+# Paths without a depth limit or roulette still stop after this many bounces (cl/path.h); a path this
+# long carries no measurable energy in any scene whose albedo is below one. It also bounds a lane's
+# loop in pt_naive, which the SIMD counters' histogram holds (techniques/pt_naive.py).
+HARD_MAX_BOUNCES = 1024
 LOCAL_SIZE = 64                             # work-items per work-group by default (opencl/program.py)
 BVH_STACK_SIZE = 64                         # entries of a traversal stack (cl/bvh.h); deeper BVHs are refused
 BVH_WIDTH = 4                               # triangles of a TriGroup (float4 lanes)
@@ -371,6 +401,7 @@ def c_constants():
         lines += [f"#define {prefix}{m.name} {_c_literal(int(m))}" for m in group]
     lines.append(f"#define BVH_STACK_SIZE {BVH_STACK_SIZE}")
     lines.append(f"#define LONGEST_SUBPATH {LONGEST_SUBPATH}")
+    lines.append(f"#define HARD_MAX_BOUNCES {HARD_MAX_BOUNCES}")
     lines.append(f"#define BVH_WIDTH {BVH_WIDTH}")
     lines.append("#ifdef BVH_WIDE\n#define BVH_WORD float4\n#else\n#define BVH_WORD BvhNode\n#endif")
     lines += [f"#define LUMINANCE_{c} {_c_literal(w)}" for c, w in zip("RGB", LUMINANCE_WEIGHTS)]

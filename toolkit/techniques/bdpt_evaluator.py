@@ -13,7 +13,7 @@ One pass, read like the talk's slides:
 The streams' lengths stay on the device (WalkCounter): a walk step reads them there, and the host
 reads the counters behind the walk, LAG steps late (toolkit/techniques/pass_end.py), so it never
 waits for a count before a launch; it learns that enough samples have terminated a few steps late
-(with the SIMD counters on, at once: it reads every step's counters). It waits only at a connect
+(the SIMD counters too are summed on the device: counting changes no step). It waits only at a connect
 phase, for the terminated slots and the streams' lengths that regeneration appends to.
 Light-tracing (t = 1) contributions land on other pixels: every connection writes a record
 (pixel, value) on the device, and the sink decides where it goes: bdpt's ImageSink adds it to
@@ -28,9 +28,8 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.core.layout import (LONGEST_SUBPATH, BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, CONNECT_ARGS, SUBPATH,
-                                 WalkCounter)
+                                 SimdSum, WalkCounter)
 from toolkit.core.scene import NO_LIMIT
-from toolkit.core.simd import PhaseCounter
 from toolkit.opencl.compaction import Compactor
 from toolkit.opencl.work_sizes import checked_size
 from toolkit.techniques.base import Technique, pixel_count
@@ -38,6 +37,9 @@ from toolkit.techniques.device_memory import DeviceMemory
 from toolkit.techniques.kernels import Kernels
 from toolkit.techniques.pass_end import LAG
 from toolkit.techniques.simd_recorder import SimdRecorder
+
+
+WITHOUT_COMPACTION = "walk_without_compaction"   # the recorder's counter of the walk as it would be without compaction
 
 
 def walk_defines(scene, longest, coalesced_scatter):
@@ -180,13 +182,11 @@ class BdptEvaluator:
     regenerate_fraction: float  # connect (and regenerate) once this share of the samples in flight has terminated
     max_vertices: int          # per subpath (MAX_VERTICES)
     last_pass: PassState = None   # kept for inspection (tests, notebooks): the vertex memory of the last samples
-    uncompacted: PhaseCounter = field(init=False)   # the walk as it would be without compaction
 
     def __post_init__(self):
         fraction = self.regenerate_fraction
         if isinstance(fraction, bool) or not isinstance(fraction, numbers.Real) or not 0.0 < fraction <= 1.0:
             raise ValueError(f"regenerate_fraction must be a number in (0, 1], got {fraction!r}")
-        self.uncompacted = PhaseCounter(self.ctx.recorder.warp_width)
 
     def evaluate(self, p, sink):
         """Every sample of the pass's budget, through the pool; `sink.add` gets each connect phase's records."""
@@ -262,12 +262,11 @@ class BdptEvaluator:
             cl.enqueue_fill_buffer(ctx.queue, counters, np.int32(value), 4 * index, 4)
         p.reads.clear()                # reads queued before this say nothing of the samples now in flight
         if ctx.recorder.on and fresh:
-            ctx.recorder.simd.add_stream_step("generate", fresh)
+            ctx.recorder.stream_step("generate", fresh)
 
     def walk(self, p):
         """One random-walk step of both streams (bdpt_extend, compacted at once). Returns the walk's
-        counters (WalkCounter) as read LAG steps ago, or None while no read is that old; with the
-        SIMD counters on, this step's, read at once."""
+        counters (WalkCounter) as read LAG steps ago, or None while no read is that old."""
         ctx = self.ctx
         counters = p.pool.counters
         cl.enqueue_fill_buffer(ctx.queue, counters, np.int32(0), 0, 4 * WalkCounter.TERMINATED_SAMPLES)
@@ -277,8 +276,6 @@ class BdptEvaluator:
         # The survivors are the streams' next lengths: copied on the device (two ints, one copy).
         cl.enqueue_copy(ctx.queue, counters, counters, byte_count=8, src_offset=4 * WalkCounter.EYE_SURVIVORS,
                         dst_offset=4 * WalkCounter.EYE_LENGTH)
-        if ctx.recorder.on:
-            return self.lengths_known(p, ctx.memory.read_ints(counters, len(WalkCounter)))
         p.reads.append(ctx.memory.read_later(counters, (np.int32, len(WalkCounter))))
         if len(p.reads) <= LAG:
             return None
@@ -318,25 +315,34 @@ class BdptEvaluator:
     # --- measuring and inspecting ------------------------------------------------------------
 
     def count_walk_step(self, p, stream):
-        """SIMD counters of one walk step over `stream` (a no-op unless count_simd)."""
+        """SIMD counters of one walk step over `stream` (a no-op unless count_simd), summed on the
+        device: its lanes are the first of the stream's length there (counters), its slots those of
+        the subpaths it extended (for the walk as it would be without compaction)."""
         ctx = self.ctx
         if not ctx.recorder.on:
             return
-        lanes = ctx.memory.read_lane_counts(p.pool.lane_counts, stream.length)
-        ctx.recorder.step("walk", stream.length, capacity=p.pool.size, draining=p.next_id == p.budget)
-        ctx.recorder.simd.add_stream_step("compact", stream.length)
-        ctx.recorder.traversal.add_warp_loops("closest", lanes["closest_steps"])
-        slots = np.empty(stream.length, np.int32)
-        cl.enqueue_copy(ctx.queue, slots, stream.current, src_offset=SUBPATH.soa_offset("slot", p.pool.capacity))
-        mask = np.zeros(p.pool.size, bool)      # without compaction each path keeps its slot's lane
-        mask[slots] = True
-        self.uncompacted.add_stream_step("walk", mask)
+        pool, draining = p.pool.size, p.next_id == p.budget
+
+        def replay(recorder, sums):
+            length = sums[SimdSum.LANES]
+            if length == 0:
+                return      # a step the host queued over a stream the device had found empty
+            recorder.count_now("walk", length, numbered=True, capacity=pool, draining=draining)
+            recorder.simd_counter().add_stream_step("compact", length)
+            recorder.warp_loops(recorder.traversal_counter(), "closest", sums, "closest_steps")
+            # without compaction each path keeps its slot's lane
+            recorder.slot_warps(recorder.counter(WITHOUT_COMPACTION), "walk", sums, pool)
+        length = WalkCounter.LIGHT_LENGTH if stream.is_light else WalkCounter.EYE_LENGTH
+        ctx.recorder.lanes(replay, p.pool.lane_counts, 4, stream.length, length_at=p.pool.counters,
+                           length_index=int(length), slot_of=stream.current,
+                           slot_offset=SUBPATH.soa_offset("slot", p.pool.capacity) // 4, pool=pool)
 
     def stats(self):
         """The walk's figures for the render stats."""
         if not self.ctx.recorder.on:
             return {}
-        return {"walk_efficiency_without_compaction": self.uncompacted.efficiency().get("walk")}
+        self.ctx.recorder.flush()
+        return {"walk_efficiency_without_compaction": self.ctx.recorder.counter(WITHOUT_COMPACTION).efficiency().get("walk")}
 
     def read_vertices(self):
         """The vertex memory of the last samples of the last pass, as numpy:

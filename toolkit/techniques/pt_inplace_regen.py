@@ -65,36 +65,58 @@ class PtInplaceRegen(Technique):
         # from a read behind the device (pass_end.py), so it never waits for the flag at a step.
         end = PassEnd(self.memory, np.int32, lambda any_alive: any_alive == 0, every=self.reads_every,
                       at_least=-(-budget // slots))
+        counting = PassCount() if self.count_simd else None
         while True:
             # Regenerate: every free slot starts the next sample of the budget, if one is left.
             cl.enqueue_fill_buffer(self.queue, mem.any_alive, np.int32(0), 0, 4)
             self.kernels.launch("pt_inplace_regen_regenerate", slots, cam=camera, pass_args=pass_args,
                                 slots=np.int32(slots), next_sample=mem.next_sample, paths=mem.paths, alive=mem.alive,
                                 any_alive=mem.any_alive, regenerated=mem.regenerated)
-            if self.count_simd and not self.count_regenerate(mem, slots, budget):
-                break   # budget spent and every path has ended
+            if counting:
+                self.count_regenerate(counting, mem, slots, budget)
             # Extend: every slot with a live path traces one more vertex.
             self.extend_in_place(pass_args, slots, mem.paths, mem.alive, mem.hits, mem.radiance, mem.lane_counts)
-            if self.count_simd:
-                self.count_extend(mem.lane_counts, slots, mem.next_sample, budget)
-            elif end.reached(mem.any_alive):
+            if counting:
+                self.count_extend(counting, mem, slots, budget)
+            if end.reached(mem.any_alive):
                 break   # a step some time ago found no live path: the steps since did nothing
         self.collect(film, mem.radiance, budget)
 
-    def count_regenerate(self, mem, slots, budget):
-        """The regeneration step: its lanes are the slots that started a sample, scattered over
-        every warp. Numbered as the extension step that follows it (per iteration, for plots);
-        once the sample counter has passed the budget, it started the last samples or none.
-        Returns whether any slot holds a live path (read at once: with the counters on, the host
-        reads every step)."""
-        draining = self.memory.read_ints(mem.next_sample, 1)[0] >= budget
-        self.recorder.before_step("generate", self.memory.read_ints(mem.regenerated, slots) > 0, capacity=slots,
-                                  draining=draining)
-        return bool(self.memory.read_ints(mem.any_alive, 1)[0])
+    # --- SIMD counting, summed on the device (simd_recorder.py); no-op unless count_simd ----------
 
-    def count_extend(self, lane_counts, slots, next_sample, budget):
-        """The extension step; once the sample counter has passed the budget, nothing regenerates
-        any more and the step belongs to the final drain."""
-        draining = self.memory.read_ints(next_sample, 1)[0] >= budget
-        self.recorder.extension_step(self.memory.read_lane_counts(lane_counts, slots), capacity=slots,
-                                     draining=draining)
+    def count_regenerate(self, counting, mem, slots, budget):
+        """The regeneration step: its lanes are the slots that started a sample, scattered over
+        every warp; its sums wait for the extension step that follows (PassCount.step)."""
+        self.recorder.lanes(counting.regenerated, mem.regenerated, 1, slots, watch=mem.next_sample, watch_count=1)
+
+    def count_extend(self, counting, mem, slots, budget):
+        """The extension step, counted with the regeneration before it (PassCount.step)."""
+        self.recorder.lanes(lambda recorder, lanes: counting.step(recorder, lanes, slots, budget), mem.lane_counts,
+                            4, slots, watch=mem.next_sample, watch_count=1)
+
+
+class PassCount:
+    """The counters of one pass's steps, replayed in order (by each recorder that counts them): a
+    regeneration, then the extension it feeds. Regeneration is numbered as the extension step that
+    follows it; once the sample counter has passed the budget (the watched next_sample), it started
+    the last samples or none and the steps belong to the final drain. The first regeneration that
+    leaves no live path (its extension step has no lane with work) ends the pass: it is counted,
+    nothing after it (the host went on queueing steps until it learned so: pass_end.py)."""
+
+    def __init__(self):
+        self.ended = set()          # the recorders that have counted the pass's end
+        self.last_regeneration = {}   # by recorder: the sums of the regeneration not counted yet
+
+    def regenerated(self, recorder, lanes):
+        self.last_regeneration[recorder] = lanes
+
+    def step(self, recorder, extension, slots, budget):
+        if recorder in self.ended:
+            return
+        regeneration = self.last_regeneration.pop(recorder)
+        draining = regeneration.watched() >= budget
+        recorder.mask_step("generate", regeneration, before=True, capacity=slots, draining=draining)
+        if extension.work_lanes() == 0:
+            self.ended.add(recorder)    # no slot holds a live path: budget spent and every path has ended
+            return
+        recorder.extension_step(extension, capacity=slots, draining=draining)

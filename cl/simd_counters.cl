@@ -1,0 +1,112 @@
+/* The SIMD counters summed on the device (host: toolkit/opencl/simd_counters.py).
+ *
+ * A counting step's kernels write one LaneCounts per lane (what the lane did: layout.h). Reading
+ * them back after every step drained the device's queue each time and left the host summing
+ * hundreds of thousands of lanes in numpy. Here each step's lanes are added up into one row of a
+ * step log (SimdSum, layout.h): lanes with work, warps with work, each warp's longest loop, ...,
+ * exactly the integers the talk's model needs (toolkit/core/simd.py), and the host reads the log
+ * once per pass or per frame.
+ *
+ * Exact in any order: every sum is an integer, kept as two 32-bit words (low, high) that 32-bit
+ * atomics add to (OpenCL 1.1's core, every device): a low word that wraps carries one into the
+ * high word. Integers added in another order are the same integers, so the row is what the
+ * host's sums were, bit for bit. */
+#include "common.h"
+
+/* row[field] += x, exactly: a wrapped low word carries into the high one. */
+HELPER void add_wide(volatile __global uint* row, int field, uint x) {
+    if (x == 0u) return;
+    uint old = atomic_add(&row[2 * field], x);
+    if (old + x < old) atomic_inc(&row[2 * field + 1]);
+}
+
+/* One work-item per warp: the warp's `warp_width` consecutive lanes of the first n, where n is
+ * `bound` or, when length_index >= 0, length_at[length_index] (a count the device holds: the
+ * step's stream length), whichever is smaller. Lane i's ints are lanes[i * stride ..]: the
+ * LaneCounts fields in order (work, closest_steps, shadow_rays, shadow_steps; stride 4), or one
+ * int (stride 1: work only).
+ * Optional, each off when its int argument is negative or zero:
+ *   watch_count: work-item 0 copies that many ints of `watch` into the row (the step's counts);
+ *   histogram_row: lanes and warps counted by work (and by warp's largest work) into column
+ *     histogram_row of `histogram` ([bin][lanes, warps][histogram_rows]; bins - 1 >= any work);
+ *   stamp: lane i's sample slot is slot_of[slot_offset + i]; a pool warp (slot / warp_width) not yet stamped with
+ *     `stamp` gets it and counts once in SLOT_WARPS (warp_stamps only grow);
+ *   flags_out: flags[i] = work > 0 for every lane below `bound` (for the packed count below). */
+__kernel void simd_count_lanes(__global const int* lanes, const int stride, const int bound,
+                               __global const int* length_at, const int length_index, const int warp_width,
+                               volatile __global uint* rows, const int row_index,
+                               __global const int* watch, const int watch_count,
+                               volatile __global uint* histogram, const int bins, const int histogram_row,
+                               const int histogram_rows, __global const int* slot_of, const int slot_offset,
+                               volatile __global int* warp_stamps, const int stamp,
+                               const int flags_out, __global int* flags)
+{
+    int warp = get_global_id(0);
+    volatile __global uint* row = rows + row_index * 2 * SIMD_FIELDS;
+    int n = length_index >= 0 ? min(bound, length_at[length_index]) : bound;
+    if (warp == 0) {
+        row[2 * SIMD_LANES] = (uint)max(n, 0);
+        for (int k = 0; k < watch_count; ++k) row[2 * (SIMD_WATCH + k)] = (uint)watch[k];
+    }
+    int first = warp * warp_width;
+    if (flags_out) {
+        for (int i = first; i < min(first + warp_width, bound); ++i)
+            flags[i] = i < n && lanes[i * stride] > 0;
+    }
+    if (first >= n) return;
+    uint work_lanes = 0, work_sum = 0, work_max = 0, closest_sum = 0, closest_max = 0;
+    uint shadow_lanes = 0, shadow_sum = 0, steps_sum = 0, steps_max = 0, slot_warps = 0;
+    for (int i = first; i < min(first + warp_width, n); ++i) {
+        __global const int* lane = lanes + (long)i * stride;
+        uint work = (uint)lane[0];
+        work_lanes += work > 0u;
+        work_sum += work;
+        work_max = max(work_max, work);
+        if (stride > 1) {
+            uint closest = (uint)lane[1], shadow = (uint)lane[2], steps = (uint)lane[3];
+            closest_sum += closest;
+            closest_max = max(closest_max, closest);
+            shadow_lanes += shadow > 0u;
+            shadow_sum += shadow;
+            steps_sum += steps;
+            steps_max = max(steps_max, steps);
+        }
+        if (histogram_row >= 0)
+            atomic_inc(&histogram[(min((int)work, bins - 1) * 2) * histogram_rows + histogram_row]);
+        if (stamp > 0) {
+            int slot_warp = slot_of[slot_offset + i] / warp_width;
+            slot_warps += atomic_max(&warp_stamps[slot_warp], stamp) < stamp;
+        }
+    }
+    if (histogram_row >= 0)
+        atomic_inc(&histogram[(min((int)work_max, bins - 1) * 2 + 1) * histogram_rows + histogram_row]);
+    add_wide(row, SIMD_WORK_LANES, work_lanes);
+    add_wide(row, SIMD_WORK_WARPS, work_lanes > 0u);
+    add_wide(row, SIMD_WORK_SUM, work_sum);
+    add_wide(row, SIMD_WORK_WARP_MAX, work_max);
+    if (work_max > 0u) atomic_max(&row[2 * SIMD_WORK_MAX], work_max);
+    add_wide(row, SIMD_CLOSEST_SUM, closest_sum);
+    add_wide(row, SIMD_CLOSEST_WARP_MAX, closest_max);
+    add_wide(row, SIMD_SHADOW_LANES, shadow_lanes);
+    add_wide(row, SIMD_SHADOW_WARPS, shadow_lanes > 0u);
+    add_wide(row, SIMD_SHADOW_SUM, shadow_sum);
+    add_wide(row, SIMD_SHADOW_STEPS_SUM, steps_sum);
+    add_wide(row, SIMD_SHADOW_STEPS_WARP_MAX, steps_max);
+    add_wide(row, SIMD_SLOT_WARPS, slot_warps);
+}
+
+/* The same loops with only the lanes that have work, packed side by side in lane order: packed
+ * lane j is lane indices[j] (a compaction of simd_count_lanes' flags, *count of them); one
+ * work-item per packed warp adds its largest work to PACKED_WARP_MAX. */
+__kernel void simd_count_packed(__global const int* lanes, const int stride, __global const int* indices,
+                                __global const int* count, const int warp_width, volatile __global uint* rows,
+                                const int row_index)
+{
+    volatile __global uint* row = rows + row_index * 2 * SIMD_FIELDS;
+    int first = get_global_id(0) * warp_width, n = *count;
+    if (first >= n) return;
+    uint longest = 0;
+    for (int j = first; j < min(first + warp_width, n); ++j)
+        longest = max(longest, (uint)lanes[(long)indices[j] * stride]);
+    add_wide(row, SIMD_PACKED_WARP_MAX, longest);
+}

@@ -1,0 +1,160 @@
+"""The SIMD counters summed on the device (host side of cl/simd_counters.cl): each counting step's
+LaneCounts added up into one row of a step log (SimdSum, toolkit/core/layout.py), read back once
+per pass or per frame instead of every lane after every step.
+
+Why: with the counters read per step, a counted render cost the host 1.9 to 7.5 times an uncounted
+one (a blocking read per step, then numpy over every lane). Queued here, a step costs one launch;
+the rows are integers, so the host's sums of them are the sums it made of the lanes before.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+import pyopencl as cl
+
+from toolkit.core.layout import SIMD_WATCH_INTS, SimdSum
+from toolkit.opencl import program
+
+ROWS = 1024            # steps the log holds before the host reads it (a pass rarely takes more)
+HISTOGRAM_ROWS = 64    # loops with a per-iteration histogram the log holds (one per pt_naive pass, naive connect phase)
+
+
+@dataclass
+class StepSums:
+    """One counted step, once the log has been read: `sums[SimdSum.X]` as Python ints; `histogram`
+    (lanes, warps) by work, for a loop counted with one; `lanes` etc. only where the host read the
+    lanes themselves (SimdRecorder's per-step mode)."""
+    sums: np.ndarray = None          # int64 per SimdSum field
+    histogram: np.ndarray = None     # (bins, 2): lanes, warps by work (warps: by their largest work)
+    lanes: np.ndarray = None         # the host's copy of the lanes (per-step mode): LaneCounts or ints
+    slots: np.ndarray = None         # per-step mode: each lane's sample slot
+    watch: np.ndarray = None         # per-step mode: the watched ints
+
+    def __getitem__(self, field):
+        return int(self.sums[field])
+
+    def work_lanes(self):
+        """Lanes with work > 0."""
+        if self.lanes is not None:
+            work = self.lanes if self.lanes.dtype.names is None else self.lanes["work"]
+            return int(np.count_nonzero(work > 0))
+        return self[SimdSum.WORK_LANES]
+
+    def watched(self, k=0):
+        """The k-th int copied from the device when the step was counted."""
+        if self.watch is not None:
+            return int(self.watch[k])
+        return int(np.int32(np.uint32(self.sums[SimdSum.WATCH + k] & 0xffffffff)))
+
+
+class StepLog:
+    """The step log on `queue`'s device: `count(...)` queues one step's sums into the next row and
+    returns its index; `read()` reads the rows queued so far (and their histograms) and empties it."""
+
+    def __init__(self, queue, warp_width, local_size=program.LOCAL_SIZE, sources=None):
+        self.queue, self.warp_width, self.local_size = queue, int(warp_width), local_size
+        built = program.build(queue, "simd_counters.cl", {"LOCAL_SIZE": local_size}, directory=sources)
+        self.lanes_kernel = program.kernel(built, "simd_count_lanes")
+        self.packed_kernel = program.kernel(built, "simd_count_packed")
+        ctx, rw = queue.context, cl.mem_flags.READ_WRITE
+        self.row_bytes = 8 * int(SimdSum.FIELDS)
+        self.rows = cl.Buffer(ctx, rw, self.row_bytes * ROWS)
+        cl.enqueue_fill_buffer(queue, self.rows, np.uint32(0), 0, self.row_bytes * ROWS)
+        self.none = cl.Buffer(ctx, rw, 4)     # an argument no work-item reads (an option that is off)
+        self.used = 0                          # rows queued since the last read
+        self.histogram, self.bins, self.histogram_used = None, 0, []   # [(row, bins)] queued with a histogram
+        self.made, self.stamp = {}, 0          # buffers made once (pool warps' stamps, scratch) and the last stamp given
+
+    @property
+    def full(self):
+        return self.used == ROWS or len(self.histogram_used) == HISTOGRAM_ROWS
+
+    def count(self, lanes, stride, bound, length_at=None, length_index=-1, watch=None, watch_count=0,
+              bins=0, slot_of=None, slot_offset=0, pool=0, packed=None):
+        """Queue the sums of one step's lanes (cl/simd_counters.cl simd_count_lanes): the first `bound`
+        lanes of `lanes` (`stride` ints each), fewer if length_at[length_index] on the device says so.
+        `watch`: a buffer whose first `watch_count` ints the row keeps. `bins`: a per-iteration
+        histogram of the lanes' work (0 .. bins - 1). `slot_of`, `slot_offset`, `pool`: lane i's
+        slot (int slot_offset + i of slot_of) in a pool of `pool` samples (SLOT_WARPS). `packed`: a Compactor, for PACKED_WARP_MAX. Returns the row."""
+        if self.full:
+            raise RuntimeError("the step log is full: read it first")
+        row, w = self.used, self.warp_width
+        self.used += 1
+        histogram_row = -1
+        if bins:
+            histogram_row = self._histogram_column(row, bins)
+        stamp = 0
+        if slot_of is not None:
+            stamps = self._stamps(pool)
+            self.stamp += 1
+            stamp = self.stamp
+        flags = self._flags(bound) if packed is not None else self.none
+        warps = max(1, -(-bound // w))
+        program.launch(self.queue, self.lanes_kernel, warps, lanes, np.int32(stride), np.int32(bound),
+                       length_at if length_at is not None else self.none, np.int32(length_index), np.int32(w),
+                       self.rows, np.int32(row), watch if watch is not None else self.none, np.int32(watch_count),
+                       self.histogram if bins else self.none, np.int32(max(self.bins, 1)), np.int32(histogram_row),
+                       np.int32(HISTOGRAM_ROWS), slot_of if slot_of is not None else self.none, np.int32(slot_offset),
+                       stamps if slot_of is not None else self.none, np.int32(stamp),
+                       np.int32(packed is not None), flags, local_size=self.local_size)
+        if packed is not None:
+            indices, count = packed.compact_on_device(flags, bound, out=self._indices(bound))
+            program.launch(self.queue, self.packed_kernel, warps, lanes, np.int32(stride), indices, count,
+                           np.int32(w), self.rows, np.int32(row), local_size=self.local_size)
+        return row
+
+    def read(self):
+        """The rows queued since the last read, as StepSums in order (one blocking read, two with
+        histograms); the log is emptied for the next steps."""
+        if self.used == 0:
+            return []
+        words = np.empty((self.used, int(SimdSum.FIELDS), 2), np.uint32)
+        cl.enqueue_copy(self.queue, words, self.rows)
+        sums = words[..., 0].astype(np.int64) | (words[..., 1].astype(np.int64) << 32)
+        out = [StepSums(sums=s) for s in sums]
+        if self.histogram_used:
+            needed = max(int(out[row][SimdSum.WORK_MAX]) for row, _ in self.histogram_used) + 1
+            for row, bins in self.histogram_used:
+                if out[row][SimdSum.WORK_MAX] >= bins:
+                    raise RuntimeError(f"a lane's loop ran {out[row][SimdSum.WORK_MAX]} times, past the "
+                                       f"{bins - 1} its histogram holds")
+            counts = np.empty((needed, 2, HISTOGRAM_ROWS), np.uint32)
+            cl.enqueue_copy(self.queue, counts, self.histogram)
+            for column, (row, _) in enumerate(self.histogram_used):
+                out[row].histogram = counts[:, :, column].astype(np.int64)
+            cl.enqueue_fill_buffer(self.queue, self.histogram, np.uint32(0), 0, self.histogram.size)
+            self.histogram_used = []
+        cl.enqueue_fill_buffer(self.queue, self.rows, np.uint32(0), 0, self.row_bytes * self.used)
+        self.used = 0
+        return out
+
+    # --- device memory, made once ---------------------------------------------------------------
+
+    def _histogram_column(self, row, bins):
+        if self.histogram is None or bins > self.bins:
+            if self.histogram_used:
+                raise RuntimeError("a larger histogram while one is in use: read the log first")
+            self.bins = bins
+            size = 4 * bins * 2 * HISTOGRAM_ROWS
+            self.histogram = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, size)
+            cl.enqueue_fill_buffer(self.queue, self.histogram, np.uint32(0), 0, size)
+        self.histogram_used.append((row, bins))
+        return len(self.histogram_used) - 1
+
+    def _stamps(self, pool):
+        warps = max(1, -(-pool // self.warp_width))
+        if ("stamps", warps) not in self.made:
+            self.made["stamps", warps] = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * warps)
+            cl.enqueue_fill_buffer(self.queue, self.made["stamps", warps], np.int32(0), 0, 4 * warps)
+        return self.made["stamps", warps]
+
+    def _flags(self, n):
+        return self._scratch("flags", n)
+
+    def _indices(self, n):
+        return self._scratch("indices", n)
+
+    def _scratch(self, role, n):
+        key = (role, program.padded(max(n, 1), self.local_size))
+        if key not in self.made:
+            self.made[key] = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * key[1])
+        return self.made[key]
