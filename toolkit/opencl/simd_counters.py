@@ -55,11 +55,8 @@ class StepLog:
         built = program.build(queue, "simd_counters.cl", {"LOCAL_SIZE": local_size}, directory=sources)
         self.lanes_kernel = program.kernel(built, "simd_count_lanes")
         self.packed_kernel = program.kernel(built, "simd_count_packed")
-        ctx, rw = queue.context, cl.mem_flags.READ_WRITE
         self.row_bytes = 8 * int(SimdSum.FIELDS)
-        self.rows = cl.Buffer(ctx, rw, self.row_bytes * ROWS)
-        cl.enqueue_fill_buffer(queue, self.rows, np.uint32(0), 0, self.row_bytes * ROWS)
-        self.none = cl.Buffer(ctx, rw, 4)     # an argument no work-item reads (an option that is off)
+        self.rows = self.none = None           # the log, and an argument no work-item reads: at the first step
         self.used = 0                          # rows queued since the last read
         self.histogram, self.bins, self.histogram_used = None, 0, []   # [(row, bins)] queued with a histogram
         self.made, self.stamp = {}, 0          # buffers made once (pool warps' stamps, scratch) and the last stamp given
@@ -77,6 +74,10 @@ class StepLog:
         slot (int slot_offset + i of slot_of) in a pool of `pool` samples (SLOT_WARPS). `packed`: a Compactor, for PACKED_WARP_MAX. Returns the row."""
         if self.full:
             raise RuntimeError("the step log is full: read it first")
+        if self.rows is None:
+            ctx, rw = self.queue.context, cl.mem_flags.READ_WRITE
+            self.rows, self.none = cl.Buffer(ctx, rw, self.row_bytes * ROWS), cl.Buffer(ctx, rw, 4)
+            cl.enqueue_fill_buffer(self.queue, self.rows, np.uint32(0), 0, self.row_bytes * ROWS)
         row, w = self.used, self.warp_width
         self.used += 1
         histogram_row = -1
