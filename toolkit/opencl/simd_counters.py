@@ -6,6 +6,7 @@ Why: with the counters read per step, a counted render cost the host 1.9 to 7.5 
 one (a blocking read per step, then numpy over every lane). Queued here, a step costs one launch;
 the rows are integers, so the host's sums of them are the sums it made of the lanes before.
 """
+from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,23 +72,32 @@ class StepLog:
         lanes of `lanes` (`stride` ints each), fewer if length_at[length_index] on the device says so.
         `watch`: a buffer whose first `watch_count` ints the row keeps. `bins`: a per-iteration
         histogram of the lanes' work (0 .. bins - 1). `slot_of`, `slot_offset`, `pool`: lane i's
-        slot (int slot_offset + i of slot_of) in a pool of `pool` samples (SLOT_WARPS). `packed`: a Compactor, for PACKED_WARP_MAX. Returns the row."""
+        slot (int slot_offset + i of slot_of) in a pool of `pool` samples (SLOT_WARPS). `packed`: a
+        Compactor, for PACKED_WARP_MAX. Returns the row. Its kernels are not timed as a phase (_untimed)."""
         if self.full:
             raise RuntimeError("the step log is full: read it first")
         if self.rows is None:
             ctx, rw = self.queue.context, cl.mem_flags.READ_WRITE
             self.rows, self.none = cl.Buffer(ctx, rw, self.row_bytes * ROWS), cl.Buffer(ctx, rw, 4)
             cl.enqueue_fill_buffer(self.queue, self.rows, np.uint32(0), 0, self.row_bytes * ROWS)
-        row, w = self.used, self.warp_width
+        row = self.used
         self.used += 1
         histogram_row = -1
         if bins:
             histogram_row = self._histogram_column(row, bins)
         stamp = 0
         if slot_of is not None:
-            stamps = self._stamps(pool)
             self.stamp += 1
             stamp = self.stamp
+        with _untimed(self.queue):
+            self._launch(row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins,
+                         histogram_row, slot_of, slot_offset, stamp, pool, packed)
+        return row
+
+    def _launch(self, row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins, histogram_row,
+                slot_of, slot_offset, stamp, pool, packed):
+        w = self.warp_width
+        stamps = self._stamps(pool) if slot_of is not None else None
         flags = self._flags(bound) if packed is not None else self.none
         warps = max(1, -(-bound // w))
         program.launch(self.queue, self.lanes_kernel, warps, lanes, np.int32(stride), np.int32(bound),
@@ -101,7 +111,6 @@ class StepLog:
             indices, count = packed.compact_on_device(flags, bound, out=self._indices(bound))
             program.launch(self.queue, self.packed_kernel, warps, lanes, np.int32(stride), indices, count,
                            np.int32(w), self.rows, np.int32(row), local_size=self.local_size)
-        return row
 
     def read(self):
         """The rows queued since the last read, as StepSums in order (one blocking read, two with
@@ -159,3 +168,15 @@ class StepLog:
         if key not in self.made:
             self.made[key] = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * key[1])
         return self.made[key]
+
+
+@contextmanager
+def _untimed(queue):
+    """Launches outside a phase timing (toolkit/opencl/kernel_times.py): a phase's time is the
+    technique's own kernels; the counters' cost, like their reads before the step log, is the
+    remainder of the render's wall time."""
+    recording, queue.recording = queue.recording, None
+    try:
+        yield
+    finally:
+        queue.recording = recording
