@@ -110,7 +110,8 @@ def test_compare_json_and_text_carry_the_phase_rows(run):
     table, _ = run
     back = json.loads(json.dumps(table))
     assert back["pt_naive"]["phases"] == table["pt_naive"]["phases"]
-    assert {r["kernel"] for r in back["pt_naive"]["phases"]} == {"pt_naive_render", "film_reduce", HOST}
+    assert {r["kernel"] for r in back["pt_naive"]["phases"]} == {"pt_naive_render", "film_reduce", "simd_count_lanes",
+                                                                  HOST}   # the last but one: compare counts SIMD
     text = format_table({"bdpt_naive_connect": table["bdpt_naive_connect"]})   # the fixture's rows are separate compares
     assert "The talk's model" in text and all(r["kernel"] in text for r in table["bdpt_naive_connect"]["phases"])
     assert build_parser().parse_args(["compare", "--plot", "x.png"]).plot == "x.png"

@@ -6,7 +6,6 @@ Why: with the counters read per step, a counted render cost the host 1.9 to 7.5 
 one (a blocking read per step, then numpy over every lane). Queued here, a step costs one launch;
 the rows are integers, so the host's sums of them are the sums it made of the lanes before.
 """
-from contextlib import contextmanager
 from dataclasses import dataclass
 
 import numpy as np
@@ -73,7 +72,7 @@ class StepLog:
         `watch`: a buffer whose first `watch_count` ints the row keeps. `bins`: a per-iteration
         histogram of the lanes' work (0 .. bins - 1). `slot_of`, `slot_offset`, `pool`: lane i's
         slot (int slot_offset + i of slot_of) in a pool of `pool` samples (SLOT_WARPS). `packed`: a
-        Compactor, for PACKED_WARP_MAX. Returns the row. Its kernels are not timed as a phase (_untimed)."""
+        Compactor, for PACKED_WARP_MAX. Returns the row."""
         if self.full:
             raise RuntimeError("the step log is full: read it first")
         if self.rows is None:
@@ -89,9 +88,8 @@ class StepLog:
         if slot_of is not None:
             self.stamp += 1
             stamp = self.stamp
-        with _untimed(self.queue):
-            self._launch(row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins,
-                         histogram_row, slot_of, slot_offset, stamp, pool, packed)
+        self._launch(row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins,
+                     histogram_row, slot_of, slot_offset, stamp, pool, packed)
         return row
 
     def _launch(self, row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins, histogram_row,
@@ -169,14 +167,3 @@ class StepLog:
             self.made[key] = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * key[1])
         return self.made[key]
 
-
-@contextmanager
-def _untimed(queue):
-    """Launches outside a phase timing (toolkit/opencl/kernel_times.py): a phase's time is the
-    technique's own kernels; the counters' cost, like their reads before the step log, is the
-    remainder of the render's wall time."""
-    recording, queue.recording = queue.recording, None
-    try:
-        yield
-    finally:
-        queue.recording = recording
