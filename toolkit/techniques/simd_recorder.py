@@ -13,7 +13,7 @@ host, by the same PhaseCounter methods as before the log existed.
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.layout import SimdSum
+from toolkit.core.layout import LANE_COUNTS, SimdSum
 from toolkit.core.simd import PhaseCounter
 from toolkit.opencl import program
 from toolkit.opencl.simd_counters import StepLog, StepSums
@@ -242,11 +242,7 @@ class SimdRecorder:
         if length_at is not None and length_index >= 0:
             n = min(bound, int(_read(self.queue, length_at, np.int32, length_index + 1)[length_index]))
         n = max(n, 0)
-        if stride == 1:
-            values = _read(self.queue, lanes, np.int32, n)
-        else:
-            from toolkit.core.layout import LANE_COUNTS
-            values = _read(self.queue, lanes, LANE_COUNTS.dtype, n)
+        values = _read(self.queue, lanes, np.int32 if stride == 1 else LANE_COUNTS.dtype, n)
         watched = _read(self.queue, watch, np.int32, watch_count) if watch_count else None
         slots = _read(self.queue, slot_of, np.int32, n, 4 * slot_offset) if slot_of is not None else None
         sums = np.zeros(int(SimdSum.FIELDS), np.int64)
@@ -269,7 +265,6 @@ def _read(queue, buffer, dtype, n, offset=0):
 
 def _work(iterations):
     """Per-lane loop counts from the host as LaneCounts (work only), for the replays."""
-    from toolkit.core.layout import LANE_COUNTS
     out = LANE_COUNTS.zeros(len(iterations))
     out["work"] = iterations
     return out
