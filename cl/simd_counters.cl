@@ -30,16 +30,14 @@ HELPER void add_wide(volatile __global uint* row, int field, uint x) {
  *   histogram_row: lanes and warps counted by work (and by warp's largest work) into column
  *     histogram_row of `histogram` ([bin][lanes, warps][histogram_rows]; bins - 1 >= any work);
  *   stamp: lane i's sample slot is slot_of[slot_offset + i]; a pool warp (slot / warp_width) not yet stamped with
- *     `stamp` gets it and counts once in SLOT_WARPS (warp_stamps only grow);
- *   flags_out: flags[i] = work > 0 for every lane below `bound` (for the packed count below). */
+ *     `stamp` gets it and counts once in SLOT_WARPS (warp_stamps only grow). */
 __kernel void simd_count_lanes(__global const int* lanes, const int stride, const int bound,
                                __global const int* length_at, const int length_index, const int warp_width,
                                volatile __global uint* rows, const int row_index,
                                __global const int* watch, const int watch_count,
                                volatile __global uint* histogram, const int bins, const int histogram_row,
                                const int histogram_rows, __global const int* slot_of, const int slot_offset,
-                               volatile __global int* warp_stamps, const int stamp,
-                               const int flags_out, __global int* flags)
+                               volatile __global int* warp_stamps, const int stamp)
 {
     int warp = get_global_id(0);
     volatile __global uint* row = rows + row_index * 2 * SIMD_FIELDS;
@@ -49,10 +47,6 @@ __kernel void simd_count_lanes(__global const int* lanes, const int stride, cons
         for (int k = 0; k < watch_count; ++k) row[2 * (SIMD_WATCH + k)] = (uint)watch[k];
     }
     int first = warp * warp_width;
-    if (flags_out) {
-        for (int i = first; i < min(first + warp_width, bound); ++i)
-            flags[i] = i < n && lanes[i * stride] > 0;
-    }
     if (first >= n) return;
     uint work_lanes = 0, work_sum = 0, work_max = 0, closest_sum = 0, closest_max = 0;
     uint shadow_lanes = 0, shadow_sum = 0, steps_sum = 0, steps_max = 0, slot_warps = 0;
@@ -95,18 +89,47 @@ __kernel void simd_count_lanes(__global const int* lanes, const int stride, cons
     add_wide(row, SIMD_SLOT_WARPS, slot_warps);
 }
 
-/* The same loops with only the lanes that have work, packed side by side in lane order: packed
- * lane j is lane indices[j] (a compaction of simd_count_lanes' flags, *count of them); one
- * work-item per packed warp adds its largest work to PACKED_WARP_MAX. */
-__kernel void simd_count_packed(__global const int* lanes, const int stride, __global const int* indices,
-                                __global const int* count, const int warp_width, volatile __global uint* rows,
-                                const int row_index)
+/* The same loops with only the lanes that have work, packed side by side in lane order (the naive
+ * connect phase as if only the terminated samples ran): PACKED_WARP_MAX += each packed warp's
+ * largest work. One work-group walks the first n lanes in order, LOCAL_SIZE at a time: a scan of
+ * "has work" in local memory gives each such lane its packed index, the packed warps a chunk
+ * touches take their largest work, and those it completes are added; the last one, still
+ * filling, carries into the next chunk. A pass of a connect phase, in the counters' own time. */
+__kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
+void simd_count_packed(__global const int* lanes, const int stride, const int n, const int warp_width,
+                       volatile __global uint* rows, const int row_index)
 {
     volatile __global uint* row = rows + row_index * 2 * SIMD_FIELDS;
-    int first = get_global_id(0) * warp_width, n = *count;
-    if (first >= n) return;
-    uint longest = 0;
-    for (int j = first; j < min(first + warp_width, n); ++j)
-        longest = max(longest, (uint)lanes[(long)indices[j] * stride]);
-    add_wide(row, SIMD_PACKED_WARP_MAX, longest);
+    __local int rank[LOCAL_SIZE];
+    __local uint warp_max[LOCAL_SIZE + 2];   /* the packed warps one chunk touches (warp_width >= 1) */
+    __local uint open_max;                   /* the largest work of the packed warp still filling */
+    int l = get_local_id(0), packed = 0;     /* packed: lanes with work before this chunk (the same in every work-item) */
+    if (l == 0) open_max = 0u;
+    for (int first = 0; first < n; first += LOCAL_SIZE) {
+        int i = first + l;
+        uint work = i < n ? (uint)lanes[(long)i * stride] : 0u;
+        rank[l] = work > 0u;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        for (int offset = 1; offset < LOCAL_SIZE; offset *= 2) {   /* inclusive scan (Hillis and Steele) */
+            int before = l >= offset ? rank[l - offset] : 0;
+            barrier(CLK_LOCAL_MEM_FENCE);
+            rank[l] += before;
+            barrier(CLK_LOCAL_MEM_FENCE);
+        }
+        int count = rank[LOCAL_SIZE - 1], first_warp = packed / warp_width;
+        for (int k = l; k < LOCAL_SIZE + 2; k += LOCAL_SIZE) warp_max[k] = 0u;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        if (l == 0) warp_max[0] = open_max;
+        barrier(CLK_LOCAL_MEM_FENCE);
+        if (work > 0u) atomic_max(&warp_max[(packed + rank[l] - 1) / warp_width - first_warp], work);
+        barrier(CLK_LOCAL_MEM_FENCE);
+        packed += count;
+        int completed = packed / warp_width - first_warp;
+        if (l == 0) {
+            for (int k = 0; k < completed; ++k) add_wide(row, SIMD_PACKED_WARP_MAX, warp_max[k]);
+            open_max = warp_max[completed];
+        }
+        barrier(CLK_LOCAL_MEM_FENCE);
+    }
+    if (l == 0) add_wide(row, SIMD_PACKED_WARP_MAX, open_max);   /* the last warp, if partly filled */
 }

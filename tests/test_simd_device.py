@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 from toolkit.core.layout import SimdSum
+from toolkit.core.simd import PhaseCounter
 from toolkit.opencl.device_scene import DeviceScene
 from toolkit.opencl.traffic import Traffic
 from toolkit.techniques import get_technique
@@ -48,6 +49,8 @@ def test_the_device_sums_are_the_hosts(queue, cornell_box, technique):
     assert on_device["per_iteration"] and on_device["simd"][0]          # something was counted
     if tech.family == "bdpt":
         assert on_device["others"]["walk_without_compaction"][0]
+    if technique == "bdpt_naive_connect":
+        assert on_device["others"]["connect_terminated_packed"][0]
 
 
 @pytest.mark.parametrize("technique", ["pt_compact_regen", "bdpt_naive_connect"])
@@ -77,3 +80,24 @@ def test_a_wide_sum_carries_into_its_high_word(queue):
     assert sums[SimdSum.CLOSEST_SUM] == 2 * (2 ** 31 - 1) + 5
     assert sums[SimdSum.CLOSEST_WARP_MAX] == 2 ** 31 - 1 + 5
     assert (sums[SimdSum.LANES], sums[SimdSum.WORK_LANES], sums[SimdSum.WORK_WARPS]) == (40, 3, 1)
+
+
+@pytest.mark.parametrize("warp_width", [1, 4, 32, 100])
+def test_packed_loops_against_numpy(queue, warp_width):
+    """simd_count_packed (one work-group walking the lanes in chunks) against PhaseCounter's sums of
+    the lanes with work packed side by side, over chunk and warp boundaries and a partial last warp."""
+    from toolkit.core.layout import LANE_COUNTS
+    from toolkit.opencl.simd_counters import StepLog
+    import pyopencl as cl
+    rng = np.random.default_rng(warp_width)
+    lanes = LANE_COUNTS.zeros(1000)
+    lanes["work"] = rng.integers(0, 9, 1000) * (rng.random(1000) < 0.3)
+    buffer = cl.Buffer(queue.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=lanes)
+    log = StepLog(queue, warp_width=warp_width)
+    log.count(buffer, 4, 1000, packed=True)
+    sums = log.read()[0]
+    expected = PhaseCounter(warp_width)
+    work = lanes["work"]
+    expected.add_warp_loops("connect", work[work > 0])
+    assert sums[SimdSum.WORK_SUM] == expected.active["connect"]
+    assert sums[SimdSum.PACKED_WARP_MAX] * warp_width == expected.issued["connect"]

@@ -66,13 +66,13 @@ class StepLog:
         return self.used == ROWS or len(self.histogram_used) == HISTOGRAM_ROWS
 
     def count(self, lanes, stride, bound, length_at=None, length_index=-1, watch=None, watch_count=0,
-              bins=0, slot_of=None, slot_offset=0, pool=0, packed=None):
+              bins=0, slot_of=None, slot_offset=0, pool=0, packed=False):
         """Queue the sums of one step's lanes (cl/simd_counters.cl simd_count_lanes): the first `bound`
         lanes of `lanes` (`stride` ints each), fewer if length_at[length_index] on the device says so.
         `watch`: a buffer whose first `watch_count` ints the row keeps. `bins`: a per-iteration
         histogram of the lanes' work (0 .. bins - 1). `slot_of`, `slot_offset`, `pool`: lane i's
-        slot (int slot_offset + i of slot_of) in a pool of `pool` samples (SLOT_WARPS). `packed`: a
-        Compactor, for PACKED_WARP_MAX. Returns the row."""
+        slot (int slot_offset + i of slot_of) in a pool of `pool` samples (SLOT_WARPS). `packed`: also
+        PACKED_WARP_MAX (its lanes are all `bound`, none past a device length). Returns the row."""
         if self.full:
             raise RuntimeError("the step log is full: read it first")
         if self.rows is None:
@@ -96,19 +96,16 @@ class StepLog:
                 slot_of, slot_offset, stamp, pool, packed):
         w = self.warp_width
         stamps = self._stamps(pool) if slot_of is not None else None
-        flags = self._flags(bound) if packed is not None else self.none
-        warps = max(1, -(-bound // w))
-        program.launch(self.queue, self.lanes_kernel, warps, lanes, np.int32(stride), np.int32(bound),
-                       length_at if length_at is not None else self.none, np.int32(length_index), np.int32(w),
-                       self.rows, np.int32(row), watch if watch is not None else self.none, np.int32(watch_count),
-                       self.histogram if bins else self.none, np.int32(max(self.bins, 1)), np.int32(histogram_row),
-                       np.int32(HISTOGRAM_ROWS), slot_of if slot_of is not None else self.none, np.int32(slot_offset),
-                       stamps if slot_of is not None else self.none, np.int32(stamp),
-                       np.int32(packed is not None), flags, local_size=self.local_size)
-        if packed is not None:
-            indices, count = packed.compact_on_device(flags, bound, out=self._indices(bound))
-            program.launch(self.queue, self.packed_kernel, warps, lanes, np.int32(stride), indices, count,
-                           np.int32(w), self.rows, np.int32(row), local_size=self.local_size)
+        program.launch(self.queue, self.lanes_kernel, max(1, -(-bound // w)), lanes, np.int32(stride),
+                       np.int32(bound), length_at if length_at is not None else self.none, np.int32(length_index),
+                       np.int32(w), self.rows, np.int32(row), watch if watch is not None else self.none,
+                       np.int32(watch_count), self.histogram if bins else self.none, np.int32(max(self.bins, 1)),
+                       np.int32(histogram_row), np.int32(HISTOGRAM_ROWS),
+                       slot_of if slot_of is not None else self.none, np.int32(slot_offset),
+                       stamps if slot_of is not None else self.none, np.int32(stamp), local_size=self.local_size)
+        if packed:   # one work-group (cl/simd_counters.cl simd_count_packed)
+            program.launch(self.queue, self.packed_kernel, 1, lanes, np.int32(stride), np.int32(bound), np.int32(w),
+                           self.rows, np.int32(row), local_size=self.local_size)
 
     def read(self):
         """The rows queued since the last read, as StepSums in order (one blocking read, two with
@@ -155,15 +152,4 @@ class StepLog:
             cl.enqueue_fill_buffer(self.queue, self.made["stamps", warps], np.int32(0), 0, 4 * warps)
         return self.made["stamps", warps]
 
-    def _flags(self, n):
-        return self._scratch("flags", n)
-
-    def _indices(self, n):
-        return self._scratch("indices", n)
-
-    def _scratch(self, role, n):
-        key = (role, program.padded(max(n, 1), self.local_size))
-        if key not in self.made:
-            self.made[key] = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * key[1])
-        return self.made[key]
 

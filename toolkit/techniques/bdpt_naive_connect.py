@@ -74,7 +74,7 @@ class NaiveConnect:
             recorder.loop_iterations("connect", sums, numbered=False)
             # For comparison: the same loops with only the terminated samples, packed side by side.
             recorder.packed_loops(recorder.counter(PACKED), "connect", sums)
-        ctx.recorder.lanes(replay, p.pool.lane_counts, 4, p.pool.size, bins=MOST_CONNECTIONS + 1, packed=ctx.compactor)
+        ctx.recorder.lanes(replay, p.pool.lane_counts, 4, p.pool.size, bins=MOST_CONNECTIONS + 1, packed=True)
 
 
 class BdptNaiveConnect(BdptTechnique):

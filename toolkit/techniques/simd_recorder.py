@@ -89,7 +89,7 @@ class SimdRecorder:
             self.flush()
 
     def lanes(self, replay, lanes, stride, bound, length_at=None, length_index=-1, watch=None, watch_count=0,
-              bins=0, slot_of=None, slot_offset=0, pool=0, packed=None):
+              bins=0, slot_of=None, slot_offset=0, pool=0, packed=False):
         """A step over the first `bound` lanes of `lanes` (a LaneCounts buffer, stride 4, or ints,
         stride 1), fewer if the device's int length_at[length_index] says so; `replay(sums)` gets its
         StepSums (toolkit/opencl/simd_counters.py StepLog.count says what each option adds)."""
