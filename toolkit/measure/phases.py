@@ -46,6 +46,9 @@ KERNEL_PHASES = {
     "simd_count_packed": ("SIMD counters: sum a step's lanes", (), ()),
 }
 HOST = "(host, transfers)"   # the render's wall time that no kernel accounts for
+# The SIMD counters' own kernels (toolkit/opencl/simd_counters.py): a counted render's cost of
+# measuring, which a render without the counters does not pay.
+COUNTER_KERNELS = ("simd_count_lanes", "simd_count_packed")
 
 
 def phase_rows(stats):
