@@ -53,6 +53,18 @@ def test_the_device_sums_are_the_hosts(queue, cornell_box, technique):
         assert on_device["others"]["connect_terminated_packed"][0]
 
 
+@pytest.mark.parametrize("technique", ["pt_inplace_regen", "bdpt_naive_connect"])
+def test_a_full_log_is_read_and_counting_goes_on(queue, cornell_box, technique, monkeypatch):
+    """A log of 5 rows and 2 histograms fills many times a render: each time it is read, the steps
+    so far replayed, and the next steps counted into the emptied log, with the same figures."""
+    from toolkit.opencl import simd_counters
+    monkeypatch.setattr(simd_counters, "ROWS", 5)
+    monkeypatch.setattr(simd_counters, "HISTOGRAM_ROWS", 2)
+    tech, _, _ = counted(queue, cornell_box, technique)
+    assert figures(tech.recorder) == figures(tech.recorder.reference)
+    assert len(tech.recorder.simd.per_iteration) > 3 * 5
+
+
 @pytest.mark.parametrize("technique", ["pt_compact_regen", "bdpt_naive_connect"])
 def test_counting_on_the_device_changes_nothing_else(queue, cornell_box, technique):
     """The counters only watch: the image is the one rendered without them (so are the steps), and
