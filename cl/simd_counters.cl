@@ -22,7 +22,7 @@ HELPER void add_wide(volatile __global uint* row, int field, uint x) {
 
 /* One work-item per warp: the warp's `warp_width` consecutive lanes of the first n, where n is
  * `bound` or, when length_index >= 0, length_at[length_index] (a count the device holds: the
- * step's stream length), whichever is smaller. Lane i's ints are lanes[i * stride ..]: the
+ * step's stream length), whichever is smaller (`step`'s fields: SimdStep, layout.h). Lane i's ints are lanes[i * stride ..]: the
  * LaneCounts fields in order (work, closest_steps, shadow_rays, shadow_steps; stride 4), or one
  * int (stride 1: work only).
  * Optional, each off when its int argument is negative or zero:
@@ -31,20 +31,19 @@ HELPER void add_wide(volatile __global uint* row, int field, uint x) {
  *     histogram_row of `histogram` ([bin][lanes, warps][histogram_rows]; bins - 1 >= any work);
  *   stamp: lane i's sample slot is slot_of[slot_offset + i]; a pool warp (slot / warp_width) not yet stamped with
  *     `stamp` gets it and counts once in SLOT_WARPS (warp_stamps only grow). */
-__kernel void simd_count_lanes(__global const int* lanes, const int stride, const int bound,
-                               __global const int* length_at, const int length_index, const int warp_width,
-                               volatile __global uint* rows, const int row_index,
-                               __global const int* watch, const int watch_count,
-                               volatile __global uint* histogram, const int bins, const int histogram_row,
-                               const int histogram_rows, __global const int* slot_of, const int slot_offset,
-                               volatile __global int* warp_stamps, const int stamp)
+__kernel void simd_count_lanes(__global const int* lanes, __global const int* length_at,
+                               volatile __global uint* rows, __global const int* watch,
+                               volatile __global uint* histogram, __global const int* slot_of,
+                               volatile __global int* warp_stamps, const SimdStep step)
 {
-    int warp = get_global_id(0);
-    volatile __global uint* row = rows + row_index * 2 * SIMD_FIELDS;
-    int n = length_index >= 0 ? min(bound, length_at[length_index]) : bound;
+    int warp = get_global_id(0), stride = step.stride, warp_width = step.warp_width;
+    int bins = step.bins, histogram_row = step.histogram_row, histogram_rows = step.histogram_rows;
+    int stamp = step.stamp, slot_offset = step.slot_offset;
+    volatile __global uint* row = rows + step.row * 2 * SIMD_FIELDS;
+    int n = step.length_index >= 0 ? min(step.bound, length_at[step.length_index]) : step.bound;
     if (warp == 0) {
         row[2 * SIMD_LANES] = (uint)max(n, 0);
-        for (int k = 0; k < watch_count; ++k) row[2 * (SIMD_WATCH + k)] = (uint)watch[k];
+        for (int k = 0; k < step.watch_count; ++k) row[2 * (SIMD_WATCH + k)] = (uint)watch[k];
     }
     int first = warp * warp_width;
     if (first >= n) return;

@@ -171,6 +171,20 @@ LANE_COUNTS = Record("LaneCounts", [
     ("shadow_steps", "int"),   # BVH nodes visited by shadow rays
 ], "What one lane (work-item) did in one launch, for the SIMD-efficiency model (COUNT_SIMD).")
 
+SIMD_STEP = Record("SimdStep", [
+    ("stride", "int"),          # ints per lane: 4 (LaneCounts) or 1 (an int per lane: its work)
+    ("bound", "int"),           # lanes the host knows the step may have
+    ("length_index", "int"),    # >= 0: the step's length is length_at[length_index] on the device (at most bound)
+    ("warp_width", "int"),      # W of the counters
+    ("row", "int"),             # the step log's row this step's sums go to
+    ("watch_count", "int"),     # ints of `watch` the row keeps (at most SIMD_WATCH_INTS)
+    ("bins", "int"),            # the per-iteration histogram's bins (its last holds any larger work)
+    ("histogram_row", "int"),   # >= 0: the histogram column of this step
+    ("histogram_rows", "int"),  # columns of the histogram
+    ("slot_offset", "int"),     # where lane 0's slot is in slot_of (ints)
+    ("stamp", "int"),           # > 0: count SLOT_WARPS with this stamp
+], "One counting step for cl/simd_counters.cl simd_count_lanes (toolkit/opencl/simd_counters.py).")
+
 BDPT_SLOT = Record("BdptSlot", [
     ("live", "int"),            # SLOT_IDLE, or how many of its subpaths still walk (SlotState below)
     ("sample_id", "int"),       # the sample in this slot: its id in the pass
@@ -233,7 +247,7 @@ FILM_PIXEL = Record("FilmPixel", [
 ], "A pixel's sums over one pass of samples, 48 bytes.")
 
 RECORDS = [BVH_NODE, *WIDE_NODES.values(), TRI_GROUP, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY,
-           HIT_RECORD, BDPT_VERTEX, SUBPATH, LANE_COUNTS, BDPT_SLOT, BDPT_PASS, BDPT_STEP, BDPT_REGENERATION,
+           HIT_RECORD, BDPT_VERTEX, SUBPATH, LANE_COUNTS, SIMD_STEP, BDPT_SLOT, BDPT_PASS, BDPT_STEP, BDPT_REGENERATION,
            MLT_CHAIN, MLT_ITERATION]
 RECORDS += [PT_PASS, PT_STEP]   # the path tracers' kernel arguments and stream counts
 

@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.layout import SIMD_WATCH_INTS, SimdSum
+from toolkit.core.layout import SIMD_STEP, SIMD_WATCH_INTS, SimdSum
 from toolkit.opencl import program
 
 ROWS = 1024            # steps the log holds before the host reads it (a pass rarely takes more)
@@ -94,15 +94,14 @@ class StepLog:
 
     def _launch(self, row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins, histogram_row,
                 slot_of, slot_offset, stamp, pool, packed):
-        w = self.warp_width
-        stamps = self._stamps(pool) if slot_of is not None else None
-        program.launch(self.queue, self.lanes_kernel, max(1, -(-bound // w)), lanes, np.int32(stride),
-                       np.int32(bound), length_at if length_at is not None else self.none, np.int32(length_index),
-                       np.int32(w), self.rows, np.int32(row), watch if watch is not None else self.none,
-                       np.int32(watch_count), self.histogram if bins else self.none, np.int32(max(self.bins, 1)),
-                       np.int32(histogram_row), np.int32(HISTOGRAM_ROWS),
-                       slot_of if slot_of is not None else self.none, np.int32(slot_offset),
-                       stamps if slot_of is not None else self.none, np.int32(stamp), local_size=self.local_size)
+        w, none = self.warp_width, self.none
+        step = SIMD_STEP.record(stride=stride, bound=bound, length_index=length_index, warp_width=w, row=row,
+                                watch_count=watch_count, bins=max(self.bins, 1), histogram_row=histogram_row,
+                                histogram_rows=HISTOGRAM_ROWS, slot_offset=slot_offset, stamp=stamp)
+        program.launch(self.queue, self.lanes_kernel, max(1, -(-bound // w)), lanes,
+                       none if length_at is None else length_at, self.rows, none if watch is None else watch,
+                       self.histogram if bins else none, none if slot_of is None else slot_of,
+                       self._stamps(pool) if slot_of is not None else none, step, local_size=self.local_size)
         if packed:   # one work-group (cl/simd_counters.cl simd_count_packed)
             program.launch(self.queue, self.packed_kernel, 1, lanes, np.int32(stride), np.int32(bound), np.int32(w),
                            self.rows, np.int32(row), local_size=self.local_size)
