@@ -30,20 +30,37 @@ HELPER void add_wide(volatile __global uint* row, int field, uint x) {
  *   histogram_row: lanes and warps counted by work (and by warp's largest work) into column
  *     histogram_row of `histogram` ([bin][lanes, warps][histogram_rows]; bins - 1 >= any work);
  *   stamp: lane i's sample slot is slot_of[slot_offset + i]; a pool warp (slot / warp_width) not yet stamped with
- *     `stamp` gets it and counts once in SLOT_WARPS (warp_stamps only grow). */
+ *     `stamp` gets it and counts once in SLOT_WARPS (warp_stamps only grow);
+ *   aux_bound: a second buffer of one int per lane (a step's other kernel: regeneration, the shadow
+ *     queue), its first aux_bound (or length_at[aux_length_index]) summed into the AUX_ fields. */
 __kernel void simd_count_lanes(__global const int* lanes, __global const int* length_at,
                                volatile __global uint* rows, __global const int* watch,
                                volatile __global uint* histogram, __global const int* slot_of,
-                               volatile __global int* warp_stamps, const SimdStep step)
+                               volatile __global int* warp_stamps, __global const int* aux, const SimdStep step)
 {
     int warp = get_global_id(0), stride = step.stride, warp_width = step.warp_width;
     int bins = step.bins, histogram_row = step.histogram_row, histogram_rows = step.histogram_rows;
     int stamp = step.stamp, slot_offset = step.slot_offset;
     volatile __global uint* row = rows + step.row * 2 * SIMD_FIELDS;
     int n = step.length_index >= 0 ? min(step.bound, length_at[step.length_index]) : step.bound;
+    int n_aux = step.aux_length_index >= 0 ? min(step.aux_bound, length_at[step.aux_length_index]) : step.aux_bound;
     if (warp == 0) {
         row[2 * SIMD_LANES] = (uint)max(n, 0);
+        row[2 * SIMD_AUX_COUNT] = (uint)max(n_aux, 0);
         for (int k = 0; k < step.watch_count; ++k) row[2 * (SIMD_WATCH + k)] = (uint)watch[k];
+    }
+    if (warp * warp_width < n_aux) {   /* the second buffer: one int per lane */
+        uint lanes_on = 0, sum = 0, longest = 0;
+        for (int i = warp * warp_width; i < min((warp + 1) * warp_width, n_aux); ++i) {
+            uint value = (uint)aux[i];
+            lanes_on += value > 0u;
+            sum += value;
+            longest = max(longest, value);
+        }
+        add_wide(row, SIMD_AUX_LANES, lanes_on);
+        add_wide(row, SIMD_AUX_WARPS, lanes_on > 0u);
+        add_wide(row, SIMD_AUX_SUM, sum);
+        add_wide(row, SIMD_AUX_WARP_MAX, longest);
     }
     int first = warp * warp_width;
     if (first >= n) return;

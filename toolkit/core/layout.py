@@ -183,6 +183,8 @@ SIMD_STEP = Record("SimdStep", [
     ("histogram_rows", "int"),  # columns of the histogram
     ("slot_offset", "int"),     # where lane 0's slot is in slot_of (ints)
     ("stamp", "int"),           # > 0: count SLOT_WARPS with this stamp
+    ("aux_bound", "int"),       # ints of `aux` (one per lane) summed into the AUX_ fields; 0: none
+    ("aux_length_index", "int"),   # >= 0: fewer, length_at[aux_length_index] on the device
 ], "One counting step for cl/simd_counters.cl simd_count_lanes (toolkit/opencl/simd_counters.py).")
 
 BDPT_SLOT = Record("BdptSlot", [
@@ -348,8 +350,13 @@ class SimdSum(IntEnum):
     SHADOW_STEPS_WARP_MAX = 12   # sum over warps of the largest shadow_steps
     SLOT_WARPS = 13         # warps of the sample pool holding a lane's slot (BDPT's walk without compaction)
     PACKED_WARP_MAX = 14    # sum over warps of the largest work, the lanes with work packed side by side
-    WATCH = 15              # WATCH_INTS ints copied from the device as the step was counted (its counts)
-    FIELDS = 20             # fields per row (WATCH .. WATCH + 4 included)
+    AUX_COUNT = 15          # lanes of the step's second int buffer (aux) counted, summed in the same launch:
+    AUX_LANES = 16          #   those with a value > 0,
+    AUX_WARPS = 17          #   the warps with such a lane,
+    AUX_SUM = 18            #   the sum of the values,
+    AUX_WARP_MAX = 19       #   and the sum over warps of the largest value
+    WATCH = 20              # WATCH_INTS ints copied from the device as the step was counted (its counts)
+    FIELDS = 25             # fields per row (WATCH .. WATCH + 4 included)
 
 
 NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"),

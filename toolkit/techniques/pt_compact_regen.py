@@ -164,14 +164,12 @@ class PtCompactRegen(Technique):
 
     def count_step(self, counting, mem, paths, size, budget):
         """The SIMD counters of the step just queued: its lanes (the first counts.length of the
-        `paths` the launches covered) and its counts (PtStep, copied into the row), and the shadow
-        queue's traversal loops (counts.shadow_rays of them), summed on the device."""
+        `paths` the launches covered) and its counts (PtStep, copied into the row), and with them
+        (aux) the shadow queue's traversal loops (counts.shadow_rays of them), summed on the device."""
         length, queued = PT_STEP.dtype.fields["length"][1] // 4, PT_STEP.dtype.fields["shadow_rays"][1] // 4
+        shadow = dict(aux=mem.shadow_steps, aux_bound=paths, aux_length_index=queued) if self.shadow_queue else {}
         self.recorder.lanes(counting.extended, mem.lane_counts, 4, paths, length_at=mem.counts, length_index=length,
-                            watch=mem.counts, watch_count=len(PT_STEP.dtype.names))
-        if self.shadow_queue:
-            self.recorder.lanes(counting.shadow_traced, mem.shadow_steps, 1, paths, length_at=mem.counts,
-                                length_index=queued)
+                            watch=mem.counts, watch_count=len(PT_STEP.dtype.names), **shadow)
 
 
 class PassCount:
@@ -198,11 +196,6 @@ class PassCount:
             recorder.count_now("generate", started, before=True, capacity=self.size, draining=draining)
         recorder.extension_step(sums, capacity=self.size, draining=draining, shadow_queue=self.shadow_queue)
         recorder.simd_counter().add_stream_step("compact", length)
-
-    def shadow_traced(self, recorder, sums):
-        """The packed shadow queue: every lane busy, traversal loops per warp."""
-        queued = sums[SimdSum.LANES]
-        if recorder in self.ended or not queued:
-            return
-        recorder.simd_counter().add_stream_step("shadow", queued)
-        recorder.warp_loops(recorder.traversal_counter(), "shadow", sums, "work")
+        if self.shadow_queue and counts["shadow_rays"]:   # the packed shadow queue (aux): every lane busy,
+            recorder.simd_counter().add_stream_step("shadow", counts["shadow_rays"])   # traversal loops per warp
+            recorder.warp_loops(recorder.traversal_counter(), "shadow", sums, "aux")

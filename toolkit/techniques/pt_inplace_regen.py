@@ -72,8 +72,6 @@ class PtInplaceRegen(Technique):
             self.kernels.launch("pt_inplace_regen_regenerate", slots, cam=camera, pass_args=pass_args,
                                 slots=np.int32(slots), next_sample=mem.next_sample, paths=mem.paths, alive=mem.alive,
                                 any_alive=mem.any_alive, regenerated=mem.regenerated)
-            if counting:
-                self.count_regenerate(counting, mem, slots, budget)
             # Extend: every slot with a live path traces one more vertex.
             self.extend_in_place(pass_args, slots, mem.paths, mem.alive, mem.hits, mem.radiance, mem.lane_counts)
             if counting:
@@ -84,15 +82,11 @@ class PtInplaceRegen(Technique):
 
     # --- SIMD counting, summed on the device (simd_recorder.py); no-op unless count_simd ----------
 
-    def count_regenerate(self, counting, mem, slots, budget):
-        """The regeneration step: its lanes are the slots that started a sample, scattered over
-        every warp; its sums wait for the extension step that follows (PassCount.step)."""
-        self.recorder.lanes(counting.regenerated, mem.regenerated, 1, slots, watch=mem.next_sample, watch_count=1)
-
     def count_extend(self, counting, mem, slots, budget):
-        """The extension step, counted with the regeneration before it (PassCount.step)."""
-        self.recorder.lanes(lambda recorder, lanes: counting.step(recorder, lanes, slots, budget), mem.lane_counts,
-                            4, slots, watch=mem.next_sample, watch_count=1)
+        """The extension step and the regeneration before it, summed in one launch: the extension's
+        LaneCounts, and as the second buffer (aux) the slots that started a sample (PassCount.step)."""
+        self.recorder.lanes(lambda recorder, sums: counting.step(recorder, sums, slots, budget), mem.lane_counts, 4,
+                            slots, watch=mem.next_sample, watch_count=1, aux=mem.regenerated, aux_bound=slots)
 
 
 class PassCount:
@@ -105,18 +99,14 @@ class PassCount:
 
     def __init__(self):
         self.ended = set()          # the recorders that have counted the pass's end
-        self.last_regeneration = {}   # by recorder: the sums of the regeneration not counted yet
 
-    def regenerated(self, recorder, lanes):
-        self.last_regeneration[recorder] = lanes
-
-    def step(self, recorder, extension, slots, budget):
+    def step(self, recorder, sums, slots, budget):
+        """A regeneration (the aux ints: 1 where a slot started a sample) and the extension step after it."""
         if recorder in self.ended:
             return
-        regeneration = self.last_regeneration.pop(recorder)
-        draining = regeneration.watched() >= budget
-        recorder.mask_step("generate", regeneration, before=True, capacity=slots, draining=draining)
-        if extension.work_lanes() == 0:
+        draining = sums.watched() >= budget
+        recorder.mask_step("generate", sums, "aux", before=True, capacity=slots, draining=draining)
+        if sums.work_lanes() == 0:
             self.ended.add(recorder)    # no slot holds a live path: budget spent and every path has ended
             return
-        recorder.extension_step(extension, capacity=slots, draining=draining)
+        recorder.extension_step(sums, capacity=slots, draining=draining)

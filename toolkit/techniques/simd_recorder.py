@@ -89,23 +89,23 @@ class SimdRecorder:
             self.flush()
 
     def lanes(self, replay, lanes, stride, bound, length_at=None, length_index=-1, watch=None, watch_count=0,
-              bins=0, slot_of=None, slot_offset=0, pool=0, packed=False):
+              bins=0, slot_of=None, slot_offset=0, pool=0, packed=False, aux=None, aux_bound=0, aux_length_index=-1):
         """A step over the first `bound` lanes of `lanes` (a LaneCounts buffer, stride 4, or ints,
         stride 1), fewer if the device's int length_at[length_index] says so; `replay(sums)` gets its
         StepSums (toolkit/opencl/simd_counters.py StepLog.count says what each option adds)."""
         if self.reference is not None:
             self.reference.lanes(replay, lanes, stride, bound, length_at, length_index, watch, watch_count, bins,
-                                 slot_of, slot_offset, pool, packed)
+                                 slot_of, slot_offset, pool, packed, aux, aux_bound, aux_length_index)
         if self.per_step:
             self._pending.append((self._read_now(lanes, stride, bound, length_at, length_index, watch, watch_count,
-                                                 slot_of, slot_offset), replay))
+                                                 slot_of, slot_offset, aux, aux_bound, aux_length_index), replay))
             self.flush()
             return
         log = self._step_log()
         if log.full:
             self.flush()
         row = log.count(lanes, stride, bound, length_at, length_index, watch, watch_count, bins, slot_of,
-                        slot_offset, pool, packed)
+                        slot_offset, pool, packed, aux, aux_bound, aux_length_index)
         self._pending.append((row, replay))
 
     def flush(self):
@@ -163,17 +163,18 @@ class SimdRecorder:
 
     def mask_step(self, phase, sums, field="work", numbered=False, before=False, capacity=None, draining=False,
                   counter=None):
-        """A step whose active lanes are those with `field` > 0 (work or shadow_rays): numbered (an
+        """A step whose active lanes are those with `field` > 0 (work, shadow_rays, or the aux ints): numbered (an
         extension step, counted as an iteration), `before` (numbered as the step that follows it),
         or neither (efficiency figures only)."""
         counter = self._simd if counter is None else counter
         iteration = self.iterations if numbered or before else None
         if sums.lanes is not None:
-            values = sums.lanes if sums.lanes.dtype.names is None else sums.lanes[field]
+            values = _values(sums, field)
             counter.add_stream_step(phase, values > 0, iteration=iteration, capacity=capacity, draining=draining)
         else:
-            lanes, warps = ((SimdSum.WORK_LANES, SimdSum.WORK_WARPS) if field == "work"
-                            else (SimdSum.SHADOW_LANES, SimdSum.SHADOW_WARPS))
+            lanes, warps = {"work": (SimdSum.WORK_LANES, SimdSum.WORK_WARPS),
+                            "shadow_rays": (SimdSum.SHADOW_LANES, SimdSum.SHADOW_WARPS),
+                            "aux": (SimdSum.AUX_LANES, SimdSum.AUX_WARPS)}[field]
             counter.add_step(phase, sums[lanes], sums[warps] * self.warp_width, iteration, capacity, draining)
         if numbered:
             self.iterations += 1
@@ -192,10 +193,10 @@ class SimdRecorder:
         """A loop inside each lane that runs `field` times (work, closest_steps, shadow_steps): its
         warp issues it as long as its longest lane. `active`: another lane-step count (a SimdSum)."""
         if sums.lanes is not None:
-            values = sums.lanes if sums.lanes.dtype.names is None else sums.lanes[field]
-            counter.add_warp_loops(phase, values, None if active is None else sums.lanes[active].sum())
+            counter.add_warp_loops(phase, _values(sums, field), None if active is None else sums.lanes[active].sum())
             return
         total, longest = {"work": (SimdSum.WORK_SUM, SimdSum.WORK_WARP_MAX),
+                          "aux": (SimdSum.AUX_SUM, SimdSum.AUX_WARP_MAX),
                           "closest_steps": (SimdSum.CLOSEST_SUM, SimdSum.CLOSEST_WARP_MAX),
                           "shadow_steps": (SimdSum.SHADOW_STEPS_SUM, SimdSum.SHADOW_STEPS_WARP_MAX)}[field]
         active_sum = {None: total, "shadow_rays": SimdSum.SHADOW_SUM}[active]
@@ -236,18 +237,21 @@ class SimdRecorder:
 
     # --- per-step mode and the log ------------------------------------------------------------
 
-    def _read_now(self, lanes, stride, bound, length_at, length_index, watch, watch_count, slot_of, slot_offset):
-        """The step's lanes (and watched ints, slots) read back at once: a StepSums for the host's sums."""
-        n = bound
-        if length_at is not None and length_index >= 0:
-            n = min(bound, int(_read(self.queue, length_at, np.int32, length_index + 1)[length_index]))
-        n = max(n, 0)
+    def _read_now(self, lanes, stride, bound, length_at, length_index, watch, watch_count, slot_of, slot_offset,
+                  aux, aux_bound, aux_length_index):
+        """The step's lanes (and watched ints, slots, aux) read back at once: a StepSums for the host's sums."""
+        def length(bound, index):
+            if length_at is not None and index >= 0:
+                bound = min(bound, int(_read(self.queue, length_at, np.int32, index + 1)[index]))
+            return max(bound, 0)
+        n = length(bound, length_index)
+        aux_values = _read(self.queue, aux, np.int32, length(aux_bound, aux_length_index)) if aux is not None else None
         values = _read(self.queue, lanes, np.int32 if stride == 1 else LANE_COUNTS.dtype, n)
         watched = _read(self.queue, watch, np.int32, watch_count) if watch_count else None
         slots = _read(self.queue, slot_of, np.int32, n, 4 * slot_offset) if slot_of is not None else None
         sums = np.zeros(int(SimdSum.FIELDS), np.int64)
         sums[SimdSum.LANES] = n
-        return StepSums(sums=sums, lanes=values, slots=slots, watch=watched)
+        return StepSums(sums=sums, lanes=values, slots=slots, watch=watched, aux=aux_values)
 
     def _step_log(self):
         if self._log is None:
@@ -268,3 +272,10 @@ def _work(iterations):
     out = LANE_COUNTS.zeros(len(iterations))
     out["work"] = iterations
     return out
+
+
+def _values(sums, field):
+    """Per-step mode: the read lanes' `field` (LaneCounts), the ints of an int buffer, or the aux ints."""
+    if field == "aux":
+        return sums.aux
+    return sums.lanes if sums.lanes.dtype.names is None else sums.lanes[field]
