@@ -19,9 +19,7 @@
 #define PI 3.14159265358979f
 #define INV_PI 0.31830988618379f
 
-/* Paths without a depth limit or roulette still stop here; a path this long carries
- * no measurable energy in any scene whose albedo is below one. */
-#define HARD_MAX_BOUNCES 1024
+/* HARD_MAX_BOUNCES (layout.h): where paths without a depth limit or roulette still stop. */
 
 HELPER float max3(float3 v) { return fmax(v.x, fmax(v.y, v.z)); }
 HELPER float luminance(float3 c) { return LUMINANCE_R * c.x + LUMINANCE_G * c.y + LUMINANCE_B * c.z; }

@@ -110,6 +110,18 @@ def test_pt_naive_known_counts_per_pass_with_the_film_on_the_device(cornell_box,
     assert extra["blocking_per_pass"] == 0 and extra["launches_per_pass"] == 3
 
 
+def test_counted_renders_read_their_counters_once(cornell_box):
+    """With the SIMD counters on, pt_compact_regen's steps queue their sums on the device and the host
+    reads the step log once, when the render's figures are collected: the blocking reads of an
+    uncounted render plus one (before the step log: one per step, 58 per pass at the CPU's sizes)."""
+    options = options_of(dict(resolution=(16, 16), spp=4, technique_options={"stream_size": 256}))
+    counted = metered_render(cornell_box, "pt_compact_regen", options, count_simd=True)
+    uncounted = metered_render(cornell_box, "pt_compact_regen", options)
+    assert counted["passes"] == uncounted["passes"] == 1
+    assert counted["blocking_reads"] == uncounted["blocking_reads"] + 1
+    assert counted["launches"] > uncounted["launches"]     # a sum per step: launches, not reads
+
+
 def options_of(fields, **more):
     from toolkit.core.render_options import with_fields
     return with_fields(None, **{**fields, **more})
@@ -171,6 +183,12 @@ def test_bench_host_on_the_command_line():
     film_launches = 2 if has_fp64(get_queue().device) else 1    # the film's sum, and its addition on the device
     assert row["spp"] == [2, 8] and row["blocking_per_pass"] == 0 and row["launches_per_pass"] == 1 + film_launches
     assert row["read_bytes_per_sample"] == 0   # 8 spp in one pass: no more reads than 2 spp
+    counted = run_cli("bench", "--host", "--count-simd", "--techniques", "pt_compact_regen", "--resolution", "16x8",
+                      "--spp", "2", "--json")
+    assert counted.returncode == 0, counted.stderr
+    assert "SIMD counters on" in counted.stdout.splitlines()[0] and json.loads(counted.stdout.splitlines()[-1])["count_simd"]
     refused = run_cli("bench", "--gpu-sizes")
     assert refused.returncode == 2 and "--gpu-sizes applies to the host meter only" in refused.stderr
     assert "Traceback" not in refused.stderr
+    refused = run_cli("bench", "--count-simd")
+    assert refused.returncode == 2 and "--count-simd applies to the host meter only" in refused.stderr

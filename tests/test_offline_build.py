@@ -44,7 +44,7 @@ def test_the_host_code_gives_every_program_with_a_gpus_defines():
     for vendor in gpu_programs.GPU_MODELS:
         builds = host_builds(vendor)
         names = {build.name for build in builds}
-        shared = {"compact.cl", "film_reduce.cl", "record_film.cl"}
+        shared = {"compact.cl", "film_reduce.cl", "record_film.cl", "simd_counters.cl"}
         # the path tracers' device film: on a GPU with float64 (the MI210 model), not without (the H200 model)
         shared |= {"film_accumulate.cl"} if has_fp64(stand_in_device(vendor)) else set()
         assert {cls.source for cls in TECHNIQUES.values()} | shared == names
@@ -159,7 +159,8 @@ def test_every_kernel_builds_for_both_gpus(subset_report):
     assert report["passed"], offline_report.format_report(report)
     for target in offline_build.TARGETS:
         built = {row["kernel"] for row in report["kernels"] if row["target"] == target.key and row["ok"]}
-        for name in {cls.source for cls in TECHNIQUES.values()} | {"compact.cl", "film_reduce.cl", "record_film.cl"}:
+        for name in {cls.source for cls in TECHNIQUES.values()} | {"compact.cl", "film_reduce.cl", "record_film.cl",
+                                                                   "simd_counters.cl"}:
             assert declared_kernels(name) <= built, (target.key, name, declared_kernels(name) - built)
     naive = {row["target"]: row for row in report["kernels"] if row["kernel"] == "pt_naive_render"}
     assert naive["amdgcn"]["vgprs"] > 0 and naive["amdgcn"]["waves_per_simd"] in range(1, 9)
@@ -208,7 +209,8 @@ def test_command_prints_the_table_and_writes_the_json(tmp_path, monkeypatch, cap
     report = json.loads(out.read_text())
     assert report["command"] == f"python -m toolkit gpucheck --offline --json {out}"
     rows = {(row["target"], row["kernel"]): row for row in report["kernels"]}
-    assert set(rows) == {(t, k) for t in ("nvptx64", "amdgcn") for k in ("pt_naive_render", "film_reduce")} \
+    kernels = ("pt_naive_render", "film_reduce", "simd_count_lanes", "simd_count_packed")   # counters on: their sums
+    assert set(rows) == {(t, k) for t in ("nvptx64", "amdgcn") for k in kernels} \
         | {("amdgcn", "film_accumulate")}    # the device film: the MI210 model has float64
     for (target, kernel), row in rows.items():
         assert row["ok"] and row["error"] is None

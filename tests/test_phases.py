@@ -113,7 +113,7 @@ def test_compare_json_and_text_carry_the_phase_rows(run):
     from toolkit.opencl.device import get_queue
     from toolkit.opencl.device_film import has_fp64
     film = {"film_reduce", "film_accumulate"} if has_fp64(get_queue().device) else {"film_reduce"}   # device_film.py
-    assert {r["kernel"] for r in back["pt_naive"]["phases"]} == {"pt_naive_render", HOST} | film
+    assert {r["kernel"] for r in back["pt_naive"]["phases"]} == {"pt_naive_render", "simd_count_lanes", HOST} | film   # compare counts SIMD
     text = format_table({"bdpt_naive_connect": table["bdpt_naive_connect"]})   # the fixture's rows are separate compares
     assert "The talk's model" in text and all(r["kernel"] in text for r in table["bdpt_naive_connect"]["phases"])
     assert build_parser().parse_args(["compare", "--plot", "x.png"]).plot == "x.png"

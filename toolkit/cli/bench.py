@@ -45,6 +45,9 @@ def add_command(sub):
                         f"(default techniques {','.join(HOST_DEFAULT)}; resolution 256x256)")
     p.add_argument("--gpu-sizes", action="store_true",
                    help="with --host: render at a GPU's stream, pool and chain sizes (the H200's), whatever the device")
+    p.add_argument("--count-simd", action="store_true", dest="host_count_simd",
+                   help="with --host: the renders count SIMD efficiency (as compare's, gpucheck's phases and the "
+                        "demo's do): what the counters cost the host")
     p.add_argument("--predict-gpu", metavar="GPUCHECK_JSON",
                    help="instead: the model of a GPU's wall time (toolkit/measure/gpu_model.py) from the kernel times "
                         "in a gpucheck report of that GPU and the host meter's figures (--meter, else measured now "
@@ -68,6 +71,8 @@ def cmd_bench(args):
                          "--equal-time or --host")
     if args.gpu_sizes and not args.host:
         raise ValueError("--gpu-sizes applies to the host meter only (--host)")
+    if args.host_count_simd and not args.host:
+        raise ValueError("--count-simd applies to the host meter only (--host)")
     if (args.meter or args.cpu_meter or args.host_speed != 1.0) and not args.predict_gpu:
         raise ValueError("--meter, --cpu-meter and --host-speed go with --predict-gpu")
     if args.predict_gpu:
@@ -93,7 +98,8 @@ def cmd_bench_host(args):
     if args.peer or args.specialization or args.equal_time is not None:
         raise ValueError("--host is a bench of its own: not with --peer, --specialization or --equal-time")
     report = host_meter(args.scene, tuple(technique_list(args.techniques or ",".join(HOST_DEFAULT))),
-                        render_options(args, lanes=None), spp=args.spp, gpu_sizes=args.gpu_sizes)
+                        render_options(args, lanes=None), spp=args.spp, gpu_sizes=args.gpu_sizes,
+                        count_simd=args.host_count_simd)
     print(format_host_meter(report))
     if args.json:
         print(json.dumps(report))

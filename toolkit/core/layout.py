@@ -171,6 +171,22 @@ LANE_COUNTS = Record("LaneCounts", [
     ("shadow_steps", "int"),   # BVH nodes visited by shadow rays
 ], "What one lane (work-item) did in one launch, for the SIMD-efficiency model (COUNT_SIMD).")
 
+SIMD_STEP = Record("SimdStep", [
+    ("stride", "int"),          # ints per lane: 4 (LaneCounts) or 1 (an int per lane: its work)
+    ("bound", "int"),           # lanes the host knows the step may have
+    ("length_index", "int"),    # >= 0: the step's length is length_at[length_index] on the device (at most bound)
+    ("warp_width", "int"),      # W of the counters
+    ("row", "int"),             # the step log's row this step's sums go to
+    ("watch_count", "int"),     # ints of `watch` the row keeps (at most SIMD_WATCH_INTS)
+    ("bins", "int"),            # the per-iteration histogram's bins (its last holds any larger work)
+    ("histogram_row", "int"),   # >= 0: the histogram column of this step
+    ("histogram_rows", "int"),  # columns of the histogram
+    ("slot_offset", "int"),     # where lane 0's slot is in slot_of (ints)
+    ("stamp", "int"),           # > 0: count SLOT_WARPS with this stamp
+    ("aux_bound", "int"),       # ints of `aux` (one per lane) summed into the AUX_ fields; 0: none
+    ("aux_length_index", "int"),   # >= 0: fewer, length_at[aux_length_index] on the device
+], "One counting step for cl/simd_counters.cl simd_count_lanes (toolkit/opencl/simd_counters.py).")
+
 BDPT_SLOT = Record("BdptSlot", [
     ("live", "int"),            # SLOT_IDLE, or how many of its subpaths still walk (SlotState below)
     ("sample_id", "int"),       # the sample in this slot: its id in the pass
@@ -231,7 +247,7 @@ FILM_PIXEL = Record("FilmPixel", [
 ], "A pixel's sums over one pass of samples, 48 bytes.")
 
 RECORDS = [BVH_NODE, *WIDE_NODES.values(), TRI_GROUP, TRIANGLE, MATERIAL, LIGHT, CAMERA, PATH_STATE, SHADOW_RAY,
-           HIT_RECORD, BDPT_VERTEX, SUBPATH, LANE_COUNTS, BDPT_SLOT, BDPT_PASS, BDPT_STEP, BDPT_REGENERATION,
+           HIT_RECORD, BDPT_VERTEX, SUBPATH, LANE_COUNTS, SIMD_STEP, BDPT_SLOT, BDPT_PASS, BDPT_STEP, BDPT_REGENERATION,
            MLT_CHAIN, MLT_ITERATION]
 RECORDS += [PT_PASS, PT_STEP]   # the path tracers' kernel arguments and stream counts
 
@@ -316,14 +332,49 @@ class MltTally(IntEnum):
     STORE_OVERFLOW = 4  # records a current store had no room for: the host's bound is wrong, a bug (raised)
 
 
+class SimdSum(IntEnum):
+    """One row of the SIMD counters' step log (cl/simd_counters.cl, toolkit/opencl/simd_counters.py):
+    what a counting step's lanes add up to, each sum a 64-bit integer held as two 32-bit words (low,
+    high) so that every device can add to it exactly with 32-bit atomics. Lanes are the first LANES
+    of the launch, in warps of W consecutive lanes; `work` is LaneCounts.work (or the one int per lane
+    of an int buffer), `shadow` LaneCounts.shadow_rays; a warp "has" work if any of its lanes has."""
+    LANES = 0               # lanes counted (the step's length: the host's, or read on the device)
+    WORK_LANES = 1          # lanes with work > 0
+    WORK_WARPS = 2          # warps with a lane with work > 0
+    WORK_SUM = 3            # sum of work (a loop's lane-iterations)
+    WORK_WARP_MAX = 4       # sum over warps of the warp's largest work (a loop's iterations per warp)
+    WORK_MAX = 5            # the largest work of any lane
+    CLOSEST_SUM = 6         # sum of closest_steps (BVH traversal of closest-hit rays)
+    CLOSEST_WARP_MAX = 7    # sum over warps of the largest closest_steps
+    SHADOW_LANES = 8        # lanes with shadow_rays > 0
+    SHADOW_WARPS = 9        # warps with such a lane
+    SHADOW_SUM = 10         # sum of shadow_rays
+    SHADOW_STEPS_SUM = 11   # sum of shadow_steps (BVH traversal of shadow rays)
+    SHADOW_STEPS_WARP_MAX = 12   # sum over warps of the largest shadow_steps
+    SLOT_WARPS = 13         # warps of the sample pool holding a lane's slot (BDPT's walk without compaction)
+    PACKED_WARP_MAX = 14    # sum over warps of the largest work, the lanes with work packed side by side
+    AUX_COUNT = 15          # lanes of the step's second int buffer (aux) counted, summed in the same launch:
+    AUX_LANES = 16          #   those with a value > 0,
+    AUX_WARPS = 17          #   the warps with such a lane,
+    AUX_SUM = 18            #   the sum of the values,
+    AUX_WARP_MAX = 19       #   and the sum over warps of the largest value
+    WATCH = 20              # WATCH_INTS ints copied from the device as the step was counted (its counts)
+    FIELDS = 25             # fields per row (WATCH .. WATCH + 4 included)
+
+
 NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"),
-                (WalkCounter, ""), (MltMode, "MLT_"), (MltTally, "MLT_TALLY_")]
+                (WalkCounter, ""), (MltMode, "MLT_"), (MltTally, "MLT_TALLY_"), (SimdSum, "SIMD_")]
+SIMD_WATCH_INTS = int(SimdSum.FIELDS - SimdSum.WATCH)   # ints a step's row keeps of the device's counts
 
 # ---- single constants --------------------------------------------------------------------
 
 # The most vertices a BDPT subpath stores (MAX_VERTICES of a scene with unbounded depth): the
 # scene's largest max_depth, the vertex memory's size and mlt's largest max_dims derive from it.
 LONGEST_SUBPATH = 64
+# Paths without a depth limit or roulette still stop after this many bounces (cl/path.h); a path this
+# long carries no measurable energy in any scene whose albedo is below one. It also bounds a lane's
+# loop in pt_naive, which the SIMD counters' histogram holds (techniques/pt_naive.py).
+HARD_MAX_BOUNCES = 1024
 LOCAL_SIZE = 64                             # work-items per work-group by default (opencl/program.py)
 BVH_STACK_SIZE = 64                         # entries of a traversal stack (cl/bvh.h); deeper BVHs are refused
 BVH_WIDTH = 4                               # triangles of a TriGroup (float4 lanes)
@@ -374,6 +425,7 @@ def c_constants():
         lines += [f"#define {prefix}{m.name} {_c_literal(int(m))}" for m in group]
     lines.append(f"#define BVH_STACK_SIZE {BVH_STACK_SIZE}")
     lines.append(f"#define LONGEST_SUBPATH {LONGEST_SUBPATH}")
+    lines.append(f"#define HARD_MAX_BOUNCES {HARD_MAX_BOUNCES}")
     lines.append(f"#define BVH_WIDTH {BVH_WIDTH}")
     lines.append("#ifdef BVH_WIDE\n#define BVH_WORD float4\n#else\n#define BVH_WORD BvhNode\n#endif")
     lines += [f"#define LUMINANCE_{c} {_c_literal(w)}" for c, w in zip("RGB", LUMINANCE_WEIGHTS)]

@@ -31,7 +31,7 @@ CAMERA_KEYS = {"origin", "target", "up", "transform", "fov_deg", "fov_axis", "wi
 SHAPE_KEYS = {"mesh", "material", "emission", "transform"}
 INTEGRATOR_KEYS = {"max_depth", "rr_depth", "clamp"}
 # A depth the general kernel (features(general=True)) compares with where the scene sets no
-# limit: far beyond HARD_MAX_BOUNCES (cl/common.h), so the test is compiled in but never fires.
+# limit: far beyond HARD_MAX_BOUNCES (toolkit/core/layout.py), so the test is compiled in but never fires.
 NO_LIMIT = 1 << 30
 
 

@@ -35,11 +35,16 @@ class PhaseCounter:
             warps = np.concatenate([mask, np.zeros(pad, bool)]).reshape(-1, w)
             active = int(warps.sum())
             issued = int(warps.any(1).sum()) * w
+        self.add_step(phase, active, issued, iteration, capacity or length, draining)
+
+    def add_step(self, phase, active, issued, iteration=None, capacity=None, draining=False):
+        """One step whose active and issued lanes are already summed (on the device:
+        toolkit/opencl/simd_counters.py), numbered as add_stream_step numbers its steps."""
         self.add(phase, active, issued)
         if iteration is not None:
             self.per_iteration.append({"phase": phase, "iteration": iteration,
                                        "efficiency": active / issued if issued else 1.0,
-                                       "active": active, "capacity": capacity or length or active,
+                                       "active": active, "capacity": capacity or active,
                                        "draining": bool(draining)})
 
     def add_warp_loops(self, phase, lane_iterations, active=None):
@@ -65,6 +70,20 @@ class PhaseCounter:
                                        "efficiency": active / issued if issued else 1.0,
                                        "active": active, "capacity": len(x), "draining": False})
 
+    def add_loop_histogram(self, phase, histogram, lanes, first_iteration=0):
+        """add_loop_iterations from a histogram instead of the lanes: histogram[v] = (lanes whose loop
+        ran v times, warps whose longest lane ran v times), over `lanes` lanes."""
+        lanes_past = _from_the_top(histogram[:, 0])
+        warps_past = _from_the_top(histogram[:, 1])
+        for k in range(len(lanes_past)):
+            if warps_past[k] == 0:
+                break
+            active = int(lanes_past[k])
+            issued = int(warps_past[k]) * self.warp_width
+            self.per_iteration.append({"phase": phase, "iteration": first_iteration + k,
+                                       "efficiency": active / issued if issued else 1.0,
+                                       "active": active, "capacity": lanes, "draining": False})
+
     def efficiency(self):
         out = {p: (self.active[p] / self.issued[p] if self.issued[p] else 1.0) for p in self.active}
         total_issued = sum(self.issued.values())
@@ -83,3 +102,8 @@ def _more_than(counts, longest):
     """For k = 0 .. longest - 1: how many of `counts` are greater than k."""
     at_least = np.bincount(counts, minlength=longest + 1)[::-1].cumsum()[::-1]   # at_least[k]: counts >= k
     return at_least[1:longest + 1]
+
+
+def _from_the_top(counts_by_value):
+    """For k = 0, 1, ...: how many counted values are greater than k, from counts by value."""
+    return np.asarray(counts_by_value, np.int64)[::-1].cumsum()[::-1][1:]

@@ -30,7 +30,7 @@ the whole against the H200's):
 6. Fixed costs (buffers made, the first launch) are left out of the per-sample figures: the meter's
    figures are what its 3N more samples cost.
 """
-from toolkit.measure.phases import HOST
+from toolkit.measure.phases import COUNTER_KERNELS, HOST
 
 DRAIN_SECONDS = 20e-6
 LINK_BYTES_PER_SECOND = 25e9
@@ -46,7 +46,8 @@ def gpu_kernel_ns(gpucheck):
     found = {}
     for technique, phase in gpucheck.get("phases", {}).items():
         samples = phase["samples_per_second"] * phase["seconds"]
-        found[technique] = sum(row["ms"] for row in phase["rows"] if row["kernel"] != HOST) * 1e6 / samples
+        found[technique] = sum(row["ms"] for row in phase["rows"]     # the technique's own kernels: no counters
+                               if row["kernel"] not in (HOST, *COUNTER_KERNELS)) * 1e6 / samples
     return found
 
 

@@ -12,7 +12,9 @@ and launches. And the kernels' share of the 4N render's wall time.
 
 Counts come from toolkit/opencl/traffic.py (pyopencl's entry points, wrapped while a render is
 measured); the kernel times from toolkit/opencl/kernel_times.py (`time_phases`). SIMD counters are
-off. `gpu_sizes=True` renders at a GPU's sizes (GPU_SIZES: the H200's streams and pools and
+off, unless `count_simd=True` (`bench --host --count-simd`): what a counted render (compare's, gpucheck's
+phases, the demo's) costs the host, the counters summed on the device (toolkit/opencl/simd_counters.py)
+and read once. `gpu_sizes=True` renders at a GPU's sizes (GPU_SIZES: the H200's streams and pools and
 Metropolis's chain cap), so that a CPU measures the host's work of a GPU's render.
 """
 from contextlib import contextmanager
@@ -46,18 +48,19 @@ def sized_options(technique, gpu_sizes):
     return {name: size for name, size in GPU_SIZES.items() if name in takes}
 
 
-def metered_render(scene, technique, options, warm_up=None):
+def metered_render(scene, technique, options, count_simd=False, warm_up=None):
     """One render under the meter: the traffic figures (traffic.Traffic), its wall seconds, the
-    kernels' device seconds, its samples and its passes. `warm_up`: options of a small render
-    made first, unmeasured: it builds the kernels, and its launches replace the kernels' last
-    arguments (program.launch keeps them), which frees the device memory of the render before
+    kernels' device seconds, its samples and its passes. `count_simd`: with the SIMD counters on (their
+    figures read, as a render's stats read them, inside the metered time). `warm_up`: options of a
+    small render made first, unmeasured: it builds the kernels, and its launches replace the kernels'
+    last arguments (program.launch keeps them), which frees the device memory of the render before
     (a BDPT pool's vertex memory at a GPU's sizes is gigabytes: freeing it took this CPU's host
     0.2 to 0.4 s, which the next metered render's first launch would pay)."""
     if warm_up is not None:
         render(scene, technique, warm_up)
     cls = get_technique(technique)[0]
     with counted_passes(cls) as passes, Traffic() as traffic:
-        result = render(scene, technique, with_fields(options, count_simd=False, time_phases=True))
+        result = render(scene, technique, with_fields(options, count_simd=count_simd, time_phases=True))
     stats = result.stats
     return {**traffic.figures(), "seconds": stats["seconds"],
             "kernel_seconds": sum(k["seconds"] for k in stats["kernel_times"].values()),
@@ -112,22 +115,25 @@ def costs(first, second):
     }
 
 
-def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_sizes=False, **fields):
+def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_sizes=False, count_simd=False,
+               **fields):
     """The host meter's report: for each technique, its renders at N and GROWTH x N samples per pixel
     (N: spp_of(technique, spp)) and what the extra samples cost (`costs`). `options`: a RenderOptions
     (its fields as keywords on top); resolution None is RESOLUTION. A small render precedes each measured one
-    (metered_render's warm_up), so no build and no freeing of the render before is measured."""
+    (metered_render's warm_up), so no build and no freeing of the render before is measured. `count_simd`:
+    the renders count SIMD efficiency."""
     options = with_fields(options, **fields)
     options = with_fields(options, resolution=options.resolution or RESOLUTION)
     scene = as_scene(scene)
     report = {"scene": scene.name, "resolution": list(options.resolution), "gpu_sizes": bool(gpu_sizes),
-              "sizes": GPU_SIZES if gpu_sizes else "the device's own", "techniques": {}}
+              "sizes": GPU_SIZES if gpu_sizes else "the device's own", "count_simd": bool(count_simd),
+              "techniques": {}}
     for technique in techniques:
         own = {**options.technique_options, **sized_options(technique, gpu_sizes)}
         base = with_fields(options, technique_options=own)
         n = spp_of(technique, spp)
-        first, second = (metered_render(scene, technique, with_fields(base, spp=k), warm_up=with_fields(
-            base, spp=1, resolution=(16, 16), count_simd=False)) for k in (n, GROWTH * n))
+        first, second = (metered_render(scene, technique, with_fields(base, spp=k), count_simd, warm_up=with_fields(
+            base, spp=1, resolution=(16, 16), count_simd=count_simd)) for k in (n, GROWTH * n))
         report["device"] = describe(get_queue(base.device, base.lanes).device)
         report["techniques"][technique] = {"spp": [n, GROWTH * n], "renders": [first, second],
                                            **costs(first, second)}
@@ -137,7 +143,8 @@ def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_si
 def format_host_meter(report):
     sizes = "the GPU's sizes (" + ", ".join(f"{k} {v:,}" for k, v in GPU_SIZES.items()) + ")" \
         if report["gpu_sizes"] else "the device's own sizes"
-    lines = [f"host meter: {report['scene']} {report['resolution'][0]}x{report['resolution'][1]} at {sizes}, "
+    counters = ", SIMD counters on" if report.get("count_simd") else ""
+    lines = [f"host meter: {report['scene']} {report['resolution'][0]}x{report['resolution'][1]} at {sizes}{counters}, "
              f"on {report.get('device', '?')}; what the second render's {GROWTH - 1}N more samples cost "
              f"(N: the first render's samples per pixel)",
              f"{'technique':<24}{'N, 4N spp':>10}{'kernels 4N s':>13}{'kernel share':>13}{'host CPU ns/sample':>19}"

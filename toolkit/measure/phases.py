@@ -43,8 +43,14 @@ KERNEL_PHASES = {
     "film_accumulate": ("film: add the pass", (), ()),
     "record_film_add": ("film: add records", (), ()),
     "record_film_resolve": ("film: sum per pixel", (), ()),
+    # the SIMD counters' own work (toolkit/opencl/simd_counters.py): a counted render's cost of measuring
+    "simd_count_lanes": ("SIMD counters: sum a step's lanes", (), ()),
+    "simd_count_packed": ("SIMD counters: sum a step's lanes", (), ()),
 }
 HOST = "(host, transfers)"   # the render's wall time that no kernel accounts for
+# The SIMD counters' own kernels (toolkit/opencl/simd_counters.py): a counted render's cost of
+# measuring, which a render without the counters does not pay.
+COUNTER_KERNELS = ("simd_count_lanes", "simd_count_packed")
 
 
 def phase_rows(stats):
@@ -114,7 +120,7 @@ def format_phases(table):
     """The per-phase tables and the model's ratios, as text."""
     w = name_width(table, 24)
     lines = ["Time per phase (device time of each kernel, OpenCL profiling events) and its lane efficiency, "
-             "one run;", f"{HOST}: the wall time no kernel accounts for (SIMD counter reads, Python, copies);",
+             "one run;", f"{HOST}: the wall time no kernel accounts for (Python, copies, reads);",
              "lanes: the path-level counters the kernel runs; BVH trav: its closest-hit and shadow rays' traversal.",
              f"{'technique':<{w}}{'phase (kernel)':<30}{'stage':<27}{'launches':>9}{'ms':>10}{'share':>8}"
              f"{'lanes':>8}{'BVH trav':>9}"]

@@ -79,7 +79,7 @@ class Technique:
         # Its parts: launching its kernels, its device memory, its SIMD counters.
         self.kernels = Kernels(queue, built, self.local_size, device_scene)
         self.memory = DeviceMemory(queue, self.local_size)
-        self.recorder = SimdRecorder(warp_width, count_simd)
+        self.recorder = SimdRecorder(warp_width, count_simd, queue, self.local_size, self.sources.toolkit_only())
 
     def size_in_flight(self, option, given, max_vertices=LONGEST_SUBPATH):
         """The work a stream technique keeps in flight (option "stream_size" or "pool_size"):

@@ -21,11 +21,11 @@ again). It lists as many steps after a regeneration as the last successful listi
 connect phase costs one read (toolkit/techniques/pass_end.py says why reads are looked at late).
 The samples that terminate meanwhile wait for the next connect phase (SLOT_TERMINATED; the listed
 ones are SLOT_CONNECTING); regeneration appends to the streams after the lengths on the device.
-With the SIMD counters on, the host also reads every step's counters at once (exact launch sizes).
+The SIMD counters too are summed on the device: counting changes no step.
 Light-tracing (t = 1) contributions land on other pixels: every connection writes a record
 (pixel, value) on the device, and the sink decides where it goes: bdpt's ImageSink adds it to
 the pass's image there (toolkit/opencl/record_film.py: exact integer sums, no float atomics),
-mlt's reads its records back.
+mlt's stores them with their chains on the device.
 """
 import math
 import numbers
@@ -36,9 +36,8 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.core.layout import (LONGEST_SUBPATH, BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, CONNECT_ARGS, SUBPATH,
-                                 WalkCounter)
+                                 SimdSum, WalkCounter)
 from toolkit.core.scene import NO_LIMIT
-from toolkit.core.simd import PhaseCounter
 from toolkit.opencl.compaction import Compactor
 from toolkit.opencl.work_sizes import checked_size
 from toolkit.techniques.base import Technique, pixel_count
@@ -46,6 +45,9 @@ from toolkit.techniques.device_memory import DeviceMemory
 from toolkit.techniques.kernels import Kernels
 from toolkit.techniques.pass_end import LAG
 from toolkit.techniques.simd_recorder import SimdRecorder
+
+
+WITHOUT_COMPACTION = "walk_without_compaction"   # the recorder's counter of the walk as it would be without compaction
 
 
 def walk_defines(scene, longest, coalesced_scatter):
@@ -213,13 +215,11 @@ class BdptEvaluator:
     max_vertices: int          # per subpath (MAX_VERTICES)
     last_pass: PassState = None   # kept for inspection (tests, notebooks): the vertex memory of the last samples
     listing_delay: int = 1     # steps after a regeneration to list: as many as the last successful listing took
-    uncompacted: PhaseCounter = field(init=False)   # the walk as it would be without compaction
 
     def __post_init__(self):
         fraction = self.regenerate_fraction
         if isinstance(fraction, bool) or not isinstance(fraction, numbers.Real) or not 0.0 < fraction <= 1.0:
             raise ValueError(f"regenerate_fraction must be a number in (0, 1], got {fraction!r}")
-        self.uncompacted = PhaseCounter(self.ctx.recorder.warp_width)
 
     def evaluate(self, p, sink):
         """Every sample of the pass's budget, through the pool; `sink.add` gets each connect phase's records."""
@@ -305,12 +305,11 @@ class BdptEvaluator:
         p.in_flight += fresh - count
         p.regenerated_at = p.steps
         if ctx.recorder.on and fresh:
-            ctx.recorder.simd.add_stream_step("generate", fresh)
+            ctx.recorder.stream_step("generate", fresh)
 
     def walk(self, p):
         """One random-walk step of both streams (bdpt_extend, compacted at once), each launched over
-        a bound on its length that the host knows (the kernel reads the length on the device);
-        with the SIMD counters on, the counters are read at once, and the bounds are exact."""
+        a bound on its length that the host knows (the kernel reads the length on the device)."""
         ctx = self.ctx
         counters = p.pool.counters
         p.steps += 1
@@ -321,8 +320,6 @@ class BdptEvaluator:
         # The survivors are the streams' next lengths: copied on the device (two ints, one copy).
         cl.enqueue_copy(ctx.queue, counters, counters, byte_count=8, src_offset=4 * WalkCounter.EYE_SURVIVORS,
                         dst_offset=4 * WalkCounter.EYE_LENGTH)
-        if ctx.recorder.on:
-            self.lengths_known(p, ctx.memory.read_ints(counters, len(WalkCounter)))
 
     def lengths_known(self, p, counters):
         """The streams can hold no more subpaths than a read of the counters says (they only shrink
@@ -380,25 +377,34 @@ class BdptEvaluator:
     # --- measuring and inspecting ------------------------------------------------------------
 
     def count_walk_step(self, p, stream):
-        """SIMD counters of one walk step over `stream` (a no-op unless count_simd)."""
+        """SIMD counters of one walk step over `stream` (a no-op unless count_simd), summed on the
+        device: its lanes are the first of the stream's length there (counters), its slots those of
+        the subpaths it extended (for the walk as it would be without compaction)."""
         ctx = self.ctx
         if not ctx.recorder.on:
             return
-        lanes = ctx.memory.read_lane_counts(p.pool.lane_counts, stream.length)
-        ctx.recorder.step("walk", stream.length, capacity=p.pool.size, draining=p.next_id == p.budget)
-        ctx.recorder.simd.add_stream_step("compact", stream.length)
-        ctx.recorder.traversal.add_warp_loops("closest", lanes["closest_steps"])
-        slots = np.empty(stream.length, np.int32)
-        cl.enqueue_copy(ctx.queue, slots, stream.current, src_offset=SUBPATH.soa_offset("slot", p.pool.capacity))
-        mask = np.zeros(p.pool.size, bool)      # without compaction each path keeps its slot's lane
-        mask[slots] = True
-        self.uncompacted.add_stream_step("walk", mask)
+        pool, draining = p.pool.size, p.next_id == p.budget
+
+        def replay(recorder, sums):
+            length = sums[SimdSum.LANES]
+            if length == 0:
+                return      # a step the host queued over a stream the device had found empty
+            recorder.count_now("walk", length, numbered=True, capacity=pool, draining=draining)
+            recorder.simd_counter().add_stream_step("compact", length)
+            recorder.warp_loops(recorder.traversal_counter(), "closest", sums, "closest_steps")
+            # without compaction each path keeps its slot's lane
+            recorder.slot_warps(recorder.counter(WITHOUT_COMPACTION), "walk", sums, pool)
+        length = WalkCounter.LIGHT_LENGTH if stream.is_light else WalkCounter.EYE_LENGTH
+        ctx.recorder.lanes(replay, p.pool.lane_counts, 4, stream.length, length_at=p.pool.counters,
+                           length_index=int(length), slot_of=stream.current,
+                           slot_offset=SUBPATH.soa_offset("slot", p.pool.capacity) // 4, pool=pool)
 
     def stats(self):
         """The walk's figures for the render stats."""
         if not self.ctx.recorder.on:
             return {}
-        return {"walk_efficiency_without_compaction": self.uncompacted.efficiency().get("walk")}
+        self.ctx.recorder.flush()
+        return {"walk_efficiency_without_compaction": self.ctx.recorder.counter(WITHOUT_COMPACTION).efficiency().get("walk")}
 
     def read_vertices(self):
         """The vertex memory of the last samples of the last pass, as numpy:

@@ -6,11 +6,14 @@ bdpt_parallel_connect: see bdpt_evaluator.py and cl/bdpt_walk.h."""
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.simd import PhaseCounter
 from toolkit.techniques.bdpt_evaluator import Connections, connect_args, record_buffers, scan_slot_counts
-from toolkit.core.bdpt_indices import (naive_record_count, naive_splat_record, naive_strategy_record,
+from toolkit.core.layout import LONGEST_SUBPATH
+from toolkit.core.bdpt_indices import (connection_count, naive_record_count, naive_splat_record, naive_strategy_record,
                                        naive_sum_record, strategy_count, strategy_index)
 from toolkit.techniques.bdpt_base import BdptTechnique
+
+PACKED = "connect_terminated_packed"   # the recorder's counter of the connect loops with only the terminated samples
+MOST_CONNECTIONS = connection_count(LONGEST_SUBPATH, LONGEST_SUBPATH)   # of one sample: a lane's longest loop
 
 
 class NaiveConnect:
@@ -20,7 +23,6 @@ class NaiveConnect:
 
     def __init__(self, ctx, strategy_max_edges=None):
         self.ctx, self.strategy_max_edges = ctx, strategy_max_edges
-        self.packed = PhaseCounter(ctx.recorder.warp_width)   # the connect loops with only the terminated samples
         self.counts = self.firsts = None   # the splat counts of the listed slots and their scan (prepare)
 
     def prepare(self, p):
@@ -67,13 +69,18 @@ class NaiveConnect:
         return index
 
     def count_connect(self, p):
+        """SIMD counters of the connect phase (a no-op unless count_simd), summed on the device: each
+        lane's loop over its sample's connections (`work`), a warp issuing it as long as its longest
+        lane, and the lanes of each iteration (for the per-iteration figures and the demo)."""
         ctx = self.ctx
         if not ctx.recorder.on:
             return
-        connections = ctx.memory.read_lane_counts(p.pool.lane_counts, p.pool.size)["work"]
-        ctx.recorder.inner_loop("connect", connections)     # and the lanes of each iteration, for the demo
-        # For comparison: the same loops with only the terminated samples, packed side by side.
-        self.packed.add_warp_loops("connect", connections[connections > 0])
+        def replay(recorder, sums):
+            recorder.warp_loops(recorder.simd_counter(), "connect", sums, "work")
+            recorder.loop_iterations("connect", sums, numbered=False)
+            # For comparison: the same loops with only the terminated samples, packed side by side.
+            recorder.packed_loops(recorder.counter(PACKED), "connect", sums)
+        ctx.recorder.lanes(replay, p.pool.lane_counts, 4, p.pool.size, bins=MOST_CONNECTIONS + 1, packed=True)
 
 
 class BdptNaiveConnect(BdptTechnique):
@@ -86,5 +93,6 @@ class BdptNaiveConnect(BdptTechnique):
     def extra_stats(self):
         stats = super().extra_stats()
         if self.count_simd:
-            stats["connect_efficiency_terminated_packed"] = self.bdpt.connect.packed.efficiency().get("connect")
+            self.recorder.flush()
+            stats["connect_efficiency_terminated_packed"] = self.recorder.counter(PACKED).efficiency().get("connect")
         return stats

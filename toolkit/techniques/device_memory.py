@@ -45,7 +45,8 @@ class DeviceMemory:
         cl.enqueue_fill_buffer(self.queue, buffer, np.int32(value), 0, buffer.size)
 
     def lane_counts_buffer(self, n):
-        """One LaneCounts record per work-item (toolkit/core/layout.py), written when COUNT_SIMD."""
+        """One LaneCounts record per work-item (toolkit/core/layout.py), written when COUNT_SIMD and summed
+        on the device (toolkit/opencl/simd_counters.py): the host never reads it back whole."""
         return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
                          LANE_COUNTS.dtype.itemsize * self.padded(max(n, 1)))
 
@@ -60,9 +61,6 @@ class DeviceMemory:
 
     def stream_capacity(self, n):
         return self.padded(n)
-
-    def read_lane_counts(self, buffer, n):
-        return self.read_structs(LANE_COUNTS, buffer, n)
 
     def read_structs(self, record, buffer, n, offset=0):
         """n records of layout `record` from `buffer` (starting `offset` bytes in)."""

@@ -15,13 +15,13 @@ stream's length, what compaction counted and the next sample to start; every ker
 over the whole stream and a work-item past the count returns at once. The host never waits for a
 count to launch the next step: it reads a step's record now and then, behind the device, to
 learn that the pass is over (pass_end.py); in the final drain such a read also bounds the
-launches (the stream only shrinks). With the SIMD counters on it reads every step's.
+launches (the stream only shrinks). The SIMD counters too are summed on the device, each step's
+row read back with the others (techniques/simd_recorder.py).
 Option `stream_size`: the paths in the stream (default: the device's, toolkit/opencl/work_sizes.py:
 32,768 on a CPU).
 """
 from dataclasses import dataclass
 
-import numpy as np
 import pyopencl as cl
 
 from toolkit.opencl.compaction import Compactor
@@ -93,6 +93,7 @@ class PtCompactRegen(Technique):
         end = PassEnd(self.memory, PT_STEP.dtype, lambda counts: counts["survivors"] == 0
                       and counts["next_sample"] == budget, every=self.reads_every, at_least=-(-budget // size))
         paths = size    # stream entries each launch covers: the whole stream, until a read bounds its length
+        counting = PassCount(size, budget, self.shadow_queue) if self.count_simd else None
         while True:
             # Regenerate: fill the end of the stream with the next samples of the budget.
             self.regenerate(camera, pass_args, size, paths, mem)
@@ -100,16 +101,12 @@ class PtCompactRegen(Technique):
             self.extend_and_compact(pass_args, paths, mem)
             # Trace the queued shadow rays: a packed stream of its own.
             self.trace_shadow_rays(pass_args, paths, mem)
+            if counting:
+                self.count_step(counting, mem, paths, size, budget)
             mem.swap()
-            if self.count_simd:
-                counts = self.count_step(mem, size, budget)   # this step's counts, read at once
-                if counts is None:
-                    break   # the step found the stream empty: budget spent and drained
-            elif end.reached(mem.last_counts):
+            if end.reached(mem.last_counts):
                 break   # a step some time ago left nothing to do: the steps since did nothing
-            else:
-                counts = end.latest     # a step's counts, some steps old (None before the first read)
-            paths = self.paths_at_most(counts, size, budget)
+            paths = self.paths_at_most(end.latest, size, budget)   # from a step's counts, some steps old
         self.collect(film, mem.radiance, budget)
 
     @staticmethod
@@ -162,24 +159,42 @@ class PtCompactRegen(Technique):
                                 counts=mem.counts, shadow_rays=mem.shadow_rays, radiance=mem.radiance,
                                 shadow_steps=mem.shadow_steps)
 
-    # --- SIMD counting: read every step's counts, no-op unless count_simd ---------------------
+    # --- SIMD counting, summed on the device (simd_recorder.py); no-op unless count_simd ----------
 
-    def count_step(self, mem, size, budget):
-        """The SIMD counters of the step just taken (its counts, now in mem.last_counts, read at once):
-        regeneration, extension and compaction, and the shadow queue. Returns the counts, or None
-        when the step found the stream empty (nothing is counted: the pass is over)."""
-        counts = self.memory.read_structs(PT_STEP, mem.last_counts, 1)[0]
-        length, started = int(counts["length"]), int(counts["started"])
+    def count_step(self, counting, mem, paths, size, budget):
+        """The SIMD counters of the step just queued: its lanes (the first counts.length of the
+        `paths` the launches covered) and its counts (PtStep, copied into the row), and with them
+        (aux) the shadow queue's traversal loops (counts.shadow_rays of them), summed on the device."""
+        length, queued = PT_STEP.dtype.fields["length"][1] // 4, PT_STEP.dtype.fields["shadow_rays"][1] // 4
+        shadow = dict(aux=mem.shadow_steps, aux_bound=paths, aux_length_index=queued) if self.shadow_queue else {}
+        self.recorder.lanes(counting.extended, mem.lane_counts, 4, paths, length_at=mem.counts, length_index=length,
+                            watch=mem.counts, watch_count=len(PT_STEP.dtype.names), **shadow)
+
+
+class PassCount:
+    """The counters of one pass's steps, replayed in order (by each recorder that counts them) from
+    each step's sums and its counts (PtStep, watched): regeneration, extension and compaction, and
+    the shadow queue. The first step that finds the stream empty ends the pass (budget spent and
+    drained): nothing after it is counted (the host went on queueing steps until it learned so:
+    pass_end.py)."""
+
+    def __init__(self, size, budget, shadow_queue):
+        self.size, self.budget, self.shadow_queue = size, budget, shadow_queue
+        self.ended = set()          # the recorders that have counted the pass's end
+
+    def extended(self, recorder, sums):
+        if recorder in self.ended:
+            return
+        counts = {name: sums.watched(k) for k, name in enumerate(PT_STEP.dtype.names)}
+        length, started = counts["length"], counts["started"]
         if length == 0:
-            return None
-        draining = int(counts["next_sample"]) == budget   # every sample of the budget has started (the final drain)
+            self.ended.add(recorder)
+            return
+        draining = counts["next_sample"] == self.budget   # every sample of the budget has started (the final drain)
         if started > 0:   # regeneration fills `started` consecutive stream entries: every lane busy
-            self.recorder.before_step("generate", started, capacity=size, draining=draining)
-        self.recorder.extension_step(self.memory.read_lane_counts(mem.lane_counts, length), capacity=size,
-                                     draining=draining, shadow_queue=self.shadow_queue)
-        self.recorder.simd.add_stream_step("compact", length)
-        queued = int(counts["shadow_rays"])
-        if self.shadow_queue and queued:   # the packed shadow queue: every lane busy, traversal loops per warp
-            self.recorder.simd.add_stream_step("shadow", queued)
-            self.recorder.traversal.add_warp_loops("shadow", self.memory.read_ints(mem.shadow_steps, queued))
-        return counts
+            recorder.count_now("generate", started, before=True, capacity=self.size, draining=draining)
+        recorder.extension_step(sums, capacity=self.size, draining=draining, shadow_queue=self.shadow_queue)
+        recorder.simd_counter().add_stream_step("compact", length)
+        if self.shadow_queue and counts["shadow_rays"]:   # the packed shadow queue (aux): every lane busy,
+            recorder.simd_counter().add_stream_step("shadow", counts["shadow_rays"])   # traversal loops per warp
+            recorder.warp_loops(recorder.traversal_counter(), "shadow", sums, "aux")

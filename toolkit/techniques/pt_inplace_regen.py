@@ -65,36 +65,48 @@ class PtInplaceRegen(Technique):
         # from a read behind the device (pass_end.py), so it never waits for the flag at a step.
         end = PassEnd(self.memory, np.int32, lambda any_alive: any_alive == 0, every=self.reads_every,
                       at_least=-(-budget // slots))
+        counting = PassCount() if self.count_simd else None
         while True:
             # Regenerate: every free slot starts the next sample of the budget, if one is left.
             cl.enqueue_fill_buffer(self.queue, mem.any_alive, np.int32(0), 0, 4)
             self.kernels.launch("pt_inplace_regen_regenerate", slots, cam=camera, pass_args=pass_args,
                                 slots=self.kernels.int32(slots), next_sample=mem.next_sample, paths=mem.paths, alive=mem.alive,
                                 any_alive=mem.any_alive, regenerated=mem.regenerated)
-            if self.count_simd and not self.count_regenerate(mem, slots, budget):
-                break   # budget spent and every path has ended
             # Extend: every slot with a live path traces one more vertex.
             self.extend_in_place(pass_args, slots, mem.paths, mem.alive, mem.hits, mem.radiance, mem.lane_counts)
-            if self.count_simd:
-                self.count_extend(mem.lane_counts, slots, mem.next_sample, budget)
-            elif end.reached(mem.any_alive):
+            if counting:
+                self.count_extend(counting, mem, slots, budget)
+            if end.reached(mem.any_alive):
                 break   # a step some time ago found no live path: the steps since did nothing
         self.collect(film, mem.radiance, budget)
 
-    def count_regenerate(self, mem, slots, budget):
-        """The regeneration step: its lanes are the slots that started a sample, scattered over
-        every warp. Numbered as the extension step that follows it (per iteration, for plots);
-        once the sample counter has passed the budget, it started the last samples or none.
-        Returns whether any slot holds a live path (read at once: with the counters on, the host
-        reads every step)."""
-        draining = self.memory.read_ints(mem.next_sample, 1)[0] >= budget
-        self.recorder.before_step("generate", self.memory.read_ints(mem.regenerated, slots) > 0, capacity=slots,
-                                  draining=draining)
-        return bool(self.memory.read_ints(mem.any_alive, 1)[0])
+    # --- SIMD counting, summed on the device (simd_recorder.py); no-op unless count_simd ----------
 
-    def count_extend(self, lane_counts, slots, next_sample, budget):
-        """The extension step; once the sample counter has passed the budget, nothing regenerates
-        any more and the step belongs to the final drain."""
-        draining = self.memory.read_ints(next_sample, 1)[0] >= budget
-        self.recorder.extension_step(self.memory.read_lane_counts(lane_counts, slots), capacity=slots,
-                                     draining=draining)
+    def count_extend(self, counting, mem, slots, budget):
+        """The extension step and the regeneration before it, summed in one launch: the extension's
+        LaneCounts, and as the second buffer (aux) the slots that started a sample (PassCount.step)."""
+        self.recorder.lanes(lambda recorder, sums: counting.step(recorder, sums, slots, budget), mem.lane_counts, 4,
+                            slots, watch=mem.next_sample, watch_count=1, aux=mem.regenerated, aux_bound=slots)
+
+
+class PassCount:
+    """The counters of one pass's steps, replayed in order (by each recorder that counts them): a
+    regeneration, then the extension it feeds. Regeneration is numbered as the extension step that
+    follows it; once the sample counter has passed the budget (the watched next_sample), it started
+    the last samples or none and the steps belong to the final drain. The first regeneration that
+    leaves no live path (its extension step has no lane with work) ends the pass: it is counted,
+    nothing after it (the host went on queueing steps until it learned so: pass_end.py)."""
+
+    def __init__(self):
+        self.ended = set()          # the recorders that have counted the pass's end
+
+    def step(self, recorder, sums, slots, budget):
+        """A regeneration (the aux ints: 1 where a slot started a sample) and the extension step after it."""
+        if recorder in self.ended:
+            return
+        draining = sums.watched() >= budget
+        recorder.mask_step("generate", sums, "aux", before=True, capacity=slots, draining=draining)
+        if sums.work_lanes() == 0:
+            self.ended.add(recorder)    # no slot holds a live path: budget spent and every path has ended
+            return
+        recorder.extension_step(sums, capacity=slots, draining=draining)

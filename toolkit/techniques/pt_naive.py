@@ -6,10 +6,9 @@ of the loop is low (the talk reports ~33% active threads per warp).
 """
 from dataclasses import dataclass
 
-import numpy as np
 import pyopencl as cl
 
-from toolkit.core.layout import PT_PASS
+from toolkit.core.layout import HARD_MAX_BOUNCES, PT_PASS
 from toolkit.techniques.base import Technique, pixel_count
 
 
@@ -36,15 +35,16 @@ class PtNaive(Technique):
         self.count_render(mem.lane_counts, n)
 
     def count_render(self, lane_counts, n):
-        """SIMD counters of one launch (a no-op unless count_simd)."""
+        """SIMD counters of one launch (a no-op unless count_simd), summed on the device."""
         if not self.count_simd:
             return
-        lanes = self.memory.read_lane_counts(lane_counts, n)
-        iterations, recorder = lanes["work"], self.recorder
-        # Every lane generates its camera ray once; then the loop runs as long as the warp's longest path.
-        recorder.simd.add_stream_step("generate", np.ones(n, bool))
-        recorder.loop("extend", iterations)
-        # A shadow ray is cast once per vertex at most; the warp issues the shadow step in each of its iterations.
-        recorder.simd.add_warp_loops("shadow", iterations, active=lanes["shadow_rays"].sum())
-        recorder.traversal.add_warp_loops("closest", lanes["closest_steps"])
-        recorder.traversal.add_warp_loops("shadow", lanes["shadow_steps"])
+        def replay(recorder, sums):
+            # Every lane generates its camera ray once; then the loop runs as long as the warp's longest path.
+            recorder.simd_counter().add_stream_step("generate", n)
+            recorder.warp_loops(recorder.simd_counter(), "extend", sums, "work")
+            recorder.loop_iterations("extend", sums, numbered=True)
+            # A shadow ray is cast once per vertex at most; the warp issues the shadow step in each of its iterations.
+            recorder.warp_loops(recorder.simd_counter(), "shadow", sums, "work", active="shadow_rays")
+            recorder.warp_loops(recorder.traversal_counter(), "closest", sums, "closest_steps")
+            recorder.warp_loops(recorder.traversal_counter(), "shadow", sums, "shadow_steps")
+        self.recorder.lanes(replay, lane_counts, 4, n, bins=HARD_MAX_BOUNCES + 2)

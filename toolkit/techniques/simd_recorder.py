@@ -1,53 +1,281 @@
 """A technique's SIMD counters (toolkit/core/simd.py): which lanes each step kept busy, and the
 iteration each step belongs to, for the per-iteration plots. Off (count_simd=False), the
-techniques skip the reads that feed it."""
+techniques skip the work that feeds it.
+
+Summed on the device: a counting step queues the sums of its lanes into a step log
+(toolkit/opencl/simd_counters.py) and a `replay` that turns that step's row into the counters'
+figures; the log is read, and the replays run in the order the steps were taken, when someone
+looks at the counters (the end of a render, a demo's frame) or the log is full. So the host never
+waits for a step's lanes. `per_step` (the demo's lanes picture, which draws a few warps' lanes of
+every step, and the tests' reference): each step's lanes are read back at once and counted on the
+host, by the same PhaseCounter methods as before the log existed.
+"""
+import numpy as np
+import pyopencl as cl
+
+from toolkit.core.layout import LANE_COUNTS, SimdSum
 from toolkit.core.simd import PhaseCounter
+from toolkit.opencl import program
+from toolkit.opencl.simd_counters import StepLog, StepSums
 
 
 class SimdRecorder:
-    def __init__(self, warp_width, on=True):
+    def __init__(self, warp_width, on=True, queue=None, local_size=program.LOCAL_SIZE, sources=None):
         self.warp_width = warp_width
         self.on = bool(on)
-        self.simd = PhaseCounter(warp_width)        # lanes busy per phase (extend, generate, connect, ...)
-        self.traversal = PhaseCounter(warp_width)   # BVH traversal loops per warp (closest, shadow)
+        self.per_step = False       # read every step's lanes at once (a counter set as `simd`: the demo's)
+        self._simd = PhaseCounter(warp_width)        # lanes busy per phase (extend, generate, connect, ...)
+        self._traversal = PhaseCounter(warp_width)   # BVH traversal loops per warp (closest, shadow)
+        self._counters = {}         # other PhaseCounters by name (the walk without compaction, ...)
         self.iterations = 0    # extension steps (loop iterations for pt_naive) over all passes so far
+        self.queue, self.local_size, self.sources = queue, local_size, sources
+        self._log = None            # the step log, made at the first counted step
+        self._pending = []          # (row of the log or StepSums, replay) in the order of the steps
+        self.reference = None       # a SimdRecorder in per-step mode given every step too (check_against_host)
 
-    def step(self, phase, active, capacity=None, draining=False):
-        """One step of the stream's loop (an extension, a walk step), numbered: `active` lanes
-        (a count or a mask), `capacity` the stream's size (for the occupancy plot), `draining`
-        whether no sample is left to start (the final drain)."""
-        self.simd.add_stream_step(phase, active, iteration=self.iterations, capacity=capacity, draining=draining)
-        self.iterations += 1
+    # --- what the counters say (read the log first) ------------------------------------------
 
-    def before_step(self, phase, active, capacity=None, draining=False):
-        """A step numbered as the step that follows it (a regeneration, counted with the
-        extension it feeds)."""
-        self.simd.add_stream_step(phase, active, iteration=self.iterations, capacity=capacity, draining=draining)
+    @property
+    def simd(self):
+        self.flush()
+        return self._simd
 
-    def loop(self, phase, iterations):
-        """A loop that each work-item runs `iterations[k]` times (pt_naive's whole path): a warp
-        issues it as long as its longest lane; its iterations are numbered from the steps so far."""
-        self.simd.add_warp_loops(phase, iterations)
-        self.simd.add_loop_iterations(phase, iterations, first_iteration=self.iterations)
-        self.iterations += int(iterations.max())
+    @simd.setter
+    def simd(self, counter):
+        """Count with `counter` from now on, fed step by step with the lanes read back at once: the
+        demo's WarpSampler (toolkit/demo/lanes_picture.py) draws a few warps' lanes of every step."""
+        self.flush()
+        self._simd, self.per_step = counter, True
 
-    def inner_loop(self, phase, iterations):
-        """A loop that each work-item of one launch runs `iterations[k]` times, between two steps
-        (the naive connect phase: a lane's connections): a warp issues it as long as its longest
-        lane; its iterations are numbered as the step that follows, as before_step's."""
-        self.simd.add_warp_loops(phase, iterations)
-        self.simd.add_loop_iterations(phase, iterations, first_iteration=self.iterations)
+    @property
+    def traversal(self):
+        self.flush()
+        return self._traversal
 
-    def extension_step(self, lanes, capacity, draining=False, shadow_queue=False):
-        """SIMD counters of one extension step over a stream, from the LaneCounts of the lanes
-        that ran it; with `shadow_queue` the shadow rays are traced (and counted) by a kernel
-        of their own, else inside the step."""
-        self.step("extend", lanes["work"] > 0, capacity=capacity, draining=draining)
-        self.traversal.add_warp_loops("closest", lanes["closest_steps"])
-        if not shadow_queue:
-            self.simd.add_stream_step("shadow", lanes["shadow_rays"] > 0)
-            self.traversal.add_warp_loops("shadow", lanes["shadow_steps"])
+    def simd_counter(self):
+        """The lanes-busy counter, for a replay (the log is being read: no flush)."""
+        return self._simd
+
+    def traversal_counter(self):
+        """The traversal counter, for a replay."""
+        return self._traversal
+
+    def counter(self, name):
+        """A PhaseCounter of its own (a figure for comparison: the walk without compaction, ...); a
+        replay gets it as it is, a reader once the log has been read."""
+        if name not in self._counters:
+            self._counters[name] = PhaseCounter(self.warp_width)
+        return self._counters[name]
 
     def efficiency(self):
         """SIMD efficiency per phase ({} when off)."""
         return self.simd.efficiency() if self.on else {}
+
+    # --- queueing the steps -----------------------------------------------------------------
+
+    def check_against_host(self):
+        """Count every step a second time, as before the step log (lanes read back at once and summed
+        by the host): into `reference`, a SimdRecorder of its own, whose figures must be the same."""
+        self.reference = SimdRecorder(self.warp_width, self.on, self.queue, self.local_size, self.sources)
+        self.reference.per_step = True
+        return self.reference
+
+    def later(self, replay):
+        """A step whose figures the host knows (a count it launched over): replay(recorder) runs in order."""
+        if self.reference is not None:
+            self.reference.later(replay)
+        self._pending.append((None, replay))
+        if self.per_step:
+            self.flush()
+
+    def lanes(self, replay, lanes, stride, bound, length_at=None, length_index=-1, watch=None, watch_count=0,
+              bins=0, slot_of=None, slot_offset=0, pool=0, packed=False, aux=None, aux_bound=0, aux_length_index=-1):
+        """A step over the first `bound` lanes of `lanes` (a LaneCounts buffer, stride 4, or ints,
+        stride 1), fewer if the device's int length_at[length_index] says so; `replay(sums)` gets its
+        StepSums (toolkit/opencl/simd_counters.py StepLog.count says what each option adds)."""
+        if self.reference is not None:
+            self.reference.lanes(replay, lanes, stride, bound, length_at, length_index, watch, watch_count, bins,
+                                 slot_of, slot_offset, pool, packed, aux, aux_bound, aux_length_index)
+        if self.per_step:
+            self._pending.append((self._read_now(lanes, stride, bound, length_at, length_index, watch, watch_count,
+                                                 slot_of, slot_offset, aux, aux_bound, aux_length_index), replay))
+            self.flush()
+            return
+        log = self._step_log()
+        if log.full:
+            self.flush()
+        row = log.count(lanes, stride, bound, length_at, length_index, watch, watch_count, bins, slot_of,
+                        slot_offset, pool, packed, aux, aux_bound, aux_length_index)
+        self._pending.append((row, replay))
+
+    def flush(self):
+        """Read the step log and run the steps' replays, in order: replay(self[, the step's StepSums])."""
+        if not self._pending:
+            return
+        pending, self._pending = self._pending, []
+        rows = self._log.read() if self._log is not None else []
+        for entry, replay in pending:
+            if entry is None:
+                replay(self)
+            else:
+                replay(self, rows[entry] if isinstance(entry, int) else entry)
+
+    def step(self, phase, active, capacity=None, draining=False):
+        """One step of the stream's loop (an extension, a walk step) over `active` lanes packed at
+        the start of the launch (a count the host knows), numbered: `capacity` the stream's size
+        (for the occupancy plot), `draining` whether no sample is left to start (the final drain)."""
+        self.later(lambda r: r.count_now(phase, active, numbered=True, capacity=capacity, draining=draining))
+
+    def before_step(self, phase, active, capacity=None, draining=False):
+        """A step numbered as the step that follows it (a regeneration, counted with the
+        extension it feeds), over `active` lanes packed at the start of the launch."""
+        self.later(lambda r: r.count_now(phase, active, before=True, capacity=capacity, draining=draining))
+
+    def loop(self, phase, iterations):
+        """A loop that each work-item runs `iterations[k]` times (a host array): a warp issues it as
+        long as its longest lane; its iterations are numbered from the steps so far, and count as steps."""
+        sums = StepSums(lanes=_work(iterations))
+        self.later(lambda r: (r.warp_loops(r.simd_counter(), phase, sums, "work"),
+                              r.loop_iterations(phase, sums, numbered=True)))
+
+    def inner_loop(self, phase, iterations):
+        """A loop that each work-item of one launch runs `iterations[k]` times (a host array), between
+        two steps (the naive connect phase: a lane's connections): a warp issues it as long as its
+        longest lane; its iterations are numbered as the step that follows, as before_step's."""
+        sums = StepSums(lanes=_work(iterations))
+        self.later(lambda r: (r.warp_loops(r.simd_counter(), phase, sums, "work"),
+                              r.loop_iterations(phase, sums, numbered=False)))
+
+    def stream_step(self, phase, active):
+        """A step over `active` lanes packed at the start of the launch, in the efficiency figures only."""
+        self.later(lambda r: r.count_now(phase, active))
+
+    # --- replaying a step: the same figures from the log's sums or from the lanes ---------------
+
+    def count_now(self, phase, active, numbered=False, before=False, capacity=None, draining=False):
+        """A step over `active` packed lanes, counted now (in a replay): numbered, or `before` the
+        step that follows, or neither."""
+        iteration = self.iterations if numbered or before else None
+        self._simd.add_stream_step(phase, int(active), iteration=iteration, capacity=capacity, draining=draining)
+        if numbered:
+            self.iterations += 1
+
+
+    def mask_step(self, phase, sums, field="work", numbered=False, before=False, capacity=None, draining=False,
+                  counter=None):
+        """A step whose active lanes are those with `field` > 0 (work, shadow_rays, or the aux ints): numbered (an
+        extension step, counted as an iteration), `before` (numbered as the step that follows it),
+        or neither (efficiency figures only)."""
+        counter = self._simd if counter is None else counter
+        iteration = self.iterations if numbered or before else None
+        if sums.lanes is not None:
+            values = _values(sums, field)
+            counter.add_stream_step(phase, values > 0, iteration=iteration, capacity=capacity, draining=draining)
+        else:
+            lanes, warps = {"work": (SimdSum.WORK_LANES, SimdSum.WORK_WARPS),
+                            "shadow_rays": (SimdSum.SHADOW_LANES, SimdSum.SHADOW_WARPS),
+                            "aux": (SimdSum.AUX_LANES, SimdSum.AUX_WARPS)}[field]
+            counter.add_step(phase, sums[lanes], sums[warps] * self.warp_width, iteration, capacity, draining)
+        if numbered:
+            self.iterations += 1
+
+    def extension_step(self, sums, capacity, draining=False, shadow_queue=False):
+        """SIMD counters of one extension step over a stream, from the LaneCounts of the lanes
+        that ran it; with `shadow_queue` the shadow rays are traced (and counted) by a kernel
+        of their own, else inside the step."""
+        self.mask_step("extend", sums, "work", numbered=True, capacity=capacity, draining=draining)
+        self.warp_loops(self._traversal, "closest", sums, "closest_steps")
+        if not shadow_queue:
+            self.mask_step("shadow", sums, "shadow_rays")
+            self.warp_loops(self._traversal, "shadow", sums, "shadow_steps")
+
+    def warp_loops(self, counter, phase, sums, field, active=None):
+        """A loop inside each lane that runs `field` times (work, closest_steps, shadow_steps): its
+        warp issues it as long as its longest lane. `active`: another lane-step count (a SimdSum)."""
+        if sums.lanes is not None:
+            counter.add_warp_loops(phase, _values(sums, field), None if active is None else sums.lanes[active].sum())
+            return
+        total, longest = {"work": (SimdSum.WORK_SUM, SimdSum.WORK_WARP_MAX),
+                          "aux": (SimdSum.AUX_SUM, SimdSum.AUX_WARP_MAX),
+                          "closest_steps": (SimdSum.CLOSEST_SUM, SimdSum.CLOSEST_WARP_MAX),
+                          "shadow_steps": (SimdSum.SHADOW_STEPS_SUM, SimdSum.SHADOW_STEPS_WARP_MAX)}[field]
+        active_sum = {None: total, "shadow_rays": SimdSum.SHADOW_SUM}[active]
+        counter.add(phase, sums[active_sum], sums[longest] * self.warp_width)
+
+    def loop_iterations(self, phase, sums, numbered):
+        """The per-iteration figures of the `work` loop inside each lane, numbered from the steps so
+        far; `numbered`: its iterations count as steps (pt_naive's whole path), else they are
+        numbered as the step that follows (the naive connect phase)."""
+        first = self.iterations
+        if sums.lanes is not None:
+            work = sums.lanes["work"]
+            self._simd.add_loop_iterations(phase, work, first_iteration=first)
+            longest = int(work.max()) if len(work) else 0
+        else:
+            self._simd.add_loop_histogram(phase, sums.histogram, sums[SimdSum.LANES], first_iteration=first)
+            longest = sums[SimdSum.WORK_MAX]
+        if numbered:
+            self.iterations += longest
+
+    def slot_warps(self, counter, phase, sums, pool):
+        """The lanes' samples in the slots of a pool of `pool` (without compaction each keeps its
+        slot's lane): active lanes = the lanes, issued = the pool's warps that hold one of them."""
+        if sums.slots is not None:
+            mask = np.zeros(pool, bool)
+            mask[sums.slots] = True
+            counter.add_stream_step(phase, mask)
+        else:
+            counter.add(phase, sums[SimdSum.LANES], sums[SimdSum.SLOT_WARPS] * self.warp_width)
+
+    def packed_loops(self, counter, phase, sums):
+        """The `work` loop with only the lanes that have work, packed side by side."""
+        if sums.lanes is not None:
+            work = sums.lanes["work"]
+            counter.add_warp_loops(phase, work[work > 0])
+        else:
+            counter.add(phase, sums[SimdSum.WORK_SUM], sums[SimdSum.PACKED_WARP_MAX] * self.warp_width)
+
+    # --- per-step mode and the log ------------------------------------------------------------
+
+    def _read_now(self, lanes, stride, bound, length_at, length_index, watch, watch_count, slot_of, slot_offset,
+                  aux, aux_bound, aux_length_index):
+        """The step's lanes (and watched ints, slots, aux) read back at once: a StepSums for the host's sums."""
+        def length(bound, index):
+            if length_at is not None and index >= 0:
+                bound = min(bound, int(_read(self.queue, length_at, np.int32, index + 1)[index]))
+            return max(bound, 0)
+        n = length(bound, length_index)
+        aux_values = _read(self.queue, aux, np.int32, length(aux_bound, aux_length_index)) if aux is not None else None
+        values = _read(self.queue, lanes, np.int32 if stride == 1 else LANE_COUNTS.dtype, n)
+        watched = _read(self.queue, watch, np.int32, watch_count) if watch_count else None
+        slots = _read(self.queue, slot_of, np.int32, n, 4 * slot_offset) if slot_of is not None else None
+        sums = np.zeros(int(SimdSum.FIELDS), np.int64)
+        sums[SimdSum.LANES] = n
+        return StepSums(sums=sums, lanes=values, slots=slots, watch=watched, aux=aux_values)
+
+    def _step_log(self):
+        if self._log is None:
+            self._log = StepLog(self.queue, self.warp_width, self.local_size, self.sources)
+        return self._log
+
+
+def _read(queue, buffer, dtype, n, offset=0):
+    out = np.zeros(n, dtype)
+    if n:
+        cl.enqueue_copy(queue, out, buffer, src_offset=offset)
+    return out
+
+
+
+def _work(iterations):
+    """Per-lane loop counts from the host as LaneCounts (work only), for the replays."""
+    out = LANE_COUNTS.zeros(len(iterations))
+    out["work"] = iterations
+    return out
+
+
+def _values(sums, field):
+    """Per-step mode: the read lanes' `field` (LaneCounts), the ints of an int buffer, or the aux ints."""
+    if field == "aux":
+        return sums.aux
+    return sums.lanes if sums.lanes.dtype.names is None else sums.lanes[field]

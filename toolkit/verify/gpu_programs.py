@@ -25,6 +25,7 @@ from toolkit.opencl.device_scene import DeviceScene
 from toolkit.opencl.device_film import DeviceFilm, has_fp64
 from toolkit.opencl.film_reduce import FilmReduction
 from toolkit.opencl.record_film import RecordFilm
+from toolkit.opencl.simd_counters import StepLog
 from toolkit.techniques import TECHNIQUES, VARIANTS, get_technique
 
 # The GPUs the offline build compiles for, as the host would see them through OpenCL: the
@@ -126,6 +127,8 @@ def host_builds(vendor, scenes=None, techniques=None, counters=COUNT_SIMD):
                                 program.build(queue, DeviceFilm.source, DeviceFilm.defines(tech.local_size))
                         if tech.family == "bdpt":   # BDPT's first pass builds its film
                             RecordFilm(queue, 1, tech.local_size)
+                        if count_simd:   # the first counted step builds the counters' sums
+                            StepLog(queue, tech.warp_width, tech.local_size)
                     except (AttributeError, TypeError) as error:
                         raise RuntimeError(f"recording the programs of {current_use[0]} without a device failed: "
                                            f"its host code now calls OpenCL at construction ({error}); give "

@@ -1,0 +1,115 @@
+"""The SIMD counters summed on the device (toolkit/opencl/simd_counters.py, cl/simd_counters.cl)
+give the figures that the host's sums of every step's lanes give (toolkit/core/simd.py's
+PhaseCounter, fed lane by lane: SimdRecorder's per-step mode, the counting as it was before the
+step log): the same integers, so the same efficiencies, per phase and per iteration, bit for bit.
+Each technique renders a small image twice with one seed, once each way, at stream and pool sizes
+small enough that a pass takes many steps, connect phases and drains."""
+import numpy as np
+import pytest
+
+from toolkit.core.layout import SimdSum
+from toolkit.core.simd import PhaseCounter
+from toolkit.opencl.device_scene import DeviceScene
+from toolkit.opencl.traffic import Traffic
+from toolkit.techniques import get_technique
+
+SIZES = {"pt_inplace_regen": {"stream_size": 512}, "pt_compact_regen": {"stream_size": 512},
+         "pt_compact_regen/multipass": {"stream_size": 512}, "bdpt_naive_connect": {"pool_size": 256},
+         "bdpt_parallel_connect": {"pool_size": 256}, "mlt": {"chains": 256, "pool_size": 256, "candidates": 2}}
+TECHNIQUES = ["pt_naive", *SIZES]
+
+
+def counted(queue, scene, technique, spp=2, size=16, count_simd=True, check=True):
+    """A render with its counters summed on the device and every step counted a second time as
+    before (SimdRecorder.check_against_host): (the technique, its image, the host's traffic)."""
+    cls, options = get_technique(technique)
+    tech = cls(queue, DeviceScene(queue, scene), count_simd=count_simd, **options, **SIZES.get(technique, {}))
+    if count_simd and check:
+        tech.recorder.check_against_host()
+    with Traffic() as traffic:
+        film = tech.render(size, size, spp, seed=7)
+    return tech, film.image(), traffic.figures()
+
+
+def figures(recorder):
+    return {"simd": (recorder.simd.active, recorder.simd.issued), "per_iteration": recorder.simd.per_iteration,
+            "traversal": (recorder.traversal.active, recorder.traversal.issued), "iterations": recorder.iterations,
+            "others": {name: (recorder.counter(name).active, recorder.counter(name).issued)
+                       for name in ("walk_without_compaction", "connect_terminated_packed")}}
+
+
+@pytest.mark.parametrize("technique", TECHNIQUES)
+def test_the_device_sums_are_the_hosts(queue, cornell_box, technique):
+    """Every step counted both ways in one render (a stream's order of paths differs from run to run
+    where compaction takes one atomic per work-group, and with it the warps)."""
+    tech, image, _ = counted(queue, cornell_box, technique)
+    on_device, on_host = figures(tech.recorder), figures(tech.recorder.reference)
+    for key in on_host:
+        assert on_device[key] == on_host[key], key
+    assert on_device["per_iteration"] and on_device["simd"][0]          # something was counted
+    if tech.family == "bdpt":
+        assert on_device["others"]["walk_without_compaction"][0]
+    if technique == "bdpt_naive_connect":
+        assert on_device["others"]["connect_terminated_packed"][0]
+
+
+@pytest.mark.parametrize("technique", ["pt_inplace_regen", "bdpt_naive_connect"])
+def test_a_full_log_is_read_and_counting_goes_on(queue, cornell_box, technique, monkeypatch):
+    """A log of 5 rows and 2 histograms fills many times a render: each time it is read, the steps
+    so far replayed, and the next steps counted into the emptied log, with the same figures."""
+    from toolkit.opencl import simd_counters
+    monkeypatch.setattr(simd_counters, "ROWS", 5)
+    monkeypatch.setattr(simd_counters, "HISTOGRAM_ROWS", 2)
+    tech, _, _ = counted(queue, cornell_box, technique)
+    assert figures(tech.recorder) == figures(tech.recorder.reference)
+    assert len(tech.recorder.simd.per_iteration) > 3 * 5
+
+
+@pytest.mark.parametrize("technique", ["pt_compact_regen", "bdpt_naive_connect"])
+def test_counting_on_the_device_changes_nothing_else(queue, cornell_box, technique):
+    """The counters only watch: the image is the one rendered without them (so are the steps), and
+    no read waits for a step's lanes while the render runs (the log is read when looked at)."""
+    _, image, traffic = counted(queue, cornell_box, technique, check=False)
+    _, uncounted, uncounted_traffic = counted(queue, cornell_box, technique, count_simd=False)
+    np.testing.assert_array_equal(image, uncounted)
+    assert (traffic["reads"], traffic["blocking_reads"]) == (uncounted_traffic["reads"],
+                                                             uncounted_traffic["blocking_reads"])
+
+
+def test_a_wide_sum_carries_into_its_high_word(queue):
+    """The step log's sums are 64-bit integers of two 32-bit words: a loop of 2^31 + 2^31 lane-steps
+    (two lanes past what one word holds) comes out exact."""
+    from toolkit.core.layout import LANE_COUNTS
+    from toolkit.opencl.simd_counters import StepLog
+    import pyopencl as cl
+    lanes = LANE_COUNTS.zeros(40)
+    lanes["work"][:3] = 1
+    lanes["closest_steps"][[0, 1, 39]] = [2 ** 31 - 1, 2 ** 31 - 1, 5]
+    buffer = cl.Buffer(queue.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=lanes)
+    log = StepLog(queue, warp_width=32)
+    log.count(buffer, 4, 40)
+    sums = log.read()[0]
+    assert sums[SimdSum.CLOSEST_SUM] == 2 * (2 ** 31 - 1) + 5
+    assert sums[SimdSum.CLOSEST_WARP_MAX] == 2 ** 31 - 1 + 5
+    assert (sums[SimdSum.LANES], sums[SimdSum.WORK_LANES], sums[SimdSum.WORK_WARPS]) == (40, 3, 1)
+
+
+@pytest.mark.parametrize("warp_width", [1, 4, 32, 100])
+def test_packed_loops_against_numpy(queue, warp_width):
+    """simd_count_packed (one work-group walking the lanes in chunks) against PhaseCounter's sums of
+    the lanes with work packed side by side, over chunk and warp boundaries and a partial last warp."""
+    from toolkit.core.layout import LANE_COUNTS
+    from toolkit.opencl.simd_counters import StepLog
+    import pyopencl as cl
+    rng = np.random.default_rng(warp_width)
+    lanes = LANE_COUNTS.zeros(1000)
+    lanes["work"] = rng.integers(0, 9, 1000) * (rng.random(1000) < 0.3)
+    buffer = cl.Buffer(queue.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR, hostbuf=lanes)
+    log = StepLog(queue, warp_width=warp_width)
+    log.count(buffer, 4, 1000, packed=True)
+    sums = log.read()[0]
+    expected = PhaseCounter(warp_width)
+    work = lanes["work"]
+    expected.add_warp_loops("connect", work[work > 0])
+    assert sums[SimdSum.WORK_SUM] == expected.active["connect"]
+    assert sums[SimdSum.PACKED_WARP_MAX] * warp_width == expected.issued["connect"]

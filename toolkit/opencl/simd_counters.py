@@ -1,0 +1,158 @@
+"""The SIMD counters summed on the device (host side of cl/simd_counters.cl): each counting step's
+LaneCounts added up into one row of a step log (SimdSum, toolkit/core/layout.py), read back once
+per pass or per frame instead of every lane after every step.
+
+Why: with the counters read per step, a counted render cost the host 1.9 to 7.5 times an uncounted
+one (a blocking read per step, then numpy over every lane). Queued here, a step costs one launch;
+the rows are integers, so the host's sums of them are the sums it made of the lanes before.
+"""
+from dataclasses import dataclass
+
+import numpy as np
+import pyopencl as cl
+
+from toolkit.core.layout import SIMD_STEP, SimdSum
+from toolkit.opencl import program
+
+ROWS = 1024            # steps the log holds before the host reads it (a pass rarely takes more)
+HISTOGRAM_ROWS = 64    # loops with a per-iteration histogram the log holds (one per pt_naive pass, naive connect phase)
+
+
+@dataclass
+class StepSums:
+    """One counted step, once the log has been read: `sums[SimdSum.X]` as Python ints; `histogram`
+    (lanes, warps) by work, for a loop counted with one; `lanes` etc. only where the host read the
+    lanes themselves (SimdRecorder's per-step mode)."""
+    sums: np.ndarray = None          # int64 per SimdSum field
+    histogram: np.ndarray = None     # (bins, 2): lanes, warps by work (warps: by their largest work)
+    lanes: np.ndarray = None         # the host's copy of the lanes (per-step mode): LaneCounts or ints
+    slots: np.ndarray = None         # per-step mode: each lane's sample slot
+    watch: np.ndarray = None         # per-step mode: the watched ints
+    aux: np.ndarray = None           # per-step mode: the second buffer's ints
+
+    def __getitem__(self, field):
+        return int(self.sums[field])
+
+    def work_lanes(self):
+        """Lanes with work > 0."""
+        if self.lanes is not None:
+            work = self.lanes if self.lanes.dtype.names is None else self.lanes["work"]
+            return int(np.count_nonzero(work > 0))
+        return self[SimdSum.WORK_LANES]
+
+    def watched(self, k=0):
+        """The k-th int copied from the device when the step was counted."""
+        if self.watch is not None:
+            return int(self.watch[k])
+        return int(np.int32(np.uint32(self.sums[SimdSum.WATCH + k] & 0xffffffff)))
+
+
+class StepLog:
+    """The step log on `queue`'s device: `count(...)` queues one step's sums into the next row and
+    returns its index; `read()` reads the rows queued so far (and their histograms) and empties it."""
+
+    def __init__(self, queue, warp_width, local_size=program.LOCAL_SIZE, sources=None):
+        self.queue, self.warp_width, self.local_size = queue, int(warp_width), local_size
+        built = program.build(queue, "simd_counters.cl", {"LOCAL_SIZE": local_size}, directory=sources)
+        self.lanes_kernel = program.kernel(built, "simd_count_lanes")
+        self.packed_kernel = program.kernel(built, "simd_count_packed")
+        self.row_bytes = 8 * int(SimdSum.FIELDS)
+        self.rows = self.none = None           # the log, and an argument no work-item reads: at the first step
+        self.used = 0                          # rows queued since the last read
+        self.histogram, self.bins, self.histogram_used = None, 0, []   # [(row, bins)] queued with a histogram
+        self.made, self.stamp = {}, 0          # buffers made once (pool warps' stamps, scratch) and the last stamp given
+
+    @property
+    def full(self):
+        return self.used == ROWS or len(self.histogram_used) == HISTOGRAM_ROWS
+
+    def count(self, lanes, stride, bound, length_at=None, length_index=-1, watch=None, watch_count=0,
+              bins=0, slot_of=None, slot_offset=0, pool=0, packed=False, aux=None, aux_bound=0, aux_length_index=-1):
+        """Queue the sums of one step's lanes (cl/simd_counters.cl simd_count_lanes): the first `bound`
+        lanes of `lanes` (`stride` ints each), fewer if length_at[length_index] on the device says so.
+        `watch`: a buffer whose first `watch_count` ints the row keeps. `bins`: a per-iteration
+        histogram of the lanes' work (0 .. bins - 1). `slot_of`, `slot_offset`, `pool`: lane i's
+        slot (int slot_offset + i of slot_of) in a pool of `pool` samples (SLOT_WARPS). `packed`: also
+        PACKED_WARP_MAX (its lanes are all `bound`, none past a device length). `aux`: a second
+        buffer of one int per lane, its first `aux_bound` (or length_at[aux_length_index]) into AUX_. Returns the row."""
+        if self.full:
+            raise RuntimeError("the step log is full: read it first")
+        if self.rows is None:
+            ctx, rw = self.queue.context, cl.mem_flags.READ_WRITE
+            self.rows, self.none = cl.Buffer(ctx, rw, self.row_bytes * ROWS), cl.Buffer(ctx, rw, 4)
+            cl.enqueue_fill_buffer(self.queue, self.rows, np.uint32(0), 0, self.row_bytes * ROWS)
+        row = self.used
+        self.used += 1
+        histogram_row = -1
+        if bins:
+            histogram_row = self._histogram_column(row, bins)
+        stamp = 0
+        if slot_of is not None:
+            self.stamp += 1
+            stamp = self.stamp
+        self._launch(row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins,
+                     histogram_row, slot_of, slot_offset, stamp, pool, packed, aux, aux_bound, aux_length_index)
+        return row
+
+    def _launch(self, row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins, histogram_row,
+                slot_of, slot_offset, stamp, pool, packed, aux, aux_bound, aux_length_index):
+        w, none = self.warp_width, self.none
+        step = SIMD_STEP.record(stride=stride, bound=bound, length_index=length_index, warp_width=w, row=row,
+                                watch_count=watch_count, bins=max(self.bins, 1), histogram_row=histogram_row,
+                                histogram_rows=HISTOGRAM_ROWS, slot_offset=slot_offset, stamp=stamp,
+                                aux_bound=aux_bound if aux is not None else 0, aux_length_index=aux_length_index)
+        program.launch(self.queue, self.lanes_kernel, max(1, -(-max(bound, aux_bound) // w)), lanes,
+                       none if length_at is None else length_at, self.rows, none if watch is None else watch,
+                       self.histogram if bins else none, none if slot_of is None else slot_of,
+                       self._stamps(pool) if slot_of is not None else none, none if aux is None else aux, step,
+                       local_size=self.local_size)
+        if packed:   # one work-group (cl/simd_counters.cl simd_count_packed)
+            program.launch(self.queue, self.packed_kernel, 1, lanes, np.int32(stride), np.int32(bound), np.int32(w),
+                           self.rows, np.int32(row), local_size=self.local_size)
+
+    def read(self):
+        """The rows queued since the last read, as StepSums in order (one blocking read, two with
+        histograms); the log is emptied for the next steps."""
+        if self.used == 0:
+            return []
+        words = np.empty((self.used, int(SimdSum.FIELDS), 2), np.uint32)
+        cl.enqueue_copy(self.queue, words, self.rows)
+        sums = words[..., 0].astype(np.int64) | (words[..., 1].astype(np.int64) << 32)
+        out = [StepSums(sums=s) for s in sums]
+        if self.histogram_used:
+            needed = max(int(out[row][SimdSum.WORK_MAX]) for row, _ in self.histogram_used) + 1
+            for row, bins in self.histogram_used:
+                if out[row][SimdSum.WORK_MAX] >= bins:
+                    raise RuntimeError(f"a lane's loop ran {out[row][SimdSum.WORK_MAX]} times, past the "
+                                       f"{bins - 1} its histogram holds")
+            counts = np.empty((needed, 2, HISTOGRAM_ROWS), np.uint32)
+            cl.enqueue_copy(self.queue, counts, self.histogram)
+            for column, (row, _) in enumerate(self.histogram_used):
+                out[row].histogram = counts[:, :, column].astype(np.int64)
+            cl.enqueue_fill_buffer(self.queue, self.histogram, np.uint32(0), 0, self.histogram.size)
+            self.histogram_used = []
+        cl.enqueue_fill_buffer(self.queue, self.rows, np.uint32(0), 0, self.row_bytes * self.used)
+        self.used = 0
+        return out
+
+    # --- device memory, made once ---------------------------------------------------------------
+
+    def _histogram_column(self, row, bins):
+        if self.histogram is None or bins > self.bins:
+            if self.histogram_used:
+                raise RuntimeError("a larger histogram while one is in use: read the log first")
+            self.bins = bins
+            size = 4 * bins * 2 * HISTOGRAM_ROWS
+            self.histogram = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, size)
+            cl.enqueue_fill_buffer(self.queue, self.histogram, np.uint32(0), 0, size)
+        self.histogram_used.append((row, bins))
+        return len(self.histogram_used) - 1
+
+    def _stamps(self, pool):
+        warps = max(1, -(-pool // self.warp_width))
+        if ("stamps", warps) not in self.made:
+            self.made["stamps", warps] = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * warps)
+            cl.enqueue_fill_buffer(self.queue, self.made["stamps", warps], np.int32(0), 0, 4 * warps)
+        return self.made["stamps", warps]
+
+
