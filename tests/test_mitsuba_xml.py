@@ -259,14 +259,23 @@ def test_include_cycle_through_two_files_and_include_depth(tmp_path):
         _load(tmp_path / "n0.xml")
 
 
-def test_includes_that_fan_out_are_bounded_by_bytes(tmp_path):
-    """Each file includes the next twice: 2^16 reads of a small file, refused by the byte budget."""
+def test_includes_that_fan_out_are_bounded_by_files_parsed(tmp_path):
+    """Each file includes the next twice: 2^16 parses of a small file, refused after 4,096 (before this
+    bound, the byte budget refused it after 35,000 parses and 24 s)."""
     for k in range(16):
         (tmp_path / f"f{k}.xml").write_text(f'<scene>{"<!--" + "x" * 400 + "-->"}<include filename="f{k + 1}.xml"/>'
                                             f'<include filename="f{k + 1}.xml"/></scene>')
     (tmp_path / "f16.xml").write_text("<scene/>")
-    with pytest.raises(SceneError, match="XML read for this scene"):
+    with pytest.raises(SceneError, match="XML files parsed for this scene"):
         _load(tmp_path / "f0.xml")
+
+
+def test_includes_of_large_files_are_bounded_by_bytes(tmp_path):
+    """A 9 MB file included twice: 18 MB of XML, past the 16 MB read for one scene."""
+    (tmp_path / "big.xml").write_text("<scene><!--" + "x" * (9 << 20) + "--></scene>")
+    (tmp_path / "main.xml").write_text('<scene><include filename="big.xml"/><include filename="big.xml"/></scene>')
+    with pytest.raises(SceneError, match="XML read for this scene"):
+        _load(tmp_path / "main.xml")
 
 
 def test_hostile_xml_on_the_command_line_exits_2_without_traceback(tmp_path):

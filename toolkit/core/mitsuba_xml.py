@@ -68,7 +68,7 @@ class XmlReader:
     def __init__(self, main):
         self.main = Path(main)
         self.folder = self.main.parent          # Mitsuba resolves every relative filename from here
-        self.bytes_read = 0
+        self.bytes_read = self.files_read = 0
         self.parameters = {}
 
     def read(self):
@@ -91,6 +91,8 @@ class XmlReader:
         data = path.read_bytes()
         self.bytes_read += len(data)
         in_range("scene.xml.bytes", self.bytes_read, f"{path}: XML read for this scene (bytes, includes counted)")
+        self.files_read += 1
+        in_range("scene.xml.files", self.files_read, f"{path}: XML files parsed for this scene (includes counted)")
         builder = _TreeBuilder(path)
         try:
             defusedxml.sax.parseString(data, builder)

@@ -52,6 +52,8 @@ LIMITS = {
     "scene.json.depth": (0, 16, "nesting of JSON objects and lists"),
     "scene.xml.bytes": (1, 1 << 24, "Mitsuba XML read for one scene: the main file and every include, counted each "
                                     "time it is included"),
+    "scene.xml.files": (1, 4096, "Mitsuba XML files parsed for one scene: the main file and every include, counted "
+                                 "each time it is included (a fan-out of small files costs parses, not bytes)"),
     "scene.xml.depth": (1, 64, "nesting of XML elements in one Mitsuba XML file"),
     "scene.xml.includes": (1, 16, "nesting of Mitsuba XML includes (a cycle is refused at once)"),
     "spp": (1, 1 << 24, "samples per pixel of one render"),
