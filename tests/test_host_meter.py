@@ -70,10 +70,7 @@ def test_pt_naive_known_counts_per_pass_with_the_film_on_the_host(cornell_box, m
     from toolkit.techniques.base import Technique
     monkeypatch.setattr(Technique, "film_on_device", False)
     width, height = 8, 4
-    options = dict(resolution=(width, height), technique_options={"pass_spp": 1})
-    first = metered_render(cornell_box, "pt_naive", options_of(options, spp=2))
-    second = metered_render(cornell_box, "pt_naive", options_of(options, spp=5))
-    assert (first["passes"], second["passes"]) == (2, 5)
+    first, second = pt_naive_in_passes_of_one_sample(cornell_box, width, height)
     for r in (first, second):
         assert r["launches"] == 2 * r["passes"] and r["fills"] == r["passes"]
         assert r["reads"] == r["passes"] and r["blocking_reads"] == 0
@@ -95,10 +92,7 @@ def test_pt_naive_known_counts_per_pass_with_the_film_on_the_device(cornell_box,
     if not has_fp64(queue.device):
         pytest.skip("the device has no cl_khr_fp64: its film is added on the host")
     width, height = 8, 4
-    options = dict(resolution=(width, height), technique_options={"pass_spp": 1})
-    first = metered_render(cornell_box, "pt_naive", options_of(options, spp=2))
-    second = metered_render(cornell_box, "pt_naive", options_of(options, spp=5))
-    assert (first["passes"], second["passes"]) == (2, 5)
+    first, second = pt_naive_in_passes_of_one_sample(cornell_box, width, height)
     for r in (first, second):
         assert r["launches"] == 3 * r["passes"] and r["fills"] == r["passes"] + 2
         assert r["reads"] == 2 and r["blocking_reads"] == 0
@@ -120,6 +114,15 @@ def test_counted_renders_read_their_counters_once(cornell_box):
     assert counted["passes"] == uncounted["passes"] == 1
     assert counted["blocking_reads"] == uncounted["blocking_reads"] + 1
     assert counted["launches"] > uncounted["launches"]     # a sum per step: launches, not reads
+
+
+def pt_naive_in_passes_of_one_sample(scene, width, height):
+    """pt_naive metered at 2 and 5 spp, one sample per pixel per pass: (first, second)."""
+    options = dict(resolution=(width, height), technique_options={"pass_spp": 1})
+    first = metered_render(scene, "pt_naive", options_of(options, spp=2))
+    second = metered_render(scene, "pt_naive", options_of(options, spp=5))
+    assert (first["passes"], second["passes"]) == (2, 5)
+    return first, second
 
 
 def options_of(fields, **more):

@@ -11,47 +11,40 @@ standard error is sqrt(sample variance / n).
 import numpy as np
 
 
+class _ReadFromDevice:
+    """A film's per-sample sum (`_name` holds it): read from the device first while the film keeps
+    its sums there (Film.keep_on_device), so a reader always sees every pass so far."""
+
+    def __set_name__(self, owner, name):
+        self.held = "_" + name
+
+    def __get__(self, film, owner=None):
+        if film is None:
+            return self
+        film.read_device()
+        return getattr(film, self.held)
+
+    def __set__(self, film, value):
+        setattr(film, self.held, value)
+
+
 class Film:
     def __init__(self, width, height):
         self.width, self.height = width, height
         self._sum = np.zeros((height * width, 3))
         self._sum_sq = np.zeros((height * width, 3))
         self.count = np.zeros(height * width, np.int64)
-        self._nonfinite = 0
+        self._nonfinite_samples = 0
         self.device = None       # the sums kept on a device, if any (keep_on_device)
-        self._device_read = True  # whether _sum, _sum_sq, _nonfinite hold the device's latest sums
+        self._device_read = True  # whether _sum, _sum_sq, _nonfinite_samples hold the device's latest sums
         self.passes = 0   # whole-image passes (add_pass) instead of per-sample sums
         self.pass_sum = np.zeros((height * width, 3))
         self.pass_sum_sq = np.zeros((height * width, 3))
 
     # The per-sample sums: on the host, or read from the device when asked for.
-    @property
-    def sum(self):
-        self.read_device()
-        return self._sum
-
-    @sum.setter
-    def sum(self, value):
-        self._sum = value
-
-    @property
-    def sum_sq(self):
-        self.read_device()
-        return self._sum_sq
-
-    @sum_sq.setter
-    def sum_sq(self, value):
-        self._sum_sq = value
-
-    @property
-    def nonfinite_samples(self):
-        """Samples dropped as non-finite (counted as zeros)."""
-        self.read_device()
-        return self._nonfinite
-
-    @nonfinite_samples.setter
-    def nonfinite_samples(self, value):
-        self._nonfinite = value
+    sum = _ReadFromDevice()
+    sum_sq = _ReadFromDevice()
+    nonfinite_samples = _ReadFromDevice()    # samples dropped as non-finite (counted as zeros)
 
     def keep_on_device(self, device_sums):
         """From now on the per-sample sums live on a device: `device_sums.read()` returns (sums,
@@ -71,7 +64,7 @@ class Film:
         read raises (a sample never written)."""
         if self._device_read:
             return
-        self._sum, self._sum_sq, self._nonfinite = self.device.read()
+        self._sum, self._sum_sq, self._nonfinite_samples = self.device.read()
         self._device_read = True
 
     def add_pixel_sums(self, sums, sums_sq, samples, dropped=0):
