@@ -213,7 +213,8 @@ def test_nan_or_infinite_coordinates_are_refused(tmp_path, name, data):
     ("obj_text.off", (CORNELL / FLOOR).read_bytes(), "not an OFF file"),
     ("ply_text.gltf", binary_ply(3, 1, TRIANGLE + face(0, 1, 2)), "not a glTF file"),
     ("floor.xyz", (CORNELL / FLOOR).read_bytes(), "unknown mesh type '.xyz'"),
-], ids=["ply", "glb", "stl", "off", "gltf", "unknown-suffix"])
+    ("ply_bytes.obj", binary_ply(3, 1, TRIANGLE + face(0, 1, 2)), "cannot read mesh: 'utf-8' codec can't decode"),
+], ids=["ply", "glb", "stl", "off", "gltf", "unknown-suffix", "obj"])
 def test_a_file_that_is_not_the_format_its_name_says_is_refused(tmp_path, name, data, problem):
     fails_as(tmp_path, name, data, problem)
 

@@ -240,12 +240,34 @@ def test_curved_mesh_without_face_normals_is_named(tmp_path):
     ('<scene><include filename="scene.xml"/></scene>', "include cycle: scene.xml includes scene.xml"),
     ('<scene><include filename="../outside.xml"/></scene>', "must be inside the scene folder"),
     ('<shape type="cube"/>', "root element must be <scene>"),
+    # Not the format its name says: a scene.json, and a mesh's bytes, named scene.xml.
+    ((ROOT / "scenes" / "cornell_box" / "scene.json").read_text(), r"scene\.xml:1: malformed XML: not well-formed"),
+    ("ply\nformat binary_little_endian 1.0\nelement vertex 3\nend_header\n\x00\x80", r"scene\.xml:1: malformed XML"),
 ])
 def test_hostile_xml_is_refused(tmp_path, text, message):
     path = tmp_path / "scene.xml"
     path.write_text(text)
     with pytest.raises(SceneError, match=message):
         _load(path)
+
+
+@pytest.mark.parametrize("body, line, element", [
+    ('<shape type="cube"><transform name="to_world"><translate value="nan 0 0"/></transform></shape>', 7,
+     "<translate>"),
+    ('<shape type="cube"><transform name="to_world"><scale value="1e999"/></transform></shape>', 7, "<scale>"),
+    ('<shape type="disk"><emitter type="area"><rgb name="radiance" value="1, inf, 1"/></emitter></shape>', 7,
+     "<rgb 'radiance'>"),
+    ('<shape type="sphere"><point name="center" x="0" y="-inf" z="0"/></shape>', 7, "<point 'center'>"),
+], ids=["translate-nan", "scale-overflow", "radiance-inf", "center-inf"])
+def test_nan_or_infinite_numbers_are_refused_naming_the_element(tmp_path, body, line, element):
+    with pytest.raises(SceneError, match=rf"scene\.xml:{line}: NaN or infinite value in {element}"):
+        _load(_scene(tmp_path, body))
+
+
+def test_a_nan_field_of_view_is_refused_naming_the_element(tmp_path):
+    sensor = '<sensor type="perspective"><float name="fov" value="NaN"/></sensor>'
+    with pytest.raises(SceneError, match=r"scene\.xml:1: NaN or infinite value in <float 'fov'>"):
+        _load(_scene(tmp_path, '<shape type="cube"/>', sensor=sensor))
 
 
 def test_include_cycle_through_two_files_and_include_depth(tmp_path):
