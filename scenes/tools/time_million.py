@@ -74,9 +74,10 @@ def main(folder, toolkit_load=False):
     lo, hi = vertices.min(0), vertices.max(0)
     local = vertices - 0.5 * (lo + hi)
     if not toolkit_load:
-        edges = np.cross(local[triangles[:, 1]] - local[triangles[:, 0]], local[triangles[:, 2]] - local[triangles[:, 0]])
+        corners = local[triangles]
+        edges = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
         triangles = triangles[np.linalg.norm(edges, axis=1) > 0]     # the loader drops degenerate triangles too
-        del edges
+        del corners, edges
     print(f"{len(triangles):,} triangles")
     bvh = clock("BVH build", build_bvh, local, triangles)
     leaf_vertices = local.astype(np.float32)[triangles[bvh.order]]
