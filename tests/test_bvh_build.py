@@ -159,3 +159,55 @@ def test_million_scene_script_writes_the_box_and_sphere(tmp_path):
     # Counter-clockwise seen from outside: face normals point away from the centre.
     normals = np.cross(sphere[:, 1] - sphere[:, 0], sphere[:, 2] - sphere[:, 0])
     assert (np.einsum("ij,ij->i", normals, sphere.mean(1) - make_million.CENTER) > 0).all()
+
+
+def test_a_big_scene_s_load_starts_the_build_process_that_its_build_takes(tmp_path, monkeypatch):
+    """A scene of big meshes starts the build's process before it reads them (its start runs on
+    the other core meanwhile); the build takes that process and gets the same BVH from it."""
+    from toolkit.core import build_process, scene as scene_module
+    monkeypatch.setattr(scene_module, "BUILD_EARLY_FROM_BYTES", 1)
+    monkeypatch.setattr(build_process, "_early", [])
+    with pytest.warns(UserWarning, match="degenerate"):
+        scene = load_scene(make_million.write_million_scene(tmp_path, 60, 30))
+    assert len(build_process._early) == 1
+    early = build_process._early[0]
+    here = bvh.build_bvh(*rebased(scene))      # below SEPARATE_FROM: built here, the early child waits
+    assert build_process._early == [early]
+    monkeypatch.setattr(bvh, "SEPARATE_FROM", 1)
+    there = bvh.build_bvh(*rebased(scene))
+    assert build_process._early == [] and early.returncode == 0
+    assert here.nodes.tobytes() == there.nodes.tobytes() and np.array_equal(here.order, there.order)
+
+
+def test_an_early_build_process_that_no_build_takes_ends_quietly(monkeypatch, capfd):
+    """Its parent ended (its stdin closed) before sending a scene: the child exits 0, saying nothing."""
+    from toolkit.core import build_process
+    monkeypatch.setattr(build_process, "_early", [])
+    build_process.start_early()
+    build_process.start_early()                 # one waits at a time
+    assert len(build_process._early) == 1
+    child = build_process._early.pop()
+    child.stdin.close()
+    assert child.wait(timeout=120) == 0 and child.stdout.read() == b""
+    child.stdout.close()
+    assert capfd.readouterr().err == ""
+
+
+def test_a_big_scene_s_bvh_built_ahead_of_its_context_is_the_one_its_device_scene_takes(queue, cornell_box,
+                                                                                         monkeypatch):
+    """toolkit.render builds a big scene's BVH before it makes the OpenCL context (build_ahead:
+    the build's process and the runtime are then never in memory together). The DeviceScene takes
+    that BVH, the same as it would build; a scene already held by a context is not built again."""
+    from toolkit.opencl import device_scene
+    monkeypatch.setattr(device_scene, "SEPARATE_FROM", 1)
+    monkeypatch.setattr(device_scene, "_BUILT_AHEAD", {})
+    monkeypatch.setattr(device_scene, "_HELD", device_scene.weakref.WeakValueDictionary())
+    monkeypatch.setattr(queue.builds, "bvhs", {})
+    scene = cornell_box
+    device_scene.build_ahead(scene)
+    ahead, = device_scene._BUILT_AHEAD.values()
+    taken = device_scene.DeviceScene(queue, scene)
+    assert taken.bvh is ahead and device_scene._BUILT_AHEAD == {}
+    assert ahead.nodes.tobytes() == bvh.build_bvh(*device_scene._rebased(scene)[:1], scene.triangles).nodes.tobytes()
+    device_scene.build_ahead(scene)             # held by the queue's context: nothing to build
+    assert device_scene._BUILT_AHEAD == {}

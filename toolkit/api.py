@@ -13,7 +13,7 @@ from toolkit.opencl.kernel_times import KernelTimes, profiling_queue
 from toolkit.opencl.device import describe, get_queue
 from toolkit.opencl.lanes import describe as describe_lanes
 from toolkit.opencl.lanes import width as lane_width
-from toolkit.opencl.device_scene import DeviceScene
+from toolkit.opencl.device_scene import DeviceScene, build_ahead
 from toolkit.core.scene import Scene, bundled_scene_dir, check_scene, load_scene
 from toolkit.techniques import get_technique
 from toolkit.techniques.strategy_images import StrategyImages
@@ -97,6 +97,7 @@ def render(scene=None, technique="pt_naive", options=None, **fields):
     cls, tech_options, strategy_max_edges = _checked(technique, options)
     scene = as_scene(scene)
     width, height = camera_size(*(options.resolution or (scene.camera.width, scene.camera.height)), options.spp)
+    build_ahead(scene)          # a big scene's BVH before the OpenCL context: not both in memory at once
     queue = get_queue(options.device, options.lanes)
     if options.time_phases:
         queue = profiling_queue(queue)

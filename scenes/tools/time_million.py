@@ -5,16 +5,17 @@ CPU seconds (the BVH build's own process included); the wall clock also counts o
     python scenes/tools/make_million.py out/million
     python scenes/tools/time_million.py out/million [--toolkit-load]
 
-Steps: (with --toolkit-load) the toolkit's load_scene, whose memory then counts in the peak; the
-meshes read by trimesh (a fast OBJ reader), as
-arrays; the BVH build on the rebased float64 triangles (toolkit/core/bvh.py, as DeviceScene
-calls it); the wide BVH of 4 children (the one a million-triangle scene gets: its 8-wide tree
-needs more stack than the kernels have). "load (trimesh) + build" is the issue's target figure.
+Steps: the meshes read by trimesh as arrays, or (--toolkit-load) the scene read as the renderer
+reads it (the toolkit's load_scene, which also starts the BVH build's process early); the BVH
+build on the rebased float64 triangles (toolkit/core/bvh.py, as DeviceScene calls it); the wide
+BVH of 4 children (the one a million-triangle scene gets: its 8-wide tree needs more stack than
+the kernels have). "load + BVH build" with --toolkit-load is the issue's target figure (check 1).
 """
 import json
 import resource
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -54,26 +55,36 @@ def trimesh_arrays(scene_json):
     return np.concatenate(vertices), np.concatenate(triangles)
 
 
+def toolkit_arrays(scene_json):
+    """The scene as the renderer loads it (load_scene: the toolkit's OBJ reader, degenerate
+    triangles dropped; a big scene's BVH process started as it reads), as (vertices, triangles)."""
+    from toolkit.core.scene import load_scene
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")         # the sphere's 2,000 degenerate triangles, dropped
+        scene = load_scene(scene_json)
+    return scene.vertices, scene.triangles
+
+
 def main(folder, toolkit_load=False):
     scene_json = Path(folder) / "scene.json"
     clock = Clock()
     from toolkit.core.bvh import SEPARATE_FROM, build_bvh, collapse_wide
-    if toolkit_load:
-        from toolkit.core.scene import load_scene
-        clock("load (toolkit's load_scene)", load_scene, scene_json)
-    vertices, triangles = clock("load (trimesh)", trimesh_arrays, scene_json)
+    load = "load (toolkit's load_scene)" if toolkit_load else "load (trimesh)"
+    vertices, triangles = clock(load, toolkit_arrays if toolkit_load else trimesh_arrays, scene_json)
     lo, hi = vertices.min(0), vertices.max(0)
     local = vertices - 0.5 * (lo + hi)
-    edges = np.cross(local[triangles[:, 1]] - local[triangles[:, 0]], local[triangles[:, 2]] - local[triangles[:, 0]])
-    triangles = triangles[np.linalg.norm(edges, axis=1) > 0]     # the loader drops degenerate triangles too
-    del edges
+    if not toolkit_load:
+        corners = local[triangles]
+        edges = np.cross(corners[:, 1] - corners[:, 0], corners[:, 2] - corners[:, 0])
+        triangles = triangles[np.linalg.norm(edges, axis=1) > 0]     # the loader drops degenerate triangles too
+        del corners, edges
     print(f"{len(triangles):,} triangles")
     bvh = clock("BVH build", build_bvh, local, triangles)
     leaf_vertices = local.astype(np.float32)[triangles[bvh.order]]
     wide = clock("wide BVH (4 children)", collapse_wide, bvh, leaf_vertices, 4)
-    cpu = sum(clock.rows[k][0] for k in ("load (trimesh)", "BVH build", "wide BVH (4 children)"))
-    wall = sum(clock.rows[k][1] for k in ("load (trimesh)", "BVH build", "wide BVH (4 children)"))
-    print(f"{'load (trimesh) + build + wide':<34} {cpu:7.2f} s CPU {wall:7.2f} s wall")
+    for steps in ((load, "BVH build"), (load, "BVH build", "wide BVH (4 children)")):
+        cpu, wall = (sum(clock.rows[k][i] for k in steps) for i in (0, 1))
+        print(f"{' + '.join(s.split(' (')[0] for s in steps):<34} {cpu:7.2f} s CPU {wall:7.2f} s wall")
     print(f"binary nodes {bvh.node_count:,}, depth {bvh.max_depth}; wide nodes {wide.inner_nodes:,}, "
           f"stack {wide.stack_needed}")
     print(f"peak memory (this process, all steps) {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024:.0f} MB; "

@@ -17,7 +17,14 @@ the parent and the child take turns, so neither waits on a full pipe:
     child -> parent   per width: kids, index_of, depth_of, stack_of (wide_children.wide_children)
 
 Its progress bar and any error message go to the parent's stderr.
+
+The child's start, Python with numpy and numba and the build's machine code from numba's cache,
+costs about 1.2 s of CPU before it can build. So it starts warm: it runs the build and the
+wide children once on a few triangles (which loads their code) before it waits for the scene.
+And the scene's loader starts it early (`start_early`, when the meshes are big), so that its
+start runs on the second core while the first reads the meshes; BuildProcess takes that child.
 """
+import atexit
 import contextlib
 import importlib
 import os
@@ -57,12 +64,42 @@ def receive(pipe, count):
     return [np.lib.format.read_array(stream, allow_pickle=False) for _ in range(count)]
 
 
+def _start():
+    # glibc's malloc keeps freed arrays of up to 32 MB in its heap for reuse (its threshold for
+    # mapping memory of its own grows with each big array freed), and the child's resident memory
+    # grows with each: with arrays of 1 MB and more always mapped, and unmapped when freed, the
+    # child of a million triangles peaks at about 270 MB instead of 340 (other C libraries ignore this).
+    env = dict(os.environ)
+    env.setdefault("MALLOC_MMAP_THRESHOLD_", str(1 << 20))
+    return subprocess.Popen([sys.executable, str(HERE / "build_process.py")], stdin=subprocess.PIPE,
+                            stdout=subprocess.PIPE, env=env)
+
+
+_early = []         # the child start_early started, until a BuildProcess takes it
+
+
+def start_early():
+    """Start the build's process now, for the next BuildProcess to take. A child no build takes
+    is ended when this process exits."""
+    if not _early:
+        _early.append(_start())
+
+
+@atexit.register
+def _end_unused():
+    for process in _early:
+        process.kill()
+        process.wait()
+        process.stdin.close()
+        process.stdout.close()
+    _early.clear()
+
+
 class BuildProcess:
     """The parent's end: `with BuildProcess() as child: child.send(...); child.receive(n)`."""
 
     def __enter__(self):
-        self.process = subprocess.Popen([sys.executable, str(HERE / "build_process.py")],
-                                        stdin=subprocess.PIPE, stdout=subprocess.PIPE)
+        self.process = _early.pop() if _early else _start()
         return self
 
     def send(self, *arrays):
@@ -116,15 +153,34 @@ def main():
     stdin, stdout = sys.stdin.buffer, os.fdopen(os.dup(sys.stdout.fileno()), "wb")
     os.dup2(sys.stderr.fileno(), sys.stdout.fileno())
     sah_build, wide = _load("sah_build"), _load("wide_children")
+    _warm_up(sah_build, wide)
+    if not stdin.peek(1):           # the parent ended (or never needed this child): nothing to build
+        return
     vertices, triangles, settings = receive(stdin, 3)
     leaf_size, bins, step, progress = (int(x) for x in settings)
-    lo, hi, first, count, axis, order, depth = sah_build.build(vertices, triangles, leaf_size, bins, step, progress)
-    del vertices, triangles
+    root = sah_build.BuildState.of_triangles(vertices, triangles)
+    del vertices, triangles         # the build needs their boxes only (a million triangles: 36 MB)
+    lo, hi, first, count, axis, order, depth = sah_build.build_from(root, leaf_size, bins, step, progress)
+    del root
     send(stdout, lo, hi, first, count, axis, order, np.array(depth))
     del lo, hi, order
     area, widths = receive(stdin, 2)
     for width in widths:
         send(stdout, *wide.wide_children(first, count > 0, area, int(width)))
+    # Everything is sent (and flushed): leave at once. Python's orderly exit tears numba's compiler
+    # down for a quarter of a second, which the parent would wait for.
+    os._exit(0)
+
+
+def _warm_up(sah_build, wide):
+    """Build a tree of a few triangles and its wide children: numba loads the machine code of both
+    from its cache (half a second and more) before the scene arrives, not after."""
+    corner = np.arange(64, dtype=np.float64).reshape(-1, 1) * np.array([[1.0, 0.5, 0.25]])
+    vertices = np.concatenate([corner, corner + [1.0, 0.0, 0.0], corner + [0.0, 1.0, 0.0]])
+    triangles = np.arange(len(vertices), dtype=np.int64).reshape(3, -1).T.copy()
+    lo, hi, first, count, *_ = sah_build.build(vertices, triangles, 4, 16, 1 << 20, False)
+    for width in (4, 8):
+        wide.wide_children(first, count > 0, np.ones(len(first)), width)
 
 
 if __name__ == "__main__":

@@ -95,7 +95,7 @@ def _set_nodes(flat, name, array):
 
 
 def _build_compiled(vertices, triangles, leaf_size, bins):
-    """The compiled build in this process (sah_build.build: the root's two subtrees in two threads)."""
+    """The compiled build in this process (sah_build.build: the subtrees below its top nodes in two threads)."""
     # Imported here: numba's start costs about half a second and 120 MB, which small scenes need not pay.
     from toolkit.core import sah_build
     return sah_build.build(vertices, triangles, leaf_size, bins, PROGRESS_STEP, len(triangles) >= PROGRESS_FROM)

@@ -16,8 +16,8 @@ builders to the same nodes on random and bundled scenes.
 
 The build is resumable: `build_some` works until `budget` more triangles sit in leaves and
 returns, so the caller can show progress between calls on a big scene. And a state builds one
-range of triangles, apart from any other: `build` builds the root's two subtrees at once, in
-two threads, and `join` makes one tree of them.
+range of triangles, apart from any other: `build` makes the top few nodes one at a time, builds
+the subtrees below them at once, in two threads, and `join` makes one tree of them.
 
 This file imports numpy and numba only, never the toolkit: build_process.py runs it in a
 process of its own for big scenes.
@@ -42,10 +42,10 @@ class BuildState:
     and at the end `order` is the leaves' order); the nodes made so far (depth-first: a left
     child follows its parent; numbered from 0 in each state); and the stack of ranges still to
     build, each with its boxes (a split measures its sides' boxes, so a child never measures its
-    own). Two states of disjoint ranges can run at once, in two threads (numba's nogil)."""
+    own). States of disjoint ranges can run at once, in threads of their own (numba's nogil)."""
 
     def __init__(self, bounds, order, start, end, depth, box):
-        n = end - start
+        n = self.triangles = end - start
         self.bounds, self.order = bounds, order
         # The right side of a partition, before its copy back: a node's right side is at most n.
         self.scratch_bounds, self.scratch_order = np.empty((n, 6)), np.empty(n, np.int64)
@@ -113,53 +113,85 @@ class BuildState:
         self.bounds = self.scratch_bounds = self.scratch_order = None
 
 
-def build(vertices, triangles, leaf_size, bins, step, progress):
+def build(vertices, triangles, leaf_size, bins, step, progress, threads=2):
     """(lo, hi, first, count, axis, order, depth) of the tree over `triangles` (M, 3) indexing
-    `vertices` (V, 3): the root's split here, then its two subtrees at once, one thread each (2
-    cores, 2 threads), each resumed every `step` triangles; `progress`: show a progress bar."""
+    `vertices` (V, 3): the top nodes here, one at a time, until no range below them holds more
+    than a (2 x threads)th of the triangles; then those ranges' subtrees at once, `threads` at a
+    time, the biggest first, each resumed every `step` triangles; `progress`: show a progress bar.
+    (Splitting at the root alone left one thread idle where one object is most of a scene: the
+    million-triangle sphere beside its Cornell box made a root of 8 and of 998,028 triangles.)"""
+    return build_from(BuildState.of_triangles(vertices, triangles), leaf_size, bins, step, progress, threads)
+
+
+def build_from(root, leaf_size, bins, step, progress, threads=2):
+    """build() from the state of the whole build (BuildState.of_triangles), which needs only the
+    triangles' boxes: a caller can let go of the vertices and triangles first."""
     from concurrent.futures import ThreadPoolExecutor, wait
     from tqdm.auto import tqdm
 
-    root = BuildState.of_triangles(vertices, triangles)
-    root.run(len(triangles), leaf_size, bins, max_nodes=1)
-    if root.done:                   # the root is a leaf
-        return (root.node_lo[:1], root.node_hi[:1], root.node_first[:1], root.node_count[:1], root.node_axis[:1],
-                root.order, 0)
-    subtrees = root.waiting()
-    root.release()
+    triangles = root.triangles
+    subtrees = []
+    top = _split_top(root, max(triangles // (2 * threads), 1), leaf_size, bins, subtrees)
 
     def build_subtree(state):
         while not state.done:
             state.run(step, leaf_size, bins)
         state.release()
 
-    with tqdm(total=len(triangles), unit="tri", desc="BVH build", file=sys.stderr, leave=False,
-              disable=not progress, mininterval=0.5) as bar, ThreadPoolExecutor(len(subtrees)) as pool:
-        running = [pool.submit(build_subtree, state) for state in subtrees]
+    with tqdm(total=triangles, unit="tri", desc="BVH build", file=sys.stderr, leave=False,
+              disable=not progress, mininterval=0.5) as bar, ThreadPoolExecutor(threads) as pool:
+        running = [pool.submit(build_subtree, state) for state in sorted(subtrees, key=lambda s: -s.triangles)]
         while wait(running, timeout=0.5).not_done:
             bar.update(sum(state.counters[PLACED] for state in subtrees) - bar.n)
         for done in running:
             done.result()           # raises what the thread raised
-    lo, hi, first, count, axis, depth = join(root, *subtrees)
+    lo, hi, first, count, axis, depth = join(top)
     return lo, hi, first, count, axis, root.order, int(depth)
 
 
-def join(root, left, right):
-    """The arrays (lo, hi, first, count, axis, depth) of one depth-first tree from a root state
-    that made node 0 only and the states that built its left and right subtrees: the left
-    subtree's nodes follow the root, the right one's follow them, and each inner node's `first`
-    (its right child) moves with them. Leaves' `first` are positions in `order`, shared by all."""
-    n_left, n_right = left.nodes, right.nodes
-    lo, hi = np.empty((1 + n_left + n_right, 3)), np.empty((1 + n_left + n_right, 3))
-    first, count, axis = (np.empty(1 + n_left + n_right, np.int64) for _ in range(3))
-    for at, state in ((0, root), (1, left), (1 + n_left, right)):
-        n = state.nodes if state is not root else 1
+def _split_top(state, most, leaf_size, bins, subtrees):
+    """The top of the tree as nested (state that made one node, left, right), down to the states
+    of at most `most` triangles, which are appended to `subtrees` (built later, each whole)."""
+    if state.triangles <= most:
+        subtrees.append(state)
+        return state
+    state.run(state.triangles, leaf_size, bins, max_nodes=1)
+    if state.done:                  # its one node is a leaf
+        return state
+    left, right = state.waiting()
+    state.release()
+    return state, _split_top(left, most, leaf_size, bins, subtrees), _split_top(right, most, leaf_size, bins, subtrees)
+
+
+def join(top):
+    """The arrays (lo, hi, first, count, axis, depth) of one depth-first tree from _split_top's
+    nesting: a node made alone, then its left subtree's nodes, then its right one's. Each
+    state's nodes move as a block, and each inner node's `first` (its right child) with them;
+    leaves' `first` are positions in `order`, shared by all."""
+    blocks, right_child = [], {}        # (where a state's nodes go, state, how many); split node -> its right child
+
+    def place(part, at):
+        if isinstance(part, BuildState):
+            blocks.append((at, part, part.nodes))
+            return at + part.nodes
+        state, left, right = part
+        blocks.append((at, state, 1))
+        right_child[at] = place(left, at + 1)
+        return place(right, right_child[at])
+
+    total = place(top, 0)
+    lo, hi = np.empty((total, 3)), np.empty((total, 3))
+    first, count, axis = (np.empty(total, np.int64) for _ in range(3))
+    for at, state, n in blocks:
         lo[at:at + n], hi[at:at + n] = state.node_lo[:n], state.node_hi[:n]
         count[at:at + n], axis[at:at + n] = state.node_count[:n], state.node_axis[:n]
         inner = state.node_count[:n] == 0
         first[at:at + n] = np.where(inner, state.node_first[:n] + at, state.node_first[:n])
-    first[0] = 1 + n_left                          # the root's right child
-    depth = max(left.counters[DEPTH], right.counters[DEPTH])
+        # Copied: the state's nodes go (a million triangles' are 43 MB, which the copy doubled).
+        state.node_lo = state.node_hi = state.node_first = state.node_count = state.node_axis = None
+    for at, right in right_child.items():
+        first[at] = right
+    depth = max(state.counters[DEPTH] for _, state, _ in blocks)
     return lo, hi, first, count, axis, depth
 
 

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
+from toolkit.core.build_process import start_early as start_bvh_build_early
 from toolkit.core.images import read_exr
 from toolkit.core.layout import MATERIAL_TYPES
 from toolkit.core.mesh_files import read_mesh
@@ -324,6 +325,7 @@ def _parse_shapes(where, path, shapes, index_of):
     """The shapes' meshes joined: (vertices, triangles, material of each triangle, emission of each)."""
     if not isinstance(shapes, list) or not shapes:
         _fail(where, "'shapes' must be a non-empty list")
+    _start_big_build_early(path.parent, shapes)
     vertices, triangles, material_of, emission_of = [], [], [], []
     unmodelled = {}         # mesh file: what it holds that the toolkit does not model
     offset = 0
@@ -361,6 +363,26 @@ def _parse_shapes(where, path, shapes, index_of):
                       stacklevel=4)
     return (np.concatenate(vertices), np.concatenate(triangles), np.concatenate(material_of),
             np.concatenate(emission_of))
+
+
+# Meshes of this many bytes or more make a scene whose BVH is likely built in a process of its own
+# (toolkit/core/bvh.py, SEPARATE_FROM triangles: make_million.py's OBJ takes 42 bytes a triangle).
+BUILD_EARLY_FROM_BYTES = 10 << 20
+
+
+def _start_big_build_early(folder, shapes):
+    """Start the BVH build's process of a big scene before its meshes are read: its start (about
+    1.2 s of CPU: Python, numpy, numba's cached code) then runs on the second core while this one
+    reads (build_process.start_early). Only the sizes of the files are looked at here; the loop
+    that reads them says what is wrong with any."""
+    size = 0
+    for shape in shapes:
+        try:
+            size += regular_file_inside(folder / shape["mesh"], folder, "mesh", "mesh.bytes").stat().st_size
+        except (TypeError, KeyError, InputError, OSError):
+            pass
+    if size >= BUILD_EARLY_FROM_BYTES:
+        start_bvh_build_early()
 
 
 def _parse_integrator(where, integrator):

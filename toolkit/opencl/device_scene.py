@@ -5,27 +5,59 @@ a scene translated far from the origin keeps the precision of one at the origin
 ("camera-relative" / origin rebasing). Ray offsets scale with the scene's size (scene_epsilon).
 """
 import hashlib
+import weakref
 
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.bvh import aligned_zeros, build_bvh, collapse_wide, wide_stack_needed
+from toolkit.core.bvh import SEPARATE_FROM, aligned_zeros, build_bvh, collapse_wide, wide_stack_needed
 from toolkit.core.layout import BVH_KINDS, BVH_STACK_SIZE, CAMERA, LIGHT, LUMINANCE_WEIGHTS, MATERIAL, MATERIAL_TYPES, SCENE_ARGS, TRIANGLE, WIDE_NODES
 from toolkit.opencl import lanes
 
-def _bvh_for(queue, scene, local):
-    """The host BVH of this geometry (`local`: the rebased vertices), built once per context (its
-    Builds keeps it: builds.py)."""
-    bvhs = queue.builds.bvhs
+# BVHs built before their scene's OpenCL context (build_ahead), until a DeviceScene takes one; and
+# every host BVH any context holds, by the same key, so that build_ahead builds none twice.
+_BUILT_AHEAD = {}
+_HELD = weakref.WeakValueDictionary()
+
+
+def _rebased(scene):
+    """The scene's vertices less the centre of their box (float64 rebasing), and that centre."""
+    lo, hi = scene.vertices.min(0), scene.vertices.max(0)
+    center = 0.5 * (lo + hi)
+    return scene.vertices - center, center
+
+
+def _key(scene, local):
     # Vertices and indices hashed where they lie, not every triangle's vertices (72 MB for a million).
     digest = hashlib.blake2b(digest_size=16)
     for array in (local, scene.triangles):
         array = np.ascontiguousarray(array)
         digest.update(str((array.dtype.str, array.shape)).encode())
         digest.update(array.data)
-    key = (scene.name, digest.digest())
+    return scene.name, digest.digest()
+
+
+def build_ahead(scene):
+    """Build a big scene's host BVH now, before the OpenCL context is made (toolkit.render): the
+    build's own process (from SEPARATE_FROM triangles, about 330 MB for a million) then ends before
+    the runtime's context (about 140 MB) exists, and the two never take memory at the same time.
+    The next DeviceScene of this geometry takes it. A smaller scene's is built where it is needed."""
+    if len(scene.triangles) < SEPARATE_FROM:
+        return
+    local, _ = _rebased(scene)
+    key = _key(scene, local)
+    if key not in _BUILT_AHEAD and key not in _HELD:
+        _BUILT_AHEAD[key] = build_bvh(local, scene.triangles)
+
+
+def _bvh_for(queue, scene, local):
+    """The host BVH of this geometry (`local`: the rebased vertices), built once per context (its
+    Builds keeps it: builds.py), or taken from build_ahead or another context."""
+    bvhs = queue.builds.bvhs
+    key = _key(scene, local)
     if key not in bvhs:
-        bvhs[key] = build_bvh(local, scene.triangles)
+        bvhs[key] = _BUILT_AHEAD.pop(key, None) or _HELD.get(key) or build_bvh(local, scene.triangles)
+        _HELD[key] = bvhs[key]
     return bvhs[key]
 
 
@@ -65,11 +97,9 @@ class DeviceScene:
         self.bvh_kind = bvh
         self.scene = scene
         self.queue = queue
-        lo, hi = scene.vertices.min(0), scene.vertices.max(0)
-        self.center = 0.5 * (lo + hi)
-        self.extent = float(np.linalg.norm(hi - lo))
+        local, self.center = _rebased(scene)
+        self.extent = float(np.linalg.norm(scene.vertices.max(0) - scene.vertices.min(0)))
         self.epsilon = np.float32(self.EPSILON_RELATIVE * self.extent)
-        local = scene.vertices - self.center                    # float64 rebasing
         self.bvh = _bvh_for(queue, scene, local)
         if self.bvh.max_depth >= BVH_STACK_SIZE - 1:
             raise ValueError(f"{scene.name}: BVH depth {self.bvh.max_depth} exceeds the device stack ({BVH_STACK_SIZE})")
