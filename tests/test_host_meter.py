@@ -208,7 +208,7 @@ def test_median_of_pairs_takes_each_figure_s_middle_value_and_its_spread():
 
 def test_mlt_at_the_gpu_s_sizes_takes_n_equal_to_spp():
     """At the GPU's sizes a quarter of 16 spp is one iteration of Metropolis's 262,144 chains at
-    256x256: N = spp there (48 iterations more, not 3); elsewhere a quarter, as for BDPT."""
+    256x256: N = spp there (12 iterations more, not 3); elsewhere a quarter, as for BDPT."""
     assert spp_of("mlt", 16, gpu_sizes=True) == 16 and spp_of("mlt", 16) == 4
     assert spp_of("bdpt_parallel_connect", 16, gpu_sizes=True) == 4 and spp_of("pt_naive", 16, gpu_sizes=True) == 16
 
@@ -228,5 +228,7 @@ def test_repeated_pairs_report_the_median_and_exact_counts(cornell_box, monkeypa
         assert figures["launches_per_million"] == pytest.approx(2e6 / 32)
     low, high = row["spread"]["host_cpu_ns_per_sample"]
     assert low <= row["host_cpu_ns_per_sample"] <= high
+    for r in row["renders"]:    # the passes' share of the thread's time: part of it
+        assert 0 < r["pass_cpu_seconds"] <= r["cpu_seconds"]
     with pytest.raises(ValueError, match="repeats"):
         host_meter(cornell_box, ("pt_naive",), repeats=0)

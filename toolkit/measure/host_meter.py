@@ -21,12 +21,16 @@ Precision. The difference of two renders is exact for the counts and noisy for t
 render's fixed cost (its start, the buffers it frees) varies by tens of milliseconds on a loaded
 machine. Two things keep the 3N more samples well above that noise. Metropolis at the GPU's sizes
 takes N = spp, not a quarter of it (`spp_of`): with 262,144 chains at 256x256 a quarter of 16 spp is
-one iteration against four, so the difference was 3 iterations (about 0.1 s of host time) beside a
+one iteration against four, so the difference was 3 iterations (a few tens of ms of host time) beside a
 start of 17 iterations of its own (start = pool: 16 candidates and the picked states), and the
-figure came out anywhere from -56 to +171 ns per mutation; at 16 and 64 it is 48 iterations. And
+figure came out anywhere from -56 to +171 ns per mutation; at 16 and 64 it is 12 (4 against 16). And
 `repeats`: the pair of renders is made that many times and each figure is the median of the pairs'
 figures, with the lowest and highest in `spread` (the JSON's `pairs` holds every pair's figures).
+Beside the host CPU per sample, `pass_cpu_ns_per_sample` counts only the thread's time inside the
+technique's passes (run_pass): what the extra samples cost as well, without the start's and the
+end's noise (but also without any per-sample work a technique defers to its end).
 """
+import time
 from contextlib import contextmanager
 
 from toolkit.api import as_scene, render, technique_options
@@ -43,8 +47,8 @@ RESOLUTION = (256, 256)
 GPU_SIZES = {"stream_size": 270_336, "pool_size": 270_336, "chains": 262_144}
 GROWTH = 4   # the second render has GROWTH times the first one's samples
 # The figures that are times (noisy), for `spread`; the rest are counts, the same in every pair.
-TIMED = ("host_cpu_ns_per_sample", "serial_ns_per_sample", "kernel_ns_per_sample", "wall_ns_per_sample",
-         "kernel_share")
+TIMED = ("host_cpu_ns_per_sample", "pass_cpu_ns_per_sample", "serial_ns_per_sample", "kernel_ns_per_sample",
+         "wall_ns_per_sample", "kernel_share")
 
 
 def spp_of(technique, spp, gpu_sizes=False):
@@ -87,20 +91,25 @@ def metered_render(scene, technique, options, count_simd=False, warm_up=None):
     with counted_passes(cls) as passes, Traffic() as traffic:
         result = render(scene, technique, with_fields(options, count_simd=count_simd, time_phases=True))
     stats = result.stats
-    return {**traffic.figures(), "seconds": stats["seconds"],
+    return {**traffic.figures(), "pass_cpu_seconds": passes[1], "seconds": stats["seconds"],
             "kernel_seconds": sum(k["seconds"] for k in stats["kernel_times"].values()),
             "samples": round(stats["samples_per_second"] * stats["seconds"]), "passes": passes[0]}
 
 
 @contextmanager
 def counted_passes(cls):
-    """Counts the calls of `cls.run_pass` (a technique's passes) while the block runs; yields [count]."""
-    count, real = [0], cls.__dict__.get("run_pass")
+    """Counts the calls of `cls.run_pass` (a technique's passes) while the block runs, and the thread
+    CPU time spent in them; yields [count, seconds]."""
+    count, real = [0, 0.0], cls.__dict__.get("run_pass")
     inherited = cls.run_pass
 
     def run_pass(self, *args, **kwargs):
         count[0] += 1
-        return inherited(self, *args, **kwargs)
+        start = time.thread_time()
+        try:
+            return inherited(self, *args, **kwargs)
+        finally:
+            count[1] += time.thread_time() - start
     cls.run_pass = run_pass
     try:
         yield count
@@ -125,6 +134,9 @@ def costs(first, second):
     passes = max(second["passes"], 1)
     return {
         "host_cpu_ns_per_sample": per_sample("cpu_seconds") * 1e9,
+        # the same, counting only the passes (run_pass): without the render's start and end, whose
+        # host cost is the same in both renders but not its noise (Metropolis's start is 17 iterations)
+        "pass_cpu_ns_per_sample": per_sample("pass_cpu_seconds") * 1e9,
         "serial_ns_per_sample": per_sample("serial_seconds") * 1e9,
         "kernel_ns_per_sample": per_sample("kernel_seconds") * 1e9,
         "wall_ns_per_sample": per_sample("seconds") * 1e9,
@@ -208,6 +220,9 @@ def format_host_meter(report):
         if "spread" in row:
             low, high = row["spread"]["host_cpu_ns_per_sample"]
             lines.append(f"{name}: host CPU ns/sample from {low:,.1f} to {high:,.1f} over the {repeats} pairs")
+    for name, row in report["techniques"].items():
+        if "pass_cpu_ns_per_sample" in row:
+            lines.append(f"{name}: host CPU inside its passes {row['pass_cpu_ns_per_sample']:,.1f} ns/sample")
     lines.append("host CPU: the CPU time of the thread that drives the queue; serial: the part of it while the "
                  "device's queue was empty (from a blocking read, finish or wait to the next launch); blocking: "
                  "blocking reads and writes; per pass: in the 4N render. Kernels: OpenCL profiling events.")
