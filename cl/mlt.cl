@@ -9,11 +9,11 @@
  *                                cl/bdpt_parallel_connect.cl  evaluate the proposals (one BDPT sample each)
  *   mlt_proposal_sums            cl/mlt_contribution.h       after each connect phase: each proposal's f and dims,
  *                                                            its records into the proposal store
- *   mlt_splat_weights            cl/mlt_splat.h              each chain's splat weights; the large steps' f into b
- *   mlt_accept                   cl/mlt.h                    keep or reject each proposal
+ *   mlt_accept_and_weigh         cl/mlt_splat.h, cl/mlt.h    each chain's splat weights and the large steps' f
+ *                                                            into b, then keep or reject each proposal
  *   mlt_weigh_records, record_film_add (x3)                  the splats into the films (cl/record_film.cl)
- *   mlt_keep_records             cl/mlt_splat.h              the next current states' records
- *   mlt_estimate_b               cl/mlt_splat.h              b for the next iteration's weights
+ *   mlt_keep_records             cl/mlt_splat.h              the next current states' records; b for the next
+ *                                                            iteration's weights (work-item 0)
  * and once, for start = pool, after the candidates:
  *   mlt_start_from               cl/mlt.h                    each chain's first state, picked by the host
  * or for start = resample:

@@ -40,13 +40,13 @@ HELPER float mlt_acceptance(float f_current, float f_proposal) {
  * resample): weighted reservoir sampling, kept with probability f / (sum of f so far), so after
  * N candidates the state is candidate i with probability f_i / sum f. The accepted vector is
  * copied into the chain's current one (its used dimensions). The splats' weights use the same a
- * (mlt_acceptance), computed before this kernel by mlt_splat_weights (cl/mlt_splat.h). */
-__kernel void mlt_accept(const MltIteration it, __global float* current, __global const float* proposal,
-                         __global MltChain* chains, __global const float* f_proposal,
-                         __global const int* dims_proposal)
+ * (mlt_acceptance), computed before it by mlt_chain_splat_weights (cl/mlt_splat.h).
+ * One chain's acceptance: the body of the kernel mlt_accept (the toy target's, toolkit/verify/mlt_toy.py)
+ * and of mlt_accept_and_weigh (cl/mlt_splat.h: the render's, weights and acceptance in one launch). */
+HELPER void mlt_accept_chain(const MltIteration it, int c, __global float* current, __global const float* proposal,
+                             __global MltChain* chains, __global const float* f_proposal,
+                             __global const int* dims_proposal)
 {
-    int c = get_global_id(0);
-    if (c >= it.active) return;
     Sampler m = mlt_mutation_sampler(it.seed, c, it.iteration);
     MltChain chain = chains[c];
     float fy = f_proposal[c];
@@ -73,6 +73,15 @@ __kernel void mlt_accept(const MltIteration it, __global float* current, __globa
     chain.f_proposal = fy;            /* the proposal as this acceptance saw it */
     chain.dims_proposal = dims_proposal[c];
     chains[c] = chain;
+}
+
+__kernel void mlt_accept(const MltIteration it, __global float* current, __global const float* proposal,
+                         __global MltChain* chains, __global const float* f_proposal,
+                         __global const int* dims_proposal)
+{
+    int c = get_global_id(0);
+    if (c >= it.active) return;
+    mlt_accept_chain(it, c, current, proposal, chains, f_proposal, dims_proposal);
 }
 
 /* start = pool: chain c starts at a large step that chain src_chain[c] evaluated in iteration

@@ -9,8 +9,8 @@
  * its span (int2: the first entry and the count of its records). After the acceptance mlt_keep_records writes the
  * next current store: each chain's accepted proposal's records, or its old current records.
  *
- * Splats. mlt_splat_weights gives every chain three weights (before mlt_accept, which overwrites
- * the current state's f): the proposal's a w / (f(y) + p b'), the current state's (1 - a) w /
+ * Splats. mlt_accept_and_weigh gives every chain three weights (mlt_chain_splat_weights, before
+ * its acceptance overwrites the current state's f): the proposal's a w / (f(y) + p b'), the current state's (1 - a) w /
  * (f(x) + p b') and, with Kelemen's combination, a large step's own b' / (f(y) + p b'); w is the
  * chain's weight (start = resample), b' the estimate of b before this iteration. mlt_weigh_records
  * puts one of them in each record's .w, and the record film (cl/record_film.cl) adds value * .w:
@@ -27,18 +27,13 @@
 #include "fixed_point_128.h"
 #include "mlt.h"
 
-/* Every active chain's splat weights (.x proposal, .y current state, .z a large step's own; zero
- * outside MLT_MUTATE) and its large step's f into b's sum. Launched before mlt_accept. */
-__kernel void mlt_splat_weights(const MltIteration it, __global const MltChain* chains,
-                                __global const float* f_proposal, __global const float* weight,
-                                __global const float* b_estimate, const int combine, const int unit_exponent,
-                                __global float4* splat_weights, __global FilmAccumulator* b_sum,
-                                __global int* tallies)
+/* Chain c's splat weights (.x proposal, .y current state, .z a large step's own; zero outside
+ * MLT_MUTATE) and its large step's f into b's sum; before its acceptance changes the current state. */
+HELPER void mlt_chain_splat_weights(const MltIteration it, int c, MltChain chain, float fy,
+                                    __global const float* weight, __global const float* b_estimate,
+                                    const int combine, const int unit_exponent, __global float4* splat_weights,
+                                    __global FilmAccumulator* b_sum, __global int* tallies)
 {
-    int c = get_global_id(0);
-    if (c >= it.active) return;
-    MltChain chain = chains[c];
-    float fy = f_proposal[c];
     bool large = chain.large_step != 0;
     float4 w = (float4)(0.0f);
     if (it.mode == MLT_MUTATE) {
@@ -63,11 +58,27 @@ __kernel void mlt_splat_weights(const MltIteration it, __global const MltChain* 
     }
 }
 
-/* One work-item: b' = b's sum / the large steps so far, for the next iteration's weights. */
-__kernel void mlt_estimate_b(__global FilmAccumulator* b_sum, const int unit_exponent,
-                             __global const int* tallies, __global float* b_estimate)
+/* Every active chain: its splat weights from a (mlt_chain_splat_weights, while its current state
+ * is still the old one), then its acceptance (cl/mlt.h mlt_accept_chain). One launch for both. */
+__kernel void mlt_accept_and_weigh(const MltIteration it, __global float* current, __global const float* proposal,
+                                   __global MltChain* chains, __global const float* f_proposal,
+                                   __global const int* dims_proposal, __global const float* weight,
+                                   __global const float* b_estimate, const int combine, const int unit_exponent,
+                                   __global float4* splat_weights, __global FilmAccumulator* b_sum,
+                                   __global int* tallies)
 {
-    if (get_global_id(0) != 0) return;
+    int c = get_global_id(0);
+    if (c >= it.active) return;
+    mlt_chain_splat_weights(it, c, chains[c], f_proposal[c], weight, b_estimate, combine, unit_exponent,
+                            splat_weights, b_sum, tallies);
+    mlt_accept_chain(it, c, current, proposal, chains, f_proposal, dims_proposal);
+}
+
+/* b' = b's sum / the large steps so far, for the next iteration's weights (work-item 0 of
+ * mlt_keep_records: b's sum is complete once mlt_accept_and_weigh has run). */
+HELPER void mlt_estimate_b(__global FilmAccumulator* b_sum, const int unit_exponent,
+                           __global const int* tallies, __global float* b_estimate)
+{
     float sum = ldexp(fixed_to_float(load_128(channel_words(b_sum, 0, 0))), unit_exponent);
     b_estimate[0] = sum / (float)max(tallies[MLT_TALLY_LARGE_STEPS], 1);
 }
@@ -86,13 +97,20 @@ __kernel void mlt_resample_weights(const MltIteration it, __global const MltChai
 
 /* Record i of a store gets the weight `component` (0 proposal, 1 current, 2 large step) of its
  * chain, or 0 for a chain that is not active in this iteration. `total`: the store's records
- * (on the device; the launch may cover more). */
+ * (on the device); the launch covers `capacity`, the host's bound on them, and the film's
+ * addition after it as many: an entry past the total (left from an earlier iteration) gets
+ * pixel -1, so it splats nothing (no fill of the store before each rebuild). */
 __kernel void mlt_weigh_records(const int capacity, __global const int* total, const int active,
                                 const int component, __global const float4* splat_weights,
-                                __global const int* record_chain, __global float4* record_value)
+                                __global const int* record_chain, __global float4* record_value,
+                                __global int* record_pixel)
 {
     int i = get_global_id(0);
-    if (i >= min(capacity, total[0])) return;
+    if (i >= capacity) return;
+    if (i >= total[0]) {
+        record_pixel[i] = -1;
+        return;
+    }
     int c = record_chain[i];
     /* c < 0 or past the chains: an entry that mlt_keep_records reserved but did not write (the
      * store overflowed, which the render reports): weight 0, never an index out of bounds */
@@ -103,16 +121,19 @@ __kernel void mlt_weigh_records(const int capacity, __global const int* total, c
 /* The next current store: chain c keeps its accepted proposal's records, or its current ones
  * (chains past it.active did not mutate). Entries are taken with an atomic counter, next_total:
  * their order changes from run to run, the film's integer sums do not. Counts the accepted
- * mutations, and the records past `capacity` (none: the host bounds the store's size). */
+ * mutations, and the records past `capacity` (none: the host bounds the store's size). Work-item 0
+ * also estimates b for the next iteration (mlt_estimate_b): one launch less per iteration. */
 __kernel void mlt_keep_records(const MltIteration it, __global const MltChain* chains,
                                __global const int2* proposal_span, __global const float4* proposal_value,
                                __global const int* proposal_pixel, __global const int2* current_span,
                                __global const float4* current_value, __global const int* current_pixel,
                                __global int2* next_span, __global float4* next_value, __global int* next_pixel,
                                __global int* next_chain, __global int* next_total, const int capacity,
-                               __global int* tallies)
+                               __global int* tallies, __global FilmAccumulator* b_sum,
+                               const int unit_exponent, __global float* b_estimate)
 {
     int c = get_global_id(0);
+    if (c == 0) mlt_estimate_b(b_sum, unit_exponent, tallies, b_estimate);
     if (c >= it.chains) return;
     bool accepted = c < it.active && chains[c].accepted;
     if (accepted && it.mode == MLT_MUTATE) atomic_inc(&tallies[MLT_TALLY_ACCEPTED]);
@@ -122,6 +143,8 @@ __kernel void mlt_keep_records(const MltIteration it, __global const MltChain* c
     int first = span.y > 0 ? atomic_add(next_total, span.y) : 0;
     if (first + span.y > capacity) {       /* the host's bound was wrong: never written past, reported */
         atomic_add(&tallies[MLT_TALLY_STORE_OVERFLOW], span.y);
+        for (int k = first; k < capacity; ++k)   /* reserved below the end: no pixel, no splat */
+            next_pixel[k] = -1;
         next_span[c] = (int2)(0, 0);
         return;
     }

@@ -195,3 +195,40 @@ def test_bench_host_on_the_command_line():
     assert "Traceback" not in refused.stderr
     refused = run_cli("bench", "--count-simd")
     assert refused.returncode == 2 and "--count-simd applies to the host meter only" in refused.stderr
+
+
+def test_median_of_pairs_takes_each_figure_s_middle_value_and_its_spread():
+    from toolkit.measure.host_meter import TIMED, median_of_pairs
+    pairs = [{key: v for key in TIMED} | {"launches_per_pass": 7} for v in (5.0, -1.0, 2.0)]
+    figures = median_of_pairs(pairs)
+    assert figures["host_cpu_ns_per_sample"] == 2.0 and figures["launches_per_pass"] == 7
+    assert figures["spread"]["host_cpu_ns_per_sample"] == [-1.0, 5.0]
+    assert median_of_pairs(pairs[:2])["kernel_share"] == 2.0           # even: the mean of the middle two
+
+
+def test_mlt_at_the_gpu_s_sizes_takes_n_equal_to_spp():
+    """At the GPU's sizes a quarter of 16 spp is one iteration of Metropolis's 262,144 chains at
+    256x256: N = spp there (12 iterations more, not 3); elsewhere a quarter, as for BDPT."""
+    assert spp_of("mlt", 16, gpu_sizes=True) == 16 and spp_of("mlt", 16) == 4
+    assert spp_of("bdpt_parallel_connect", 16, gpu_sizes=True) == 4 and spp_of("pt_naive", 16, gpu_sizes=True) == 16
+
+
+def test_repeated_pairs_report_the_median_and_exact_counts(cornell_box, monkeypatch):
+    """repeats=2: each pair of pt_naive renders (film on the host, one sample per pass) has the same
+    counts as one pair (exactly: 2 launches and one read per pass), and the report says so."""
+    from toolkit.measure.host_meter import host_meter
+    from toolkit.techniques.base import Technique
+    monkeypatch.setattr(Technique, "film_on_device", False)
+    report = host_meter(cornell_box, ("pt_naive",), spp=2, repeats=2, resolution=(8, 4),
+                        technique_options={"pass_spp": 1})
+    row = report["techniques"]["pt_naive"]
+    assert report["repeats"] == 2 and len(row["pairs"]) == 2 and row["spp"] == [2, 8]
+    for figures in row["pairs"] + [row]:
+        assert figures["launches_per_pass"] == 2 and figures["blocking_per_pass"] == 0
+        assert figures["launches_per_million"] == pytest.approx(2e6 / 32)
+    low, high = row["spread"]["host_cpu_ns_per_sample"]
+    assert low <= row["host_cpu_ns_per_sample"] <= high
+    for r in row["renders"]:    # the passes' share of the thread's time: part of it
+        assert 0 < r["pass_cpu_seconds"] <= r["cpu_seconds"]
+    with pytest.raises(ValueError, match="repeats"):
+        host_meter(cornell_box, ("pt_naive",), repeats=0)

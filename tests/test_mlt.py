@@ -282,7 +282,7 @@ def test_a_non_finite_record_is_dropped_counted_on_the_device_and_reported(corne
 
 def test_a_non_finite_splat_is_left_out_of_the_films_and_reported(cornell_box, monkeypatch):
     """A NaN planted in one chain's splat weights at every Metropolis iteration (after
-    mlt_splat_weights): the record film leaves every splat of that chain out and counts it
+    mlt_accept_and_weigh): the record film leaves every splat of that chain out and counts it
     (record_film.cl), the render reports them as dropped (a bug) and its image stays finite."""
     import pyopencl as cl
     from toolkit.core.layout import MltMode

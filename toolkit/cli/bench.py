@@ -27,7 +27,9 @@ def add_command(sub):
     p.add_argument("--resolution", type=resolution, default=None,
                    help="WxH (default 128x128; with --equal-time 32x32, which every bundled reference averages to; "
                         "with --peer: the scene's own)")
-    p.add_argument("--repeats", type=positive, default=3)
+    p.add_argument("--repeats", type=positive, default=None,
+                   help="runs of each row (default 3); with --host: pairs of renders per technique, each figure "
+                        "their median (default 1)")
     p.add_argument("--peer", choices=["embree", "mitsuba"],
                    help="instead: embree: closest-hit rays/s of our BVHs against embreex on the same rays; "
                         "mitsuba: Mitsuba 3's path integrator beside the toolkit (spp/s, variance per sample, "
@@ -40,7 +42,7 @@ def add_command(sub):
                         "pt_naive,pt_compact_regen,bdpt_parallel_connect; resolution 64x64)")
     p.add_argument("--host", action="store_true",
                    help="instead: the host meter: each technique rendered at N and 4N samples per pixel (N: --spp "
-                        "for path tracers, a quarter of it for BDPT and mlt), and what the 3N more samples cost the "
+                        "for path tracers, a quarter of it for BDPT and mlt, but --spp for mlt with --gpu-sizes), and what the 3N more samples cost the "
                         "host: CPU time, bytes read back and written, blocking reads, launches, the kernels' share "
                         f"(default techniques {','.join(HOST_DEFAULT)}; resolution 256x256)")
     p.add_argument("--gpu-sizes", action="store_true",
@@ -65,7 +67,8 @@ def add_command(sub):
 
 
 def cmd_bench(args):
-    whole_number("bench.repeats", args.repeats, "--repeats")
+    if args.repeats is not None:
+        whole_number("bench.repeats", args.repeats, "--repeats")
     if args.lanes and (args.peer or args.specialization or args.equal_time is not None or args.host):
         raise ValueError("--lanes applies to the samples/s bench only, not to --peer, --specialization, "
                          "--equal-time or --host")
@@ -87,7 +90,7 @@ def cmd_bench(args):
         return cmd_bench_equal_time(args)
     # --lanes here is a list of settings, each a row of the bench: not one render's.
     report = bench(args.scene, tuple(technique_list(args.techniques or ",".join(DEFAULT))),
-                   render_options(args, lanes=None), repeats=args.repeats, lanes=args.lanes or (None,))
+                   render_options(args, lanes=None), repeats=args.repeats or 3, lanes=args.lanes or (None,))
     print(format_bench(report))
     if args.json:
         print(json.dumps(report))
@@ -99,7 +102,7 @@ def cmd_bench_host(args):
         raise ValueError("--host is a bench of its own: not with --peer, --specialization or --equal-time")
     report = host_meter(args.scene, tuple(technique_list(args.techniques or ",".join(HOST_DEFAULT))),
                         render_options(args, lanes=None), spp=args.spp, gpu_sizes=args.gpu_sizes,
-                        count_simd=args.host_count_simd)
+                        count_simd=args.host_count_simd, repeats=args.repeats or 1)
     print(format_host_meter(report))
     if args.json:
         print(json.dumps(report))
@@ -169,7 +172,7 @@ def cmd_bench_equal_time(args):
 def cmd_bench_specialization(args):
     techniques = technique_list(args.techniques or ",".join(specialization.DEFAULT_TECHNIQUES))
     report = specialization.measure_specialization(
-        args.scene, techniques, resolution=args.resolution or (64, 64), spp=args.spp, repeats=args.repeats,
+        args.scene, techniques, resolution=args.resolution or (64, 64), spp=args.spp, repeats=args.repeats or 3,
         device=args.device, bvh=args.bvh, progress=lambda line: print(line, file=sys.stderr, flush=True))
     print(specialization.format_specialization(report))
     if args.json:
@@ -180,7 +183,7 @@ def cmd_bench_specialization(args):
 def cmd_bench_peer(args):
     scene = as_scene(args.scene)
     if args.peer == "embree":
-        report = peers.embree_rays(scene, repeats=args.repeats, queue=get_queue(args.device))
+        report = peers.embree_rays(scene, repeats=args.repeats or 3, queue=get_queue(args.device))
         print(peers.format_embree(report))
     else:
         try:
@@ -189,7 +192,7 @@ def cmd_bench_peer(args):
             print(f"error: {error}", file=sys.stderr)
             return 2
         techniques = technique_list(args.techniques or ",".join(peers.PEER_DEFAULT))
-        report = peers.mitsuba_bench(scene, tuple(techniques), spp=args.spp, repeats=args.repeats,
+        report = peers.mitsuba_bench(scene, tuple(techniques), spp=args.spp, repeats=args.repeats or 3,
                                      resolution=args.resolution, device=args.device, bvh=args.bvh,
                                      reference_at=reference_at)
         print(peers.format_mitsuba(report))

@@ -16,7 +16,21 @@ off, unless `count_simd=True` (`bench --host --count-simd`): what a counted rend
 phases, the demo's) costs the host, the counters summed on the device (toolkit/opencl/simd_counters.py)
 and read once. `gpu_sizes=True` renders at a GPU's sizes (GPU_SIZES: the H200's streams and pools and
 Metropolis's chain cap), so that a CPU measures the host's work of a GPU's render.
+
+Precision. The difference of two renders is exact for the counts and noisy for the times: a
+render's fixed cost (its start, the buffers it frees) varies by tens of milliseconds on a loaded
+machine. Two things keep the 3N more samples well above that noise. Metropolis at the GPU's sizes
+takes N = spp, not a quarter of it (`spp_of`): with 262,144 chains at 256x256 a quarter of 16 spp is
+one iteration against four, so the difference was 3 iterations (a few tens of ms of host time) beside a
+start of 17 iterations of its own (start = pool: 16 candidates and the picked states), and the
+figure came out anywhere from -56 to +171 ns per mutation; at 16 and 64 it is 12 (4 against 16). And
+`repeats`: the pair of renders is made that many times and each figure is the median of the pairs'
+figures, with the lowest and highest in `spread` (the JSON's `pairs` holds every pair's figures).
+Beside the host CPU per sample, `pass_cpu_ns_per_sample` counts only the thread's time inside the
+technique's passes (run_pass): what the extra samples cost as well, without the start's and the
+end's noise (but also without any per-sample work a technique defers to its end).
 """
+import time
 from contextlib import contextmanager
 
 from toolkit.api import as_scene, render, technique_options
@@ -32,12 +46,27 @@ RESOLUTION = (256, 256)
 # chains are capped at 2^18 (toolkit/techniques/mlt.py).
 GPU_SIZES = {"stream_size": 270_336, "pool_size": 270_336, "chains": 262_144}
 GROWTH = 4   # the second render has GROWTH times the first one's samples
+# The figures that are times (noisy), for `spread`; the rest are counts, the same in every pair.
+TIMED = ("host_cpu_ns_per_sample", "pass_cpu_ns_per_sample", "serial_ns_per_sample", "kernel_ns_per_sample",
+         "wall_ns_per_sample", "kernel_share")
 
 
-def spp_of(technique, spp):
+def spp_of(technique, spp, gpu_sizes=False):
     """N for `technique`: `spp` for a path tracer, a quarter of it (at least 1) for BDPT and Metropolis,
-    whose samples cost about ten times more."""
-    return spp if family(technique) == "pt" else max(1, spp // 4)
+    whose samples cost about ten times more; but `spp` for Metropolis at the GPU's sizes, whose
+    iterations of 262,144 chains are 4 mutations per pixel at 256x256 (module docstring: Precision)."""
+    if family(technique) == "pt" or (gpu_sizes and family(technique) == "mlt"):
+        return spp
+    return max(1, spp // 4)
+
+
+def n_rule(technique, gpu_sizes):
+    """How N was chosen for `technique` (the JSON's `n_rule`)."""
+    if family(technique) == "pt":
+        return "N = spp"
+    if gpu_sizes and family(technique) == "mlt":
+        return "N = spp (Metropolis at the GPU's sizes: enough iterations of its chains for a difference above the noise)"
+    return "N = spp / 4"
 
 
 def sized_options(technique, gpu_sizes):
@@ -62,20 +91,25 @@ def metered_render(scene, technique, options, count_simd=False, warm_up=None):
     with counted_passes(cls) as passes, Traffic() as traffic:
         result = render(scene, technique, with_fields(options, count_simd=count_simd, time_phases=True))
     stats = result.stats
-    return {**traffic.figures(), "seconds": stats["seconds"],
+    return {**traffic.figures(), "pass_cpu_seconds": passes[1], "seconds": stats["seconds"],
             "kernel_seconds": sum(k["seconds"] for k in stats["kernel_times"].values()),
             "samples": round(stats["samples_per_second"] * stats["seconds"]), "passes": passes[0]}
 
 
 @contextmanager
 def counted_passes(cls):
-    """Counts the calls of `cls.run_pass` (a technique's passes) while the block runs; yields [count]."""
-    count, real = [0], cls.__dict__.get("run_pass")
+    """Counts the calls of `cls.run_pass` (a technique's passes) while the block runs, and the thread
+    CPU time spent in them; yields [count, seconds]."""
+    count, real = [0, 0.0], cls.__dict__.get("run_pass")
     inherited = cls.run_pass
 
     def run_pass(self, *args, **kwargs):
         count[0] += 1
-        return inherited(self, *args, **kwargs)
+        start = time.thread_time()
+        try:
+            return inherited(self, *args, **kwargs)
+        finally:
+            count[1] += time.thread_time() - start
     cls.run_pass = run_pass
     try:
         yield count
@@ -100,6 +134,9 @@ def costs(first, second):
     passes = max(second["passes"], 1)
     return {
         "host_cpu_ns_per_sample": per_sample("cpu_seconds") * 1e9,
+        # the same, counting only the passes (run_pass): without the render's start and end, whose
+        # host cost is the same in both renders but not its noise (Metropolis's start is 17 iterations)
+        "pass_cpu_ns_per_sample": per_sample("pass_cpu_seconds") * 1e9,
         "serial_ns_per_sample": per_sample("serial_seconds") * 1e9,
         "kernel_ns_per_sample": per_sample("kernel_seconds") * 1e9,
         "wall_ns_per_sample": per_sample("seconds") * 1e9,
@@ -115,28 +152,48 @@ def costs(first, second):
     }
 
 
+def median_of_pairs(pairs):
+    """The figures of several pairs' `costs`: each the median of the pairs' (the middle one; for an
+    even count the mean of the two middle ones), and `spread`: the lowest and highest of each timed one."""
+    def median(values):
+        v, k = sorted(values), len(values) // 2
+        return v[k] if len(v) % 2 else (v[k - 1] + v[k]) / 2
+    figures = {key: median([p[key] for p in pairs]) for key in pairs[0]}
+    figures["spread"] = {key: [min(p[key] for p in pairs), max(p[key] for p in pairs)] for key in TIMED}
+    return figures
+
+
 def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_sizes=False, count_simd=False,
-               **fields):
+               repeats=1, **fields):
     """The host meter's report: for each technique, its renders at N and GROWTH x N samples per pixel
-    (N: spp_of(technique, spp)) and what the extra samples cost (`costs`). `options`: a RenderOptions
+    (N: spp_of(technique, spp, gpu_sizes)) and what the extra samples cost (`costs`). `options`: a RenderOptions
     (its fields as keywords on top); resolution None is RESOLUTION. A small render precedes each measured one
     (metered_render's warm_up), so no build and no freeing of the render before is measured. `count_simd`:
-    the renders count SIMD efficiency."""
+    the renders count SIMD efficiency. `repeats`: the pair of renders made that many times, each figure
+    the median of the pairs' (median_of_pairs); `renders` are the first pair's."""
+    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+        raise ValueError(f"repeats must be a whole number of at least 1, got {repeats!r}")
     options = with_fields(options, **fields)
     options = with_fields(options, resolution=options.resolution or RESOLUTION)
     scene = as_scene(scene)
     report = {"scene": scene.name, "resolution": list(options.resolution), "gpu_sizes": bool(gpu_sizes),
               "sizes": GPU_SIZES if gpu_sizes else "the device's own", "count_simd": bool(count_simd),
-              "techniques": {}}
+              "repeats": repeats, "techniques": {}}
     for technique in techniques:
         own = {**options.technique_options, **sized_options(technique, gpu_sizes)}
         base = with_fields(options, technique_options=own)
-        n = spp_of(technique, spp)
-        first, second = (metered_render(scene, technique, with_fields(base, spp=k), count_simd, warm_up=with_fields(
-            base, spp=1, resolution=(16, 16), count_simd=count_simd)) for k in (n, GROWTH * n))
+        n = spp_of(technique, spp, gpu_sizes)
+        warm_up = with_fields(base, spp=1, resolution=(16, 16), count_simd=count_simd)
+        renders, pairs = None, []
+        for _ in range(repeats):
+            first, second = (metered_render(scene, technique, with_fields(base, spp=k), count_simd, warm_up=warm_up)
+                             for k in (n, GROWTH * n))
+            renders = renders or [first, second]
+            pairs.append(costs(first, second))
         report["device"] = describe(get_queue(base.device, base.lanes).device)
-        report["techniques"][technique] = {"spp": [n, GROWTH * n], "renders": [first, second],
-                                           **costs(first, second)}
+        row = {"spp": [n, GROWTH * n], "n_rule": n_rule(technique, gpu_sizes), "renders": renders}
+        report["techniques"][technique] = {**row, **median_of_pairs(pairs), "pairs": pairs} if repeats > 1 else \
+            {**row, **pairs[0]}
     return report
 
 
@@ -144,6 +201,8 @@ def format_host_meter(report):
     sizes = "the GPU's sizes (" + ", ".join(f"{k} {v:,}" for k, v in GPU_SIZES.items()) + ")" \
         if report["gpu_sizes"] else "the device's own sizes"
     counters = ", SIMD counters on" if report.get("count_simd") else ""
+    repeats = report.get("repeats", 1)
+    counters += f", the median of {repeats} pairs of renders" if repeats > 1 else ""
     lines = [f"host meter: {report['scene']} {report['resolution'][0]}x{report['resolution'][1]} at {sizes}{counters}, "
              f"on {report.get('device', '?')}; what the second render's {GROWTH - 1}N more samples cost "
              f"(N: the first render's samples per pixel)",
@@ -157,6 +216,13 @@ def format_host_meter(report):
                      f"{row['write_bytes_per_sample']:>10,.2f}{row['reads_per_million']:>9,.1f}"
                      f"{row['blocking_per_million']:>11,.1f}{row['launches_per_million']:>11,.1f}"
                      f"{row['blocking_per_pass']:>14,.1f}{row['launches_per_pass']:>14,.1f}")
+    for name, row in report["techniques"].items():
+        if "spread" in row:
+            low, high = row["spread"]["host_cpu_ns_per_sample"]
+            lines.append(f"{name}: host CPU ns/sample from {low:,.1f} to {high:,.1f} over the {repeats} pairs")
+    for name, row in report["techniques"].items():
+        if "pass_cpu_ns_per_sample" in row:
+            lines.append(f"{name}: host CPU inside its passes {row['pass_cpu_ns_per_sample']:,.1f} ns/sample")
     lines.append("host CPU: the CPU time of the thread that drives the queue; serial: the part of it while the "
                  "device's queue was empty (from a blocking read, finish or wait to the next launch); blocking: "
                  "blocking reads and writes; per pass: in the 4N render. Kernels: OpenCL profiling events.")

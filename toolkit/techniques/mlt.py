@@ -322,24 +322,23 @@ class Mlt(BdptPoolTechnique):
         return sink.records()
 
     def accept(self, c, it):
-        """mlt_splat_weights (cl/mlt_splat.h: each chain's splat weights from a, before the current
-        state changes; the large steps' f into b), then mlt_accept (cl/mlt.h) with the proposals' f
-        and dimensions (on the device since the connect phases)."""
+        """mlt_accept_and_weigh (cl/mlt_splat.h): each chain's splat weights from a, before its current
+        state changes, and the large steps' f into b; then its acceptance (cl/mlt.h mlt_accept_chain)
+        with the proposals' f and dimensions (on the device since the connect phases). One launch."""
         active = int(it["active"])
-        self.kernels.launch("mlt_splat_weights", active, it=it, chains=c.records, f_proposal=c.f_proposal,
+        self.kernels.launch("mlt_accept_and_weigh", active, it=it, current=c.current, proposal=c.proposal,
+                            chains=c.records, f_proposal=c.f_proposal, dims_proposal=c.dims_proposal,
                             weight=c.weight, b_estimate=c.b_estimate, combine=np.int32(self.combine),
                             unit_exponent=np.int32(c.films[1].unit_exponent), splat_weights=c.splat_weights,
                             b_sum=c.b_sum, tallies=c.tallies)
-        self.kernels.launch("mlt_accept", active, it=it, current=c.current, proposal=c.proposal, chains=c.records,
-                            f_proposal=c.f_proposal, dims_proposal=c.dims_proposal)
         if self.count_simd:
             self.recorder.before_step("accept", active)
 
     def splat(self, c, it, proposed):
         """The expected-value splats into the films (MUTATE only): the proposals' records with
         weight a, the current states' with 1 - a and, with `combine`, the large steps' own; then
-        the accepted proposals' records become the current states' (mlt_keep_records), and b is
-        estimated for the next iteration. All on the device (cl/mlt_splat.h)."""
+        the accepted proposals' records become the current states' (mlt_keep_records, which also
+        estimates b for the next iteration). All on the device (cl/mlt_splat.h)."""
         active, (metropolis, large) = int(it["active"]), c.films
         current = c.stores[0]
         if it["mode"] == MltMode.MUTATE:
@@ -350,17 +349,16 @@ class Mlt(BdptPoolTechnique):
                     self.kernels.launch("mlt_weigh_records", count, capacity=np.int32(count), total=store.total,
                                         active=np.int32(active), component=np.int32(component),
                                         splat_weights=c.splat_weights, record_chain=store.chain,
-                                        record_value=store.value)
+                                        record_value=store.value, record_pixel=store.pixel)
                     film.add(store.value, store.pixel, count, weighted=True)
         nxt = c.next_store(proposed)
         self.kernels.launch("mlt_keep_records", c.count, it=it, chains=c.records, proposal_span=c.proposals.span,
                             proposal_value=c.proposals.value, proposal_pixel=c.proposals.pixel,
                             current_span=current.span, current_value=current.value, current_pixel=current.pixel,
                             next_span=nxt.span, next_value=nxt.value, next_pixel=nxt.pixel, next_chain=nxt.chain,
-                            next_total=nxt.total, capacity=np.int32(nxt.capacity), tallies=c.tallies)
+                            next_total=nxt.total, capacity=np.int32(nxt.capacity), tallies=c.tallies,
+                            b_sum=c.b_sum, unit_exponent=np.int32(c.films[1].unit_exponent), b_estimate=c.b_estimate)
         c.kept(nxt)
-        self.kernels.launch("mlt_estimate_b", 1, b_sum=c.b_sum, unit_exponent=np.int32(c.films[1].unit_exponent),
-                            tallies=c.tallies, b_estimate=c.b_estimate)
 
     def image(self, c):
         """P / M * (b * the Metropolis splats + the large steps' splats): the estimator of the module

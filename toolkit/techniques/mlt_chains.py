@@ -84,7 +84,7 @@ class Chains:
     dims_proposal: cl.Buffer  # int[count]: the dimensions each proposal used, likewise
     tallies: cl.Buffer       # int[len(MltTally)]: the render's counts kept on the device, read at its end
     weight: cl.Buffer        # float[count]: each chain's splat weight, 1 or w_c / mean(w) (start = resample)
-    splat_weights: cl.Buffer  # float4[count]: this iteration's weights (cl/mlt_splat.h mlt_splat_weights)
+    splat_weights: cl.Buffer  # float4[count]: this iteration's weights (cl/mlt_splat.h mlt_chain_splat_weights)
     b_sum: cl.Buffer         # FilmAccumulator[1]: the exact sum of the large steps' f (red channel)
     b_estimate: cl.Buffer    # float[1]: b before this iteration
     films: tuple             # RecordFilms of the Metropolis splats (times b at the end) and the large steps' own
@@ -138,8 +138,7 @@ class Chains:
         store = self.stores[1]
         if store.capacity < self.bound:
             store = self.stores[1] = RecordStore(self.memory, self.count, store_capacity(self.bound))
-        else:
-            self.memory.fill_ints(store.pixel, -1)
+        # its old records past the new total are left: mlt_weigh_records gives them pixel -1 (no fill)
         self.memory.fill_ints(store.total, 0)
         return store
 
