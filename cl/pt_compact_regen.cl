@@ -145,7 +145,7 @@ void pt_compact_regen_shade(SCENE_PARAMS, const PtPass pass_args, __global PtSte
     int queued = immediate_compact_slot(ray.slot >= 0, scratch, &counts->shadow_rays);
     if (queued >= 0) shadow_ray_store(shadow_ray_soa(shadow_rays, pass_args.capacity), queued, &ray);
 #if COUNT_SIMD
-    /* trace wrote this lane's record; the shadow ray was queued, traced by pt_compact_regen_shadow */
+    /* trace wrote this lane's record; the shadow ray was queued, traced by the next step's trace */
     if (gid < length) lane_counts[gid].shadow_rays = ray.slot >= 0;
 #endif
 }

@@ -9,7 +9,7 @@ Kernel: cl/pt_compact_regen.cl. The stream has a fixed size; one iteration:
     regenerate  - new samples fill the end of the stream: consecutive pixels, side by side
                   (queued as the next step's first work: the trace kernel's work-items past the
                   survivors start their sample, then trace it, one launch for both; the same
-                  launch first traces the last step's queued shadow rays, counters off).
+                  launch first traces the last step's queued shadow rays).
 With compaction="immediate" the compaction is fused into the shade kernel (one scan per
 work-group in local memory, one atomic per group); "multipass" extends in place
 (extend_in_place_trace and _shade, shared with pt_inplace_regen), then labels, scans and gathers.
