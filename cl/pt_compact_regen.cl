@@ -8,8 +8,7 @@
  *             and shading in one that never traverses;
  *   compact - paths that ended leave the stream, the survivors are packed at its start;
  *   shadow  - the next-event shadow rays that shade prepared were queued, packed, the same
- *             way; the next step's trace kernel traces them all first (a lane that has no
- *             shadow ray never waits), then its closest-hit rays;
+ *             way; one kernel traces them all (a lane that has no shadow ray never waits);
  *   regenerate - new samples fill the end of the stream, so it keeps its size; they are
  *             consecutive pixels, side by side, so their primary rays are coherent.
  * Compaction is "immediate" (single pass, fused into shade: cl/compact.h) or multi-pass
@@ -19,6 +18,7 @@
  *   pt_compact_regen_generate    here (multi-pass compaction)
  *   pt_compact_regen_trace       here (immediate compaction: the last step's shadow rays + regenerate + trace)
  *   pt_compact_regen_shade       here (immediate compaction: shade + compact)
+ *   pt_compact_regen_shadow      here (immediate compaction, SIMD counters on)
  *   extend_in_place_trace        cl/extend_in_place.h (multi-pass compaction; shared with pt_inplace_regen)
  *   extend_in_place_shade        cl/extend_in_place.h (multi-pass compaction; shared with pt_inplace_regen)
  *   the scan                     toolkit/opencl/compaction.py (multi-pass compaction)
@@ -77,36 +77,41 @@ __kernel void pt_compact_regen_generate(const Camera cam, const PtPass pass_args
         alive[gid] = 1;
 }
 
+/* Trace queued shadow ray `gid`; an unoccluded one adds its contribution to its sample. A sample
+ * has at most one shadow ray per step, so no two work-items add to one slot. */
+HELPER void trace_queued_shadow_ray(const SceneView* scene, const PtPass* pass_args, __global void* shadow_rays,
+                                    __global float4* radiance, int gid, LaneCounters* count)
+{
+    ShadowRay ray = shadow_ray_load(shadow_ray_soa(shadow_rays, pass_args->capacity), gid);
+    if (shadow_unoccluded(scene, &ray, count))
+        radiance[ray.slot].xyz += ray.contribution.xyz;
+}
+
 /* One launch for the start of a step (immediate compaction; the host's work per step is its
  * launches: results/issue48_launch_path.md):
- *   - shadow rays: the last step's packed queue (last_counts->shadow_rays of them); an unoccluded
- *     ray adds its contribution to its sample. A sample's additions keep their order (its shade,
- *     its shadow ray, the next shade), so the image has the bits of a launch of their own;
+ *   - the last step's shadow rays (its packed queue, last_counts->shadow_rays of them), unless
+ *     the SIMD counters are on: then pt_compact_regen_shadow traces them in their own launch,
+ *     where their lanes are counted. Either way a sample's additions come in the same order
+ *     (its shade, then its shadow ray, then the next shade), so the image has the same bits;
  *   - regeneration: a work-item past the last step's survivors starts its entry's sample;
  *   - trace: the closest hit of each entry's ray, into the hit stream (HitRecord, layout.h).
  * A new path goes through the stream's memory as it would between two kernels. */
 __kernel void pt_compact_regen_trace(SCENE_PARAMS, const Camera cam, const PtPass pass_args, const int stream_size,
                                      __global const PtStep* last_counts, __global PtStep* counts,
                                      __global void* stream, __global void* hits, __global void* shadow_rays,
-                                     __global float4* radiance, __global int* shadow_steps,
-                                     __global LaneCounts* lane_counts)
+                                     __global float4* radiance, __global LaneCounts* lane_counts)
 {
     int gid = get_global_id(0);
     if (gid >= stream_size) return;
     SceneView scene = SCENE_INIT;
-    if (gid < last_counts->shadow_rays) {
-        LaneCounters shadow = {0, 0, 0};
-        ShadowRay ray = shadow_ray_load(shadow_ray_soa(shadow_rays, pass_args.capacity), gid);
-        if (shadow_unoccluded(&scene, &ray, &shadow))
-            radiance[ray.slot].xyz += ray.contribution.xyz;
-#if COUNT_SIMD
-        shadow_steps[gid] = shadow.shadow_steps;   /* counted with the last step's lanes */
+    LaneCounters count = {0, 0, 0};
+#if !COUNT_SIMD
+    if (gid < last_counts->shadow_rays)
+        trace_queued_shadow_ray(&scene, &pass_args, shadow_rays, radiance, gid, &count);
 #endif
-    }
     int length;
     regenerate_entry(&cam, &pass_args, stream_size, last_counts, counts, stream, gid, &length);
     if (gid >= length) return;
-    LaneCounters count = {0, 0, 0};
     path_trace_entry(&scene, path_state_soa(stream, pass_args.capacity), hit_record_soa(hits, pass_args.capacity),
                      gid, &count);
 #if COUNT_SIMD
@@ -145,8 +150,24 @@ void pt_compact_regen_shade(SCENE_PARAMS, const PtPass pass_args, __global PtSte
     int queued = immediate_compact_slot(ray.slot >= 0, scratch, &counts->shadow_rays);
     if (queued >= 0) shadow_ray_store(shadow_ray_soa(shadow_rays, pass_args.capacity), queued, &ray);
 #if COUNT_SIMD
-    /* trace wrote this lane's record; the shadow ray was queued, traced by the next step's trace */
+    /* trace wrote this lane's record; the shadow ray was queued, traced by pt_compact_regen_shadow */
     if (gid < length) lane_counts[gid].shadow_rays = ray.slot >= 0;
+#endif
+}
+
+/* Trace the queued shadow rays in a launch of their own, where the SIMD counters count their
+ * lanes (with the counters off, the next step's pt_compact_regen_trace traces them). */
+__kernel void pt_compact_regen_shadow(SCENE_PARAMS, const PtPass pass_args, __global const PtStep* counts,
+                                      __global void* shadow_rays, __global float4* radiance,
+                                      __global int* shadow_steps)
+{
+    int gid = get_global_id(0);
+    if (gid >= counts->shadow_rays) return;
+    SceneView scene = SCENE_INIT;
+    LaneCounters count = {0, 0, 0};
+    trace_queued_shadow_ray(&scene, &pass_args, shadow_rays, radiance, gid, &count);
+#if COUNT_SIMD
+    shadow_steps[gid] = count.shadow_steps;
 #endif
 }
 

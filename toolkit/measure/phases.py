@@ -23,11 +23,9 @@ KERNEL_PHASES = {
     "extend_in_place_trace": ("extend: trace", ("extend",), ("closest",)),
     "extend_in_place_shade": ("extend: shade", ("extend", "shadow"), ("shadow",)),
     "pt_compact_regen_generate": ("regenerate", ("generate",), ()),   # multi-pass compaction
-    # the last step's shadow rays, then regeneration and the closest hits: one launch a step
-    "pt_compact_regen_trace": ("shadow rays + regenerate + extend: trace", ("shadow", "generate", "extend"),
-                               ("shadow", "closest")),
+    "pt_compact_regen_trace": ("regenerate + extend: trace", ("generate", "extend"), ("closest",)),
     "pt_compact_regen_shade": ("extend: shade + compact", ("extend", "compact"), ()),
-    "pt_compact_regen_shadow": ("shadow rays", ("shadow",), ("shadow",)),   # before issue 48 (recorded GPU runs)
+    "pt_compact_regen_shadow": ("shadow rays", ("shadow",), ("shadow",)),
     "pt_compact_regen_gather": ("compact (gather)", ("compact",), ()),
     "bdpt_regenerate": ("regenerate", ("generate",), ()),
     "bdpt_regenerated": ("regenerate", (), ()),

@@ -9,7 +9,7 @@ Kernel: cl/pt_compact_regen.cl. The stream has a fixed size; one iteration:
     regenerate  - new samples fill the end of the stream: consecutive pixels, side by side
                   (queued as the next step's first work: the trace kernel's work-items past the
                   survivors start their sample, then trace it, one launch for both; the same
-                  launch first traces the last step's queued shadow rays).
+                  launch first traces the last step's queued shadow rays, counters off).
 With compaction="immediate" the compaction is fused into the shade kernel (one scan per
 work-group in local memory, one atomic per group); "multipass" extends in place
 (extend_in_place_trace and _shade, shared with pt_inplace_regen), then labels, scans and gathers.
@@ -42,8 +42,6 @@ class StreamBuffers:
     hits: cl.Buffer          # HitRecord x capacity: each path's closest hit, from trace to shade
     shadow_rays: cl.Buffer   # ShadowRay x capacity: the shadow rays a step queued, packed (immediate compaction)
     lane_counts: cl.Buffer   # LaneCounts per path: what it did in an extension step (COUNT_SIMD)
-    last_lane_counts: cl.Buffer  # the same, the last step's: counted once the next step traced its shadow
-                                 # rays (immediate compaction; None: multi-pass counts a step at once)
     alive: cl.Buffer         # int per path: 1 where the stream holds a live path (multi-pass compaction's flags)
     shadow_steps: cl.Buffer  # int per queued shadow ray: the BVH nodes it visited (COUNT_SIMD)
     counts: cl.Buffer        # PtStep: this step's counts (its length, survivors, shadow rays, next sample)
@@ -55,8 +53,6 @@ class StreamBuffers:
         """After a step: the survivors, packed into next_stream, are the stream, and its counts the last step's."""
         self.stream, self.next_stream = self.next_stream, self.stream
         self.counts, self.last_counts = self.last_counts, self.counts
-        if self.last_lane_counts is not None:
-            self.lane_counts, self.last_lane_counts = self.last_lane_counts, self.lane_counts
 
 
 class PtCompactRegen(Technique):
@@ -85,7 +81,7 @@ class PtCompactRegen(Technique):
             stream=m.soa_buffer(PATH_STATE, size), next_stream=m.soa_buffer(PATH_STATE, size),
             hits=m.soa_buffer(HIT_RECORD, size),
             shadow_rays=m.soa_buffer(SHADOW_RAY, size), lane_counts=m.lane_counts_buffer(size),
-            last_lane_counts=m.lane_counts_buffer(size) if self.shadow_queue else None, alive=m.int_buffer(size), shadow_steps=m.int_buffer(size),
+            alive=m.int_buffer(size), shadow_steps=m.int_buffer(size),
             counts=m.record_buffer(PT_STEP), last_counts=m.record_buffer(PT_STEP), indices=self.compacted_indices(size))
 
     def run_pass(self, film, camera, seed, sample_base, spp):
@@ -101,16 +97,16 @@ class PtCompactRegen(Technique):
                       and counts["next_sample"] == budget, every=self.reads_every, at_least=-(-budget // size))
         paths = size    # stream entries each launch covers: the whole stream, until a read bounds its length
         counting = PassCount(size, budget, self.shadow_queue) if self.count_simd else None
-        last_paths = None   # the paths the last step's launches covered (None: no step yet)
         while True:
-            # Trace the last step's shadow rays (a packed queue), regenerate the end of the stream with
-            # the next samples of the budget, extend every path by one vertex (trace, then shade), and
-            # compact the survivors into next_stream (queueing this step's shadow rays).
+            # Regenerate the end of the stream with the next samples of the budget, extend every path by
+            # one vertex (trace, then shade), and compact the survivors into next_stream.
             self.regenerate_and_extend(camera, pass_args, size, paths, mem)
+            # Trace the queued shadow rays: a packed stream of its own (the next step's first launch
+            # traces them, unless the SIMD counters count their lanes in a launch of their own).
+            self.trace_shadow_rays(pass_args, paths, mem)
             if counting:
-                self.count_steps(counting, mem, paths, last_paths)
+                self.count_step(counting, mem, paths, size, budget)
             mem.swap()
-            last_paths = paths
             if end.reached(mem.last_counts):
                 # A step some time ago left nothing to do: the steps since did nothing but trace its
                 # shadow rays (PassEnd says so at least one step after the step it read).
@@ -141,16 +137,15 @@ class PtCompactRegen(Technique):
         how many). Extend: the paths of mem.stream take one vertex (counts.length of the first
         `paths` entries, a bound of the stream's length: paths_at_most); the survivors are packed at
         the start of mem.next_stream, and counted in counts.survivors.
-        Immediate compaction regenerates inside the trace kernel, which first traces the last step's
-        queued shadow rays: a step is two launches, and inside a render each launch costs the host
-        tens of microseconds (results/issue48_launch_path.md)."""
+        Immediate compaction regenerates inside the trace kernel, which also traces the last step's
+        shadow rays: a step is two launches, and inside a render each launch costs the host tens
+        of microseconds (results/issue48_launch_path.md)."""
         k = self.kernels
         regeneration = dict(cam=camera, pass_args=pass_args, stream_size=k.int32(size),
                             last_counts=mem.last_counts, counts=mem.counts, stream=mem.stream)
         if self.compaction == "immediate":
             k.launch("pt_compact_regen_trace", paths, **k.scene_args(), **regeneration, hits=mem.hits,
-                     shadow_rays=mem.shadow_rays, radiance=mem.radiance, shadow_steps=mem.shadow_steps,
-                     lane_counts=mem.lane_counts)
+                     shadow_rays=mem.shadow_rays, radiance=mem.radiance, lane_counts=mem.lane_counts)
             k.launch("pt_compact_regen_shade", paths, **k.scene_args(), pass_args=pass_args,
                      counts=mem.counts, stream=mem.stream, hits=mem.hits, next_stream=mem.next_stream,
                      shadow_rays=mem.shadow_rays, radiance=mem.radiance, lane_counts=mem.lane_counts)
@@ -162,25 +157,25 @@ class PtCompactRegen(Technique):
         k.launch("pt_compact_regen_gather", paths, pass_args=pass_args, survivors=survivors, indices=indices,
                  stream=mem.stream, next_stream=mem.next_stream, counts=mem.counts, alive=mem.alive)
 
+    def trace_shadow_rays(self, pass_args, paths, mem):
+        """The shadow rays the step queued (counts.shadow_rays of them; immediate compaction only:
+        multi-pass traces them inside its extension step), in a launch of their own where the SIMD
+        counters count their lanes; without the counters the next step's trace kernel traces them."""
+        if self.shadow_queue and self.count_simd:
+            self.kernels.launch("pt_compact_regen_shadow", paths, **self.kernels.scene_args(), pass_args=pass_args,
+                                counts=mem.counts, shadow_rays=mem.shadow_rays, radiance=mem.radiance,
+                                shadow_steps=mem.shadow_steps)
+
     # --- SIMD counting, summed on the device (simd_recorder.py); no-op unless count_simd ----------
 
-    def count_steps(self, counting, mem, paths, last_paths):
-        """The SIMD counters of a step, summed on the device: its lanes (the first counts.length of
-        the `paths` its launches covered) and its counts (PtStep, copied into the row), and with them
-        (aux) its shadow queue's traversal loops (counts.shadow_rays of them). Immediate compaction
-        counts the last step, whose shadow rays the step just queued traced (its lanes and counts are
-        kept in mem's last_ buffers until then); multi-pass, which traces them inside its extension,
-        the step just queued."""
+    def count_step(self, counting, mem, paths, size, budget):
+        """The SIMD counters of the step just queued: its lanes (the first counts.length of the
+        `paths` the launches covered) and its counts (PtStep, copied into the row), and with them
+        (aux) the shadow queue's traversal loops (counts.shadow_rays of them), summed on the device."""
         length, queued = PT_STEP.dtype.fields["length"][1] // 4, PT_STEP.dtype.fields["shadow_rays"][1] // 4
-        if not self.shadow_queue:
-            lanes, counts, bound, shadow = mem.lane_counts, mem.counts, paths, {}
-        elif last_paths is None:
-            return    # the pass's first step: no step before it
-        else:
-            lanes, counts, bound = mem.last_lane_counts, mem.last_counts, last_paths
-            shadow = dict(aux=mem.shadow_steps, aux_bound=paths, aux_length_index=queued)
-        self.recorder.lanes(counting.extended, lanes, 4, bound, length_at=counts, length_index=length,
-                            watch=counts, watch_count=len(PT_STEP.dtype.names), **shadow)
+        shadow = dict(aux=mem.shadow_steps, aux_bound=paths, aux_length_index=queued) if self.shadow_queue else {}
+        self.recorder.lanes(counting.extended, mem.lane_counts, 4, paths, length_at=mem.counts, length_index=length,
+                            watch=mem.counts, watch_count=len(PT_STEP.dtype.names), **shadow)
 
 
 class PassCount:
