@@ -15,10 +15,10 @@
  * (extend_in_place_trace and _shade take the step in place and write alive flags,
  * toolkit/opencl/compaction.py scans, pt_compact_regen_gather moves).
  * Kernels this technique launches (toolkit/techniques/pt_compact_regen.py):
- *   pt_compact_regen_generate    here
- *   pt_compact_regen_trace       here (immediate compaction)
+ *   pt_compact_regen_generate    here (multi-pass compaction)
+ *   pt_compact_regen_trace       here (immediate compaction: the last step's shadow rays + regenerate + trace)
  *   pt_compact_regen_shade       here (immediate compaction: shade + compact)
- *   pt_compact_regen_shadow      here (immediate compaction)
+ *   pt_compact_regen_shadow      here (immediate compaction, SIMD counters on)
  *   extend_in_place_trace        cl/extend_in_place.h (multi-pass compaction; shared with pt_inplace_regen)
  *   extend_in_place_shade        cl/extend_in_place.h (multi-pass compaction; shared with pt_inplace_regen)
  *   the scan                     toolkit/opencl/compaction.py (multi-pass compaction)
@@ -38,19 +38,18 @@
 
 /* Regenerate at the end of the stream: the last step left last_counts->survivors paths packed at
  * its start; entries survivors .. survivors + count - 1 start the next `count` samples of the
- * budget (consecutive pixels), as many as fit in the stream's `stream_size` entries.
+ * budget (consecutive pixels), as many as fit in the stream's `stream_size` entries. Returns
+ * whether work-item `gid` started a sample, and sets *length to the stream's length this step.
  * Every work-item reads only last_counts; work-item 0 alone writes this step's record (its length,
- * the next sample, and compaction's counters set to zero), so no work-item reads what another
- * writes. A new entry's alive flag is set: multi-pass compaction's in-place extension reads the
- * flags (gather set the survivors'); immediate compaction's shade packs the survivors instead. */
-__kernel void pt_compact_regen_generate(const Camera cam, const PtPass pass_args, const int stream_size,
-                                        __global const PtStep* last_counts, __global PtStep* counts,
-                                        __global void* stream, __global int* alive)
+ * the next sample, and compaction's counters set to zero), so no work-item of the launch reads
+ * what another writes: each computes the length itself. */
+HELPER bool regenerate_entry(const Camera* cam, const PtPass* pass_args, int stream_size,
+                             __global const PtStep* last_counts, __global PtStep* counts,
+                             __global void* stream, int gid, int* length)
 {
-    int gid = get_global_id(0);
-    if (gid >= stream_size) return;
     int survivors = last_counts->survivors, first_id = last_counts->next_sample;
-    int count = min(stream_size - survivors, pass_args.budget - first_id);
+    int count = min(stream_size - survivors, pass_args->budget - first_id);
+    *length = survivors + count;
     if (gid == 0) {
         counts->length = survivors + count;
         counts->started = count;
@@ -58,21 +57,61 @@ __kernel void pt_compact_regen_generate(const Camera cam, const PtPass pass_args
         counts->survivors = 0;
         counts->shadow_rays = 0;
     }
-    if (gid < survivors || gid >= survivors + count) return;
+    if (gid < survivors || gid >= survivors + count) return false;
     PathState p;
-    path_start_sample(&p, &cam, first_id + gid - survivors, pass_args.sample_base, pass_args.seed);
-    path_state_store(path_state_soa(stream, pass_args.capacity), gid, &p);
-    alive[gid] = 1;
+    path_start_sample(&p, cam, first_id + gid - survivors, pass_args->sample_base, pass_args->seed);
+    path_state_store(path_state_soa(stream, pass_args->capacity), gid, &p);
+    return true;
 }
 
-/* Trace: the closest hit of each stream entry's ray, into the hit stream (HitRecord, layout.h). */
-__kernel void pt_compact_regen_trace(SCENE_PARAMS, const PtPass pass_args, __global const PtStep* counts,
-                                     __global void* stream, __global void* hits, __global LaneCounts* lane_counts)
+/* Regeneration alone (multi-pass compaction, whose extension is extend_in_place_*): a new
+ * entry's alive flag is set, as the in-place extension reads the flags (gather set the survivors'). */
+__kernel void pt_compact_regen_generate(const Camera cam, const PtPass pass_args, const int stream_size,
+                                        __global const PtStep* last_counts, __global PtStep* counts,
+                                        __global void* stream, __global int* alive)
 {
     int gid = get_global_id(0);
-    if (gid >= counts->length) return;
+    if (gid >= stream_size) return;
+    int length;
+    if (regenerate_entry(&cam, &pass_args, stream_size, last_counts, counts, stream, gid, &length))
+        alive[gid] = 1;
+}
+
+/* Trace queued shadow ray `gid`; an unoccluded one adds its contribution to its sample. A sample
+ * has at most one shadow ray per step, so no two work-items add to one slot. */
+HELPER void trace_queued_shadow_ray(const SceneView* scene, const PtPass* pass_args, __global void* shadow_rays,
+                                    __global float4* radiance, int gid, LaneCounters* count)
+{
+    ShadowRay ray = shadow_ray_load(shadow_ray_soa(shadow_rays, pass_args->capacity), gid);
+    if (shadow_unoccluded(scene, &ray, count))
+        radiance[ray.slot].xyz += ray.contribution.xyz;
+}
+
+/* One launch for the start of a step (immediate compaction; the host's work per step is its
+ * launches: results/issue48_launch_path.md):
+ *   - the last step's shadow rays (its packed queue, last_counts->shadow_rays of them), unless
+ *     the SIMD counters are on: then pt_compact_regen_shadow traces them in their own launch,
+ *     where their lanes are counted. Either way a sample's additions come in the same order
+ *     (its shade, then its shadow ray, then the next shade), so the image has the same bits;
+ *   - regeneration: a work-item past the last step's survivors starts its entry's sample;
+ *   - trace: the closest hit of each entry's ray, into the hit stream (HitRecord, layout.h).
+ * A new path goes through the stream's memory as it would between two kernels. */
+__kernel void pt_compact_regen_trace(SCENE_PARAMS, const Camera cam, const PtPass pass_args, const int stream_size,
+                                     __global const PtStep* last_counts, __global PtStep* counts,
+                                     __global void* stream, __global void* hits, __global void* shadow_rays,
+                                     __global float4* radiance, __global LaneCounts* lane_counts)
+{
+    int gid = get_global_id(0);
+    if (gid >= stream_size) return;
     SceneView scene = SCENE_INIT;
     LaneCounters count = {0, 0, 0};
+#if !COUNT_SIMD
+    if (gid < last_counts->shadow_rays)
+        trace_queued_shadow_ray(&scene, &pass_args, shadow_rays, radiance, gid, &count);
+#endif
+    int length;
+    regenerate_entry(&cam, &pass_args, stream_size, last_counts, counts, stream, gid, &length);
+    if (gid >= length) return;
     path_trace_entry(&scene, path_state_soa(stream, pass_args.capacity), hit_record_soa(hits, pass_args.capacity),
                      gid, &count);
 #if COUNT_SIMD
@@ -116,8 +155,8 @@ void pt_compact_regen_shade(SCENE_PARAMS, const PtPass pass_args, __global PtSte
 #endif
 }
 
-/* Trace the queued shadow rays; an unoccluded one adds its contribution to its sample.
- * A sample has at most one shadow ray per iteration, so no two work-items add to one slot. */
+/* Trace the queued shadow rays in a launch of their own, where the SIMD counters count their
+ * lanes (with the counters off, the next step's pt_compact_regen_trace traces them). */
 __kernel void pt_compact_regen_shadow(SCENE_PARAMS, const PtPass pass_args, __global const PtStep* counts,
                                       __global void* shadow_rays, __global float4* radiance,
                                       __global int* shadow_steps)
@@ -125,10 +164,8 @@ __kernel void pt_compact_regen_shadow(SCENE_PARAMS, const PtPass pass_args, __gl
     int gid = get_global_id(0);
     if (gid >= counts->shadow_rays) return;
     SceneView scene = SCENE_INIT;
-    ShadowRay ray = shadow_ray_load(shadow_ray_soa(shadow_rays, pass_args.capacity), gid);
     LaneCounters count = {0, 0, 0};
-    if (shadow_unoccluded(&scene, &ray, &count))
-        radiance[ray.slot].xyz += ray.contribution.xyz;
+    trace_queued_shadow_ray(&scene, &pass_args, shadow_rays, radiance, gid, &count);
 #if COUNT_SIMD
     shadow_steps[gid] = count.shadow_steps;
 #endif

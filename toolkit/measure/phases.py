@@ -22,8 +22,8 @@ KERNEL_PHASES = {
     "pt_inplace_regen_regenerate": ("regenerate", ("generate",), ()),
     "extend_in_place_trace": ("extend: trace", ("extend",), ("closest",)),
     "extend_in_place_shade": ("extend: shade", ("extend", "shadow"), ("shadow",)),
-    "pt_compact_regen_generate": ("regenerate", ("generate",), ()),
-    "pt_compact_regen_trace": ("extend: trace", ("extend",), ("closest",)),
+    "pt_compact_regen_generate": ("regenerate", ("generate",), ()),   # multi-pass compaction
+    "pt_compact_regen_trace": ("regenerate + extend: trace", ("generate", "extend"), ("closest",)),
     "pt_compact_regen_shade": ("extend: shade + compact", ("extend", "compact"), ()),
     "pt_compact_regen_shadow": ("shadow rays", ("shadow",), ("shadow",)),
     "pt_compact_regen_gather": ("compact (gather)", ("compact",), ()),

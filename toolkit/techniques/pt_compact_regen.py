@@ -6,7 +6,10 @@ Kernel: cl/pt_compact_regen.cl. The stream has a fixed size; one iteration:
                   ray's closest hit, shade adds emission, prepares the shadow ray, samples the
                   BSDF (two kernels: a wavefront path tracer, Laine et al. 2013);
     compact     - ended paths leave, survivors are packed at the start of the stream;
-    regenerate  - new samples fill the end of the stream: consecutive pixels, side by side.
+    regenerate  - new samples fill the end of the stream: consecutive pixels, side by side
+                  (queued as the next step's first work: the trace kernel's work-items past the
+                  survivors start their sample, then trace it, one launch for both; the same
+                  launch first traces the last step's queued shadow rays, counters off).
 With compaction="immediate" the compaction is fused into the shade kernel (one scan per
 work-group in local memory, one atomic per group); "multipass" extends in place
 (extend_in_place_trace and _shade, shared with pt_inplace_regen), then labels, scans and gathers.
@@ -95,17 +98,19 @@ class PtCompactRegen(Technique):
         paths = size    # stream entries each launch covers: the whole stream, until a read bounds its length
         counting = PassCount(size, budget, self.shadow_queue) if self.count_simd else None
         while True:
-            # Regenerate: fill the end of the stream with the next samples of the budget.
-            self.regenerate(camera, pass_args, size, paths, mem)
-            # Extend every path by one vertex (trace, then shade), then compact the survivors into next_stream.
-            self.extend_and_compact(pass_args, paths, mem)
-            # Trace the queued shadow rays: a packed stream of its own.
+            # Regenerate the end of the stream with the next samples of the budget, extend every path by
+            # one vertex (trace, then shade), and compact the survivors into next_stream.
+            self.regenerate_and_extend(camera, pass_args, size, paths, mem)
+            # Trace the queued shadow rays: a packed stream of its own (the next step's first launch
+            # traces them, unless the SIMD counters count their lanes in a launch of their own).
             self.trace_shadow_rays(pass_args, paths, mem)
             if counting:
                 self.count_step(counting, mem, paths, size, budget)
             mem.swap()
             if end.reached(mem.last_counts):
-                break   # a step some time ago left nothing to do: the steps since did nothing
+                # A step some time ago left nothing to do: the steps since did nothing but trace its
+                # shadow rays (PassEnd says so at least one step after the step it read).
+                break
             paths = self.paths_at_most(end.latest, size, budget)   # from a step's counts, some steps old
         self.collect(film, mem.radiance, budget)
 
@@ -126,25 +131,26 @@ class PtCompactRegen(Technique):
         self.compactor.reserve(size)
         return self.memory.int_buffer(size)
 
-    def regenerate(self, camera, pass_args, size, paths, mem):
-        """Entries past the last step's survivors start the next samples of the budget, as many as
-        fit in the stream's `size`; the step's record counts them (the device decides how many).
-        The launch covers the first `paths` entries (a bound of the stream's length, paths_at_most)."""
-        self.kernels.launch("pt_compact_regen_generate", paths, cam=camera, pass_args=pass_args,
-                            stream_size=self.kernels.int32(size), last_counts=mem.last_counts, counts=mem.counts,
-                            stream=mem.stream, alive=mem.alive)
-
-    def extend_and_compact(self, pass_args, paths, mem):
-        """Extend the paths of mem.stream (counts.length of its first `paths` entries); the survivors
-        are packed at the start of mem.next_stream, and counted in counts.survivors."""
+    def regenerate_and_extend(self, camera, pass_args, size, paths, mem):
+        """Regenerate: entries past the last step's survivors start the next samples of the budget,
+        as many as fit in the stream's `size`; the step's record counts them (the device decides
+        how many). Extend: the paths of mem.stream take one vertex (counts.length of the first
+        `paths` entries, a bound of the stream's length: paths_at_most); the survivors are packed at
+        the start of mem.next_stream, and counted in counts.survivors.
+        Immediate compaction regenerates inside the trace kernel, which also traces the last step's
+        shadow rays: a step is two launches, and inside a render each launch costs the host tens
+        of microseconds (results/issue48_launch_path.md)."""
         k = self.kernels
+        regeneration = dict(cam=camera, pass_args=pass_args, stream_size=k.int32(size),
+                            last_counts=mem.last_counts, counts=mem.counts, stream=mem.stream)
         if self.compaction == "immediate":
-            k.launch("pt_compact_regen_trace", paths, **k.scene_args(), pass_args=pass_args,
-                     counts=mem.counts, stream=mem.stream, hits=mem.hits, lane_counts=mem.lane_counts)
+            k.launch("pt_compact_regen_trace", paths, **k.scene_args(), **regeneration, hits=mem.hits,
+                     shadow_rays=mem.shadow_rays, radiance=mem.radiance, lane_counts=mem.lane_counts)
             k.launch("pt_compact_regen_shade", paths, **k.scene_args(), pass_args=pass_args,
                      counts=mem.counts, stream=mem.stream, hits=mem.hits, next_stream=mem.next_stream,
                      shadow_rays=mem.shadow_rays, radiance=mem.radiance, lane_counts=mem.lane_counts)
             return
+        k.launch("pt_compact_regen_generate", paths, **regeneration, alive=mem.alive)
         # Multi-pass: the entries that hold a live path (alive: set by gather and regeneration) take the step in place.
         self.extend_in_place(pass_args, paths, mem.stream, mem.alive, mem.hits, mem.radiance, mem.lane_counts)
         indices, survivors = self.compactor.compact_on_device(mem.alive, paths, out=mem.indices)
@@ -153,8 +159,9 @@ class PtCompactRegen(Technique):
 
     def trace_shadow_rays(self, pass_args, paths, mem):
         """The shadow rays the step queued (counts.shadow_rays of them; immediate compaction only:
-        multi-pass traces them inside its extension step)."""
-        if self.shadow_queue:
+        multi-pass traces them inside its extension step), in a launch of their own where the SIMD
+        counters count their lanes; without the counters the next step's trace kernel traces them."""
+        if self.shadow_queue and self.count_simd:
             self.kernels.launch("pt_compact_regen_shadow", paths, **self.kernels.scene_args(), pass_args=pass_args,
                                 counts=mem.counts, shadow_rays=mem.shadow_rays, radiance=mem.radiance,
                                 shadow_steps=mem.shadow_steps)
