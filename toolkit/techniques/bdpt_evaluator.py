@@ -18,9 +18,11 @@ marks them only if enough have terminated; the scan of their records and the lis
 cl/bdpt_walk.h), queues one read of the counts it needs (listed samples, records, the streams'
 lengths) and goes on walking: LAG steps later it has them without the device having waited, and
 queues the connect phase and the regeneration (or, if too few had terminated, lists again).
-Every launch counts on a GPU's host (issue 48): a walk step is one launch, a listing four and a
-read, a connect phase and a regeneration one launch each. It lists as many steps after a regeneration as the last successful listing took, so a
-connect phase costs one read (toolkit/techniques/pass_end.py says why reads are looked at late).
+It lists as many steps after a regeneration as the last successful listing took, so a connect
+phase costs one read (toolkit/techniques/pass_end.py says why reads are looked at late).
+Every launch costs a GPU's host time (issue 48): a walk step is one launch, a listing four and a
+read, a connect phase and a regeneration one launch each, and a pass clears nothing but its
+counters at its start.
 The samples that terminate meanwhile wait for the next connect phase (SLOT_TERMINATED; the listed
 ones are SLOT_CONNECTING); regeneration appends to the streams after the lengths on the device.
 The SIMD counters too are summed on the device: counting changes no step.
