@@ -6,12 +6,11 @@
  * (bdpt_walk.h).
  * Kernels this technique launches, in the order of one pass (toolkit/techniques/bdpt_evaluator.py):
  *   bdpt_regenerate        cl/bdpt_walk.h   start samples in free pool slots
- *   bdpt_regenerated       cl/bdpt_walk.h   add them to the streams' lengths on the device
- *   bdpt_extend            cl/bdpt_walk.h   one random-walk step of the eye or the light stream
+ *   bdpt_extend            cl/bdpt_walk.h   one random-walk step of the eye and the light stream
  *   bdpt_naive_connect_splats  here         how many light-tracing (t = 1) records each terminated slot writes
- *   the exclusive scan     toolkit/opencl/compaction.py (cl/compact.cl): where each slot's records start
- *   bdpt_mark_terminated   cl/bdpt_walk.h   if enough have terminated, flag their slots (SLOT_CONNECTING)
- *   the compaction         toolkit/opencl/compaction.py (cl/compact.cl): list the flagged slots
+ *   bdpt_mark_terminated   cl/bdpt_walk.h   if enough have terminated, mark their slots (SLOT_CONNECTING)
+ *   bdpt_list_offsets      cl/bdpt_walk.h   } the scan of the listed slots' records (where each slot's
+ *   bdpt_list_terminated   cl/bdpt_walk.h   } records start) and the list of the listed slots
  *   (more walk steps, while the host's read of the counts comes back)
  *   bdpt_naive_connect     here             every (s, t) strategy of a listed sample, in its slot's work-item
  * The scan only packs the records, so that the film adds the records written and not
@@ -31,7 +30,7 @@ __kernel void bdpt_naive_connect_splats(const int pool, __global const BdptSlot*
 /* Records (toolkit/core/bdpt_indices.py, shared with the host): slot k's t = 1 splats at
  * naive_splat_record(firsts[k], s) (firsts: the scan of the splat counts, `splats` records in
  * all), then the sum of its eye-path strategies at naive_sum_record(splats, k) (pixel -1:
- * nothing; the host pre-fills). Built for per-strategy images (STRATEGY_IMAGES), the eye-path
+ * nothing: every record's pixel is written, so the host clears nothing). Built for per-strategy images (STRATEGY_IMAGES), the eye-path
  * strategies of paths up to STRATEGY_MAX_EDGES edges get a record each, at naive_strategy_record
  * (after all the sums; numbered by strategy_index), and the sum holds only the longer ones. */
 __kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool, const int splats, CONNECT_PARAMS)
@@ -42,6 +41,11 @@ __kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool,
     int slot = gid;
     BdptSlot sample = slots[slot];
     int connections = 0, steps = 0;
+#if STRATEGY_IMAGES
+    for (int strategy = 0; strategy < STRATEGY_COUNT; ++strategy)   /* a strategy without a path: no record */
+        record_pixel[naive_strategy_record(splats, pool, gid, strategy, STRATEGY_COUNT)] = -1;
+#endif
+    record_pixel[naive_sum_record(splats, gid)] = -1;   /* a slot not connecting: no record */
     if (sample.live == SLOT_CONNECTING) {   /* otherwise still walking, waiting or idle: nothing to connect */
         int n_eye = sample.eye_vertices, n_light = sample.light_vertices;
         int own_pixel = sample.pixel;
@@ -53,13 +57,13 @@ __kernel void bdpt_naive_connect(SCENE_PARAMS, const Camera cam, const int pool,
             int s_len, t_len;
             connection_strategy(k, n_light, &s_len, &t_len);
             Connection c = connect_strategy(&scene, &cam, eye, light, s_len, t_len, own_pixel, &steps);
-            if (c.pixel < 0) continue;
-            if (t_len == 1) {
+            if (t_len == 1) {     /* every splat has its record: pixel -1 where it reaches no pixel */
                 int at = naive_splat_record(firsts[gid], s_len);
                 record_value[at] = connection_record(&c);
                 record_pixel[at] = c.pixel;
                 continue;
             }
+            if (c.pixel < 0) continue;
 #if STRATEGY_IMAGES
             int strategy = strategy_index(s_len, t_len, STRATEGY_MAX_EDGES);
             if (strategy < STRATEGY_COUNT) {

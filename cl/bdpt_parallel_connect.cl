@@ -2,7 +2,7 @@
  * work-item per connection, so every lane of a warp evaluates one connection.
  *   1. each pool slot writes its number of connections (0 unless its sample terminated);
  *   2. an exclusive scan of those counts gives each sample its first connection index
- *      (toolkit/opencl/compaction.py), and the total;
+ *      (bdpt_list_offsets and bdpt_list_terminated, cl/bdpt_walk.h), and the total;
  *   3. work-item g finds its sample by binary search: the last slot whose first index
  *      is <= g; its local index g - first picks the strategy (s, t).
  * Worked example: counts [0, 3, 0, 2] scan to firsts [0, 0, 3, 3], total 5.
@@ -12,12 +12,11 @@
  *   local 0 -> (s, t) = (1, 1), local 1 -> (0, 2), local 2 -> (1, 2)   (k + 1 = (t - 1)(n_light + 1) + s).
  * Kernels this technique launches, in the order of one pass (toolkit/techniques/bdpt_evaluator.py):
  *   bdpt_regenerate              cl/bdpt_walk.h   start samples in free pool slots
- *   bdpt_regenerated             cl/bdpt_walk.h   add them to the streams' lengths on the device
- *   bdpt_extend                  cl/bdpt_walk.h   one random-walk step of the eye or the light stream
+ *   bdpt_extend                  cl/bdpt_walk.h   one random-walk step of the eye and the light stream
  *   bdpt_parallel_connect_count  here             step 1
- *   the exclusive scan           toolkit/opencl/compaction.py (cl/compact.cl): step 2
- *   bdpt_mark_terminated         cl/bdpt_walk.h   if enough have terminated, flag their slots (SLOT_CONNECTING)
- *   the compaction               toolkit/opencl/compaction.py (cl/compact.cl): list the flagged slots
+ *   bdpt_mark_terminated         cl/bdpt_walk.h   if enough have terminated, mark their slots (SLOT_CONNECTING)
+ *   bdpt_list_offsets            cl/bdpt_walk.h   } step 2 for the marked slots, and the list of them
+ *   bdpt_list_terminated         cl/bdpt_walk.h   }   (which regeneration restarts)
  *   (more walk steps, while the host's read of the counts comes back)
  *   bdpt_parallel_connect        here             step 3 */
 #include "bdpt_walk.h"

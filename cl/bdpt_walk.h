@@ -142,45 +142,67 @@ HELPER bool subpath_extend(const SceneView* scene, Subpath* p, BdptSampler* rng,
     return subpath_roulette(p, rng, k, light_path) && !is_black(p->beta.xyz);
 }
 
-/* The walk's counters, one int buffer on the device (WalkCounter in toolkit/core/layout.py):
- * counters[EYE_LENGTH], [LIGHT_LENGTH] the streams' lengths, which each step reads;
- * counters[EYE_SURVIVORS], [LIGHT_SURVIVORS], [TERMINATED_SAMPLES] what it counts. The host copies
- * the survivors onto the lengths on the device after a step, and reads the buffer behind the walk,
- * so it never waits for a count before the next launch.
+/* The walk's counters, one int buffer on the device (WalkCounter in toolkit/core/layout.py): the
+ * streams' lengths in a ring of three (eye, light) pairs, so that no step waits for the host to
+ * clear or copy a count: walk step k reads its lengths from pair k % 3, counts its survivors into
+ * pair (k + 1) % 3, which the step before cleared, and clears pair (k + 2) % 3 for the step after.
+ * counters[TERMINATED_SAMPLES] counts the samples that terminated and wait to be listed;
+ * counters[STEP_EYE_LENGTH], [STEP_LIGHT_LENGTH] the lengths the last step extended (the SIMD
+ * counters read them). The host reads the buffer behind the walk, so it never waits for a count
+ * before the next launch.
  * A slot's `live` counts its subpaths still walking (SlotState in toolkit/core/layout.py):
  * SLOT_BOTH_WALKING after regeneration, SLOT_ONE_WALKING, SLOT_TERMINATED when both have
  * ended (it waits for its connections), SLOT_CONNECTING once listed for a connect phase,
  * SLOT_IDLE when the pass's budget left it empty. */
+#define RING_LENGTHS(ring) (LENGTH_RING + 2 * ((ring) % 3))   /* the eye length of a pair; the light length follows */
 
-/* One random-walk step over a compacted subpath stream (eye or light) of counters[EYE_ or
- * LIGHT_LENGTH] subpaths; the launch may cover more (a bound the host knows), and a work-group
- * wholly past the length leaves at once. Survivors are packed
- * into `next_stream` and counted in counters[EYE_ or LIGHT_SURVIVORS]; a subpath that ends records
- * its vertex count, and the sample whose second subpath this was counts as terminated.
- * `stream` and `next_stream` are Subpath structures of arrays of pass_args.capacity records (layout.h). */
+/* One random-walk step of both streams in one launch: the first work-groups extend the eye
+ * stream, the next ones the light stream (the eye stream's groups end where its length on the
+ * device says, so no group mixes the two). Each stream is a compacted subpath stream of the
+ * ring's length plus walk_step.appended (the subpaths regenerated since that count); the launch
+ * may cover more (bounds the host knows), and a work-group wholly past its stream's length leaves
+ * at once. Survivors are packed into the stream's next buffer and counted in the ring's next
+ * pair; a subpath that ends records its vertex count, and the sample whose second subpath this
+ * was counts as terminated. The streams are Subpath structures of arrays of pass_args.capacity
+ * records (layout.h). */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
 void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const BdptStep walk_step,
-                 __global void* stream, __global void* next_stream, volatile __global int* counters,
-                 __global BdptVertex* vertices, volatile __global BdptSlot* slots, __global LaneCounts* lane_counts
-                 BDPT_SAMPLER_PARAM)
+                 __global void* eye_stream, __global void* eye_next, __global void* light_stream,
+                 __global void* light_next, volatile __global int* counters, __global BdptVertex* eye_vertices,
+                 __global BdptVertex* light_vertices, volatile __global BdptSlot* slots,
+                 __global LaneCounts* eye_lanes, __global LaneCounts* light_lanes BDPT_SAMPLER_PARAM)
 {
-    int gid = get_global_id(0);
-    const int light_path = walk_step.light_path, length = counters[light_path ? LIGHT_LENGTH : EYE_LENGTH];
+    const int lengths = RING_LENGTHS(walk_step.ring);
+    const int eye_length = counters[lengths] + walk_step.appended;
+    const int light_length = counters[lengths + 1] + walk_step.appended;
+    if (get_global_id(0) == 0) {     /* no other work-item reads these during the step */
+        const int cleared = RING_LENGTHS(walk_step.ring + 2);
+        counters[cleared] = counters[cleared + 1] = 0;
+        counters[STEP_EYE_LENGTH] = eye_length;
+        counters[STEP_LIGHT_LENGTH] = light_length;
+    }
+    const int eye_groups = (eye_length + LOCAL_SIZE - 1) / LOCAL_SIZE;
+    const bool light_path = (int)get_group_id(0) >= eye_groups;
+    const int length = light_path ? light_length : eye_length;
+    const int first = (light_path ? (int)get_group_id(0) - eye_groups : (int)get_group_id(0)) * LOCAL_SIZE;
     /* All the group's work-items leave together, so none waits at a barrier the others skip. */
-    if (get_group_id(0) * get_local_size(0) >= length) return;
+    if (first >= length) return;
+    __global void* stream = light_path ? light_stream : eye_stream;
+    __global BdptVertex* vertices = light_path ? light_vertices : eye_vertices;
     __local int scratch[COMPACT_SCRATCH_INTS];
     __local uint stage[LOCAL_SIZE * VERTEX_WORDS];
     __local int dest[LOCAL_SIZE];
+    const int index = first + get_local_id(0);
     bool alive = false;
     int store_at = -1, steps = 0;
     BdptVertex v;
     Subpath p;
     /* No early return: every work-item must reach the barriers of the scatter and compaction. */
-    if (gid < length) {
+    if (index < length) {
         SceneView scene = SCENE_INIT;
-        p = subpath_load(subpath_soa(stream, pass_args.capacity), gid);
+        p = subpath_load(subpath_soa(stream, pass_args.capacity), index);
         BdptSampler rng = bdpt_sampler(&cam, &pass_args, slots[p.slot].sample_id);
-        alive = subpath_extend(&scene, &p, &rng, light_path != 0, &v, &store_at, &steps);
+        alive = subpath_extend(&scene, &p, &rng, light_path, &v, &store_at, &steps);
         if (!alive) {
             if (light_path) slots[p.slot].light_vertices = p.vertices;
             else slots[p.slot].eye_vertices = p.vertices;
@@ -188,30 +210,32 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
         }
     }
     store_vertex(vertices, store_at, &v, stage, dest);
-    int slot = immediate_compact_slot(alive, scratch, &counters[light_path ? LIGHT_SURVIVORS : EYE_SURVIVORS]);
-    if (slot >= 0) subpath_store(subpath_soa(next_stream, pass_args.capacity), slot, &p);
+    const int survivors = RING_LENGTHS(walk_step.ring + 1) + (light_path ? 1 : 0);
+    int slot = immediate_compact_slot(alive, scratch, &counters[survivors]);
+    if (slot >= 0) subpath_store(subpath_soa(light_path ? light_next : eye_next, pass_args.capacity), slot, &p);
 #if COUNT_SIMD
-    if (gid < length) {
+    if (index < length) {
         LaneCounts lane = {.work = 1, .closest_steps = steps};
-        lane_counts[gid] = lane;
+        (light_path ? light_lanes : eye_lanes)[index] = lane;
     }
 #endif
 }
 
-/* Start new samples in the pool slots listed in `slot_list` (those bdpt_mark_terminated
- * listed): the first r.fresh get samples r.first_id, r.first_id + 1, ... (consecutive pixels);
- * the rest go idle (budget spent). Writes z_0 (camera) and y_0 (point on a light) and appends
- * both subpaths to their streams, after the subpaths there: slot_list[pass_args.pool] and
- * [pass_args.pool + 1] hold the streams' lengths (copied from the walk's counters on the device,
- * so the host needs not know them; bdpt_regenerated then adds the new subpaths to them). */
+/* Start new samples in the pool slots listed in `slot_list` (those bdpt_list_terminated listed):
+ * the first r.fresh get samples r.first_id, r.first_id + 1, ... (consecutive pixels); the rest
+ * go idle (budget spent). Writes z_0 (camera) and y_0 (point on a light) and appends both
+ * subpaths to their streams, after the subpaths there: the lengths in the counters' ring (pair
+ * r.ring) plus the r.appended subpaths appended since. The next walk step adds the new ones to
+ * those lengths (BdptStep.appended), so the host needs not know them. */
 __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const BdptRegeneration r,
-                              __global const int* slot_list, __global void* eye_stream, __global void* light_stream,
-                              __global BdptVertex* eye_vertices, __global BdptVertex* light_vertices,
-                              __global BdptSlot* slots BDPT_SAMPLER_PARAM)
+                              __global const int* slot_list, __global const int* counters, __global void* eye_stream,
+                              __global void* light_stream, __global BdptVertex* eye_vertices,
+                              __global BdptVertex* light_vertices, __global BdptSlot* slots BDPT_SAMPLER_PARAM)
 {
     int gid = get_global_id(0);
     if (gid >= r.count) return;
-    const int eye_base = slot_list[pass_args.pool], light_base = slot_list[pass_args.pool + 1];
+    const int lengths = RING_LENGTHS(r.ring);
+    const int eye_base = counters[lengths] + r.appended, light_base = counters[lengths + 1] + r.appended;
     int slot = slot_list[gid];
     int id = bdpt_regeneration_sample(&r, gid);
     if (id < 0) { slots[slot].live = SLOT_IDLE; return; }
@@ -259,30 +283,84 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pas
     slots[slot] = started;
 }
 
-/* After bdpt_regenerate (one work-item): the `fresh` new subpaths join the streams' lengths, and
- * the `count` regenerated slots no longer count as terminated (samples that terminated since
- * bdpt_mark_terminated listed them still do: they wait for the next connect phase). */
-__kernel void bdpt_regenerated(volatile __global int* counters, const int fresh, const int count)
-{
-    if (get_global_id(0) != 0) return;
-    counters[EYE_LENGTH] += fresh;
-    counters[LIGHT_LENGTH] += fresh;
-    counters[TERMINATED_SAMPLES] -= count;
-}
+/* Listing the terminated samples for a connect phase, on the device, in three launches after the
+ * connect phase's count kernel has written each slot's records (counts[slot]):
+ *   bdpt_mark_terminated  if enough samples have terminated, marks them (SLOT_CONNECTING), and sums
+ *                         each work-group's records and listed slots;
+ *   bdpt_list_offsets     one work-group: where each work-group's records and listed slots start,
+ *                         and the listing's totals for the host (one small read, looked at later);
+ *   bdpt_list_terminated  each slot's first record (firsts: the exclusive scan of the counts of the
+ *                         listed slots, in slot order, as the connect phases need it) and the list of
+ *                         the listed slots, in slot order (regeneration restarts them).
+ * Three launches where a multi-level scan and a compaction took seven or more, and the host
+ * clears and copies nothing. */
 
 /* If at least `threshold` samples have terminated (counters[TERMINATED_SAMPLES]: the device
- * decides, the host reads no count first), flags[i] = 1 for the pool slots whose sample has
- * terminated and waits for its connections, else 0 everywhere. The flagged slots become
- * SLOT_CONNECTING, so the slots that terminate while the host queues further walk steps before
- * their connect phase (bdpt_evaluator.py) wait for the next one. */
-__kernel void bdpt_mark_terminated(const int pool, const int threshold, __global const int* counters,
-                                   __global BdptSlot* slots, __global int* flags)
+ * decides, the host reads no count first), the slots whose sample has terminated become
+ * SLOT_CONNECTING, so that the slots that terminate while the host queues further walk steps
+ * before their connect phase (bdpt_evaluator.py) wait for the next one. block_sums[group]: the
+ * group's records (.x) and listed slots (.y). */
+__kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
+void bdpt_mark_terminated(const int pool, const int threshold, __global const int* counters,
+                          __global BdptSlot* slots, __global const int* counts, __global int2* block_sums)
 {
+    __local int scratch[COMPACT_SCRATCH_INTS];
     int gid = get_global_id(0);
-    if (gid >= pool) return;
-    int terminated = counters[TERMINATED_SAMPLES] >= threshold && slots[gid].live == SLOT_TERMINATED;
-    if (terminated) slots[gid].live = SLOT_CONNECTING;
-    flags[gid] = terminated;
+    bool listed = gid < pool && counters[TERMINATED_SAMPLES] >= threshold && slots[gid].live == SLOT_TERMINATED;
+    if (listed) slots[gid].live = SLOT_CONNECTING;
+    int records, listed_slots;
+    compact_group_scan(listed ? counts[gid] : 0, scratch, &records);
+    compact_group_scan(listed ? 1 : 0, scratch, &listed_slots);
+    if (get_local_id(0) == 0) block_sums[get_group_id(0)] = (int2)(records, listed_slots);
+}
+
+/* One work-group: block_sums (the `blocks` groups' records and listed slots) become their
+ * exclusive scan, where each group's records and listed slots start. Each work-item adds a run
+ * of consecutive groups, one scan over the work-group gives the runs' starts, and each work-item
+ * walks its run again. listing[0], [1]: the slots listed and their records; [2], [3]: the
+ * streams' lengths now (pair `ring` of the counters), which bound the host's later launches.
+ * The listed samples no longer count as terminated. */
+__kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
+void bdpt_list_offsets(const int blocks, const int ring, volatile __global int* counters,
+                       __global int2* block_sums, __global int* listing)
+{
+    __local int scratch[COMPACT_SCRATCH_INTS];
+    const int lid = get_local_id(0), per_item = (blocks + LOCAL_SIZE - 1) / LOCAL_SIZE;
+    const int begin = min(lid * per_item, blocks), end = min(begin + per_item, blocks);
+    int2 run = (int2)(0, 0);
+    for (int b = begin; b < end; ++b) run += block_sums[b];
+    int records, listed;
+    int2 start = (int2)(compact_group_scan(run.x, scratch, &records), compact_group_scan(run.y, scratch, &listed));
+    for (int b = begin; b < end; ++b) {
+        int2 sums = block_sums[b];
+        block_sums[b] = start;
+        start += sums;
+    }
+    if (lid == 0) {
+        counters[TERMINATED_SAMPLES] -= listed;
+        const int lengths = RING_LENGTHS(ring);
+        listing[0] = listed;
+        listing[1] = records;
+        listing[2] = counters[lengths];
+        listing[3] = counters[lengths + 1];
+    }
+}
+
+/* firsts[slot]: where the slot's records start (0 records unless listed); listed_slots: the
+ * listed slots, in slot order. block_starts: bdpt_list_offsets' scan of the groups' sums. */
+__kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
+void bdpt_list_terminated(const int pool, __global const BdptSlot* slots, __global const int* counts,
+                          __global const int2* block_starts, __global int* firsts, __global int* listed_slots)
+{
+    __local int scratch[COMPACT_SCRATCH_INTS];
+    int gid = get_global_id(0);
+    bool listed = gid < pool && slots[gid].live == SLOT_CONNECTING;
+    int2 start = block_starts[get_group_id(0)];
+    int unused;
+    int first = start.x + compact_group_scan(listed ? counts[gid] : 0, scratch, &unused);
+    int rank = start.y + compact_group_scan(listed ? 1 : 0, scratch, &unused);
+    if (gid < pool) firsts[gid] = first;
+    if (listed) listed_slots[rank] = gid;
 }
 
 #endif

@@ -204,13 +204,16 @@ BDPT_PASS = Record("BdptPass", [
 ], "What every BDPT kernel of one pass shares.")
 
 BDPT_STEP = Record("BdptStep", [
-    ("light_path", "int"),      # 1: this launch extends the light stream, 0: the eye stream (its length: WalkCounter)
-], "One random-walk step over one stream (bdpt_extend).")
+    ("ring", "int"),            # the step's place in the counters' ring of lengths (WalkCounter.LENGTH_RING): step k % 3
+    ("appended", "int"),        # subpaths regenerated onto each stream since the lengths in the ring were counted
+], "One random-walk step over both streams (bdpt_extend).")
 
 BDPT_REGENERATION = Record("BdptRegeneration", [
     ("count", "int"),           # terminated slots listed for regeneration
     ("fresh", "int"),           # the first `fresh` of them start new samples; the rest go idle
     ("first_id", "int"),        # id of the first new sample (the others follow, consecutive pixels)
+    ("ring", "int"),            # where the streams' lengths are (the next walk step's place in the ring, WalkCounter)
+    ("appended", "int"),        # subpaths already appended after those lengths (BdptStep.appended)
 ], "One regeneration step of the BDPT pool.")
 
 MLT_CHAIN = Record("MltChain", [
@@ -300,12 +303,15 @@ class SlotState(IntEnum):
 
 class WalkCounter(IntEnum):
     """Indices into the random walk's counter buffer: the streams' lengths stay on the device, and
-    the host reads the buffer behind the walk (bdpt_evaluator.py), not before each step."""
-    EYE_SURVIVORS = 0       # eye subpaths written to the next eye stream
-    LIGHT_SURVIVORS = 1     # light subpaths written to the next light stream
-    TERMINATED_SAMPLES = 2  # samples whose second subpath ended since the last regeneration
-    EYE_LENGTH = 3          # subpaths in the eye stream: the last step's survivors, then the regenerated
-    LIGHT_LENGTH = 4        # the same for the light stream
+    the host reads the buffer behind the walk (bdpt_evaluator.py), not before each step. The lengths
+    are a ring of three (eye, light) pairs, so that no step needs the host to clear or copy a count:
+    walk step k reads pair k % 3, counts its survivors into pair (k + 1) % 3 (the next step's) and
+    clears pair (k + 2) % 3 (the one after)."""
+    TERMINATED_SAMPLES = 0  # samples whose second subpath ended and that no listing has listed yet
+    STEP_EYE_LENGTH = 1     # the eye subpaths the last walk step extended (for the SIMD counters)
+    STEP_LIGHT_LENGTH = 2   # the same for the light stream
+    LENGTH_RING = 3         # pair r of the ring: eye length at LENGTH_RING + 2r, light length after it
+    COUNTER_INTS = 9        # the buffer's ints: the three above and the ring's six
 
 
 class WideChild(IntEnum):

@@ -28,9 +28,10 @@ KERNEL_PHASES = {
     "pt_compact_regen_shadow": ("shadow rays", ("shadow",), ("shadow",)),
     "pt_compact_regen_gather": ("compact (gather)", ("compact",), ()),
     "bdpt_regenerate": ("regenerate", ("generate",), ()),
-    "bdpt_regenerated": ("regenerate", (), ()),
     "bdpt_extend": ("walk + compact", ("walk", "compact"), ("closest",)),
     "bdpt_mark_terminated": ("find terminated", (), ()),
+    "bdpt_list_offsets": ("scan", (), ()),              # the listed records' scan and the list of their slots
+    "bdpt_list_terminated": ("scan", (), ()),
     "bdpt_naive_connect_splats": ("connect: count records", (), ()),
     "bdpt_parallel_connect_count": ("connect: count records", (), ()),
     "bdpt_naive_connect": ("connect", ("connect",), ()),

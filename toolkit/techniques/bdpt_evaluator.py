@@ -6,19 +6,23 @@ go to a sink that the caller picks. bdpt_base.BdptTechnique gives the records to
 One pass, read like the talk's slides:
     regenerate all samples;
     repeat:
-        extend the eye stream and the light stream by one vertex each (compacted at once);
+        extend the eye stream and the light stream by one vertex each (compacted at once, one launch);
         when enough samples have terminated (default 60%):
             list them, connect their subpaths (the connect phase), hand the records to the sink,
             then regenerate them.
 The counts stay on the device, and the host never waits for one before a launch: a walk step
-reads the streams' lengths there (WalkCounter), and whether enough samples have terminated is
-decided there too. The host lists the terminated samples on the device (the connect phase's record
-counts and their scan; bdpt_mark_terminated, which marks them only if enough have terminated;
-the compaction of their slots), queues one read of the counts it needs (listed samples, records,
-the walk's counters) and goes on walking: LAG steps later it has them without the device having
-waited, and queues the connect phase and the regeneration (or, if too few had terminated, lists
-again). It lists as many steps after a regeneration as the last successful listing took, so a
-connect phase costs one read (toolkit/techniques/pass_end.py says why reads are looked at late).
+reads the streams' lengths there (a ring of counts, WalkCounter: no step needs the host to clear
+or copy one), and whether enough samples have terminated is decided there too. The host lists the
+terminated samples on the device (the connect phase's record counts; bdpt_mark_terminated, which
+marks them only if enough have terminated; the scan of their records and the list of their slots,
+cl/bdpt_walk.h), queues one read of the counts it needs (listed samples, records, the streams'
+lengths) and goes on walking: LAG steps later it has them without the device having waited, and
+queues the connect phase and the regeneration (or, if too few had terminated, lists again).
+It lists as many steps after a regeneration as the last successful listing took, so a connect
+phase costs one read (toolkit/techniques/pass_end.py says why reads are looked at late).
+Every launch costs a GPU's host time (issue 48): a walk step is one launch, a listing four and a
+read, a connect phase and a regeneration one launch each, and a pass clears nothing but its
+counters at its start.
 The samples that terminate meanwhile wait for the next connect phase (SLOT_TERMINATED; the listed
 ones are SLOT_CONNECTING); regeneration appends to the streams after the lengths on the device.
 The SIMD counters too are summed on the device: counting changes no step.
@@ -38,7 +42,6 @@ import pyopencl as cl
 from toolkit.core.layout import (LONGEST_SUBPATH, BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, CONNECT_ARGS, SUBPATH,
                                  SimdSum, WalkCounter)
 from toolkit.core.scene import NO_LIMIT
-from toolkit.opencl.compaction import Compactor
 from toolkit.opencl.work_sizes import checked_size
 from toolkit.techniques.base import Technique, pixel_count
 from toolkit.techniques.device_memory import DeviceMemory
@@ -72,6 +75,7 @@ class SubpathStream:
     current: cl.Buffer
     spare: cl.Buffer
     vertices: cl.Buffer       # BdptVertex[pool][MAX_VERTICES]: every vertex stored so far
+    lane_counts: cl.Buffer    # LaneCounts[pool]: the stream's lanes in one walk step (COUNT_SIMD)
     length: int = 0           # at least the subpaths in the stream (their count is on the device): what a step launches
 
     def advance(self):
@@ -87,11 +91,14 @@ class SamplePool:
     eye: SubpathStream
     light: SubpathStream
     slots: cl.Buffer          # BdptSlot[size]: live state, sample id and vertex counts of each slot
-    terminated: cl.Buffer     # int[size]: 1 where a sample waits for its connections (compaction flags)
-    counters: cl.Buffer       # int[len(WalkCounter)]: each stream's length and survivors, terminated samples
-    lane_counts: cl.Buffer    # LaneCounts[size]: one walk step or connect phase (COUNT_SIMD)
+    counters: cl.Buffer       # int[COUNTER_INTS]: the streams' lengths (a ring), terminated samples (WalkCounter)
+    lane_counts: cl.Buffer    # LaneCounts[size]: one connect phase (COUNT_SIMD)
     all_slots: cl.Buffer      # 0 .. size - 1: the slot list of the first regeneration
-    regeneration_list: cl.Buffer   # int[size + 2]: the slots to regenerate (listed there), then the streams' lengths
+    record_counts: cl.Buffer  # int[size]: each slot's records in the next connect phase (its count kernel)
+    record_firsts: cl.Buffer  # int[size]: where each listed slot's records start (their exclusive scan)
+    listed: cl.Buffer         # int[size]: the slots listed for the next connect phase, then regenerated
+    block_sums: cl.Buffer     # int2[work-groups of the pool]: the listing's sums per work-group, then their scan
+    listing: cl.Buffer        # int[LISTING_INTS]: what the host reads of a listing (Listing)
 
 
 @dataclass
@@ -99,18 +106,18 @@ class Listing:
     """The terminated samples listed on the device for a connect phase (BdptEvaluator.list_terminated):
     their slots, and the read of what the host needs, queued at walk step `step` and looked at LAG
     steps later: the listed slots (0: too few had terminated), the connect phase's records, and
-    the walk's counters (WalkCounter) as they were."""
+    the streams' lengths as they were (cl/bdpt_walk.h bdpt_list_offsets)."""
     slots: cl.Buffer          # int[pool]: the listed slots, the first `count` of it
     counts: object            # PendingRead of int[LISTING_INTS]
     step: int
 
     def result(self):
-        """(slots, listed slots, records, the walk's counters)."""
+        """(slots, listed slots, records, the streams' (eye, light) lengths)."""
         counts = self.counts.result()
         return self.slots, int(counts[0]), int(counts[1]), counts[2:]
 
 
-LISTING_INTS = 2 + len(WalkCounter)   # what a Listing reads: listed slots, records, the walk's counters
+LISTING_INTS = 4   # what a Listing reads: listed slots, records, the eye and light streams' lengths
 
 
 @dataclass
@@ -124,6 +131,8 @@ class PassState:
     next_id: int = 0          # next sample to start
     in_flight: int = 0        # slots whose sample is not connected yet
     steps: int = 0            # walk steps so far
+    ring: int = 0             # where the next walk step reads the streams' lengths: pair `ring` of the counters' ring
+    appended: int = 0         # subpaths regenerated onto each stream since the last walk step
     regenerated_at: int = 0   # the step of the last regeneration
     retry: int = 0            # steps before the next listing after one that listed none (doubles each time)
     listed: Listing = None    # the terminated samples listed for the next connect phase, if any
@@ -173,14 +182,14 @@ class BdptContext:
     kernels: Kernels          # the technique's program (the walk's and connect phase's kernels) and its launches
     memory: DeviceMemory      # where the pool, the streams and the records are allocated
     recorder: SimdRecorder    # the technique's SIMD counters: the walk's steps count as its iterations
-    compactor: Compactor      # compacts the streams and scans the connect phase's record counts
 
 
 class BdptPoolTechnique(Technique):
     """A technique whose samples are BDPT samples of a pool (BdptEvaluator): the BDPT techniques,
     which add them into an image, and mlt, whose chains propose them. It builds the walk's kernels
-    for the scene, sizes the pool for the device and makes its compactor; the subclass makes its
-    evaluator with the connect phase it wants (self.bdpt)."""
+    for the scene and sizes the pool for the device; the subclass makes its
+    evaluator with the connect phase it wants (self.bdpt). The walk compacts its streams and lists
+    the terminated samples with its own kernels (cl/bdpt_walk.h), not the Compactor's."""
     target_batch = 1 << 14      # samples per pass: many passes give the standard error
     max_vertices = LONGEST_SUBPATH   # per subpath when the depth is unbounded; paths this long carry ~1e-10 of the energy at albedo 0.7
 
@@ -193,9 +202,8 @@ class BdptPoolTechnique(Technique):
         super().__init__(queue, device_scene, extra_defines=walk, **kwargs)
         # samples in flight (each stores MAX_VERTICES eye + light vertices); None: the device's
         self.pool_size = self.size_in_flight("pool_size", pool_size, self.max_vertices)
-        compactor = Compactor(queue, local_size=self.local_size, sources=self.sources.toolkit_only())
         # What the evaluator and the connect phase get of this technique (not the technique itself).
-        self.bdpt_context = BdptContext(queue, self.kernels, self.memory, self.recorder, compactor)
+        self.bdpt_context = BdptContext(queue, self.kernels, self.memory, self.recorder)
         self.bdpt = None            # the subclass's BdptEvaluator
 
     def extra_stats(self):
@@ -204,17 +212,19 @@ class BdptPoolTechnique(Technique):
 
 @dataclass
 class BdptEvaluator:
-    """The walk of BDPT's kernels (launched through `ctx`) and a connect phase: `connect.prepare(p)`
-    queues the record counts of pass `p`'s terminated samples and their scan, and returns a one-int
-    buffer that holds the records' total; `connect(p, count, records)` evaluates the connections of
-    the `count` samples listed then (`records` records) and returns their Connections."""
-    ctx: BdptContext           # the kernels, memory, SIMD recorder and compactor of the technique that built them
-    connect: object            # the connect phase: prepare(PassState) -> total buffer; (PassState, count, records) -> Connections
+    """The walk of BDPT's kernels (launched through `ctx`) and a connect phase: its kernel
+    `connect.count_kernel` writes the records of each terminated sample's slot of pass `p`
+    (p.pool.record_counts), and `connect(p, count, records)` evaluates the connections of the
+    `count` samples listed then (`records` records, starting at p.pool.record_firsts) and returns
+    their Connections."""
+    ctx: BdptContext           # the kernels, memory and SIMD recorder of the technique that built them
+    connect: object            # the connect phase: count_kernel; (PassState, count, records) -> Connections
     pool_size: int             # samples in flight
     regenerate_fraction: float  # connect (and regenerate) once this share of the samples in flight has terminated
     max_vertices: int          # per subpath (MAX_VERTICES)
     last_pass: PassState = None   # kept for inspection (tests, notebooks): the vertex memory of the last samples
     listing_delay: int = 1     # steps after a regeneration to list: as many as the last successful listing took
+    _steps: dict = field(default_factory=dict, repr=False)   # BdptStep records by (ring, appended), made once
 
     def __post_init__(self):
         fraction = self.regenerate_fraction
@@ -253,11 +263,10 @@ class BdptEvaluator:
         pool = self.sample_pool(min(self.pool_size, budget))
         args = BDPT_PASS.record(seed=seed, sample_base=sample_base, pool=pool.size, capacity=pool.capacity,
                                 chains=vector_stride)
-        cl.enqueue_fill_buffer(ctx.queue, pool.counters, np.int32(0), 0, 4 * len(WalkCounter))
-        # every slot counts as terminated, so that the first regeneration (of them all) leaves 0
-        cl.enqueue_fill_buffer(ctx.queue, pool.counters, np.int32(pool.size), 4 * WalkCounter.TERMINATED_SAMPLES, 4)
-        pool.eye.length = pool.light.length = 0     # the streams' lengths: 0 here and on the device
-        # every slot "terminated", nothing to connect
+        # the streams' lengths: 0 here and on the device; nothing terminated
+        cl.enqueue_fill_buffer(ctx.queue, pool.counters, np.int32(0), 0, 4 * WalkCounter.COUNTER_INTS)
+        pool.eye.length = pool.light.length = 0
+        # every slot counts as in flight until the first regeneration (of them all) starts them
         self.last_pass = PassState(pool, camera, args, budget, dict(sampler_args or {}), in_flight=pool.size)
         return self.last_pass
 
@@ -265,42 +274,37 @@ class BdptEvaluator:
         """The streams, the vertex memory (tens of MB) and the per-slot arrays, made once per pool size."""
         ctx, mem = self.ctx, self.ctx.memory
         context, capacity = ctx.queue.context, mem.stream_capacity(size)
-        ctx.compactor.reserve(size)   # its scratch memory too, once: no walk step or connect allocates
         vertex_bytes = BDPT_VERTEX.dtype.itemsize * size * self.max_vertices
 
         def stream(is_light):
             return SubpathStream(is_light, mem.soa_buffer(SUBPATH, size), mem.soa_buffer(SUBPATH, size),
-                                 cl.Buffer(context, cl.mem_flags.READ_WRITE, vertex_bytes))
+                                 cl.Buffer(context, cl.mem_flags.READ_WRITE, vertex_bytes), mem.lane_counts_buffer(size))
         return mem.reused(("pool", size), lambda: SamplePool(
             size, capacity, stream(0), stream(1),
             slots=cl.Buffer(context, cl.mem_flags.READ_WRITE, BDPT_SLOT.dtype.itemsize * mem.padded(size)),
-            terminated=mem.int_buffer(size), counters=mem.int_buffer(len(WalkCounter)),
-            lane_counts=mem.lane_counts_buffer(size), regeneration_list=mem.int_buffer(size + 2),
+            counters=mem.int_buffer(WalkCounter.COUNTER_INTS), lane_counts=mem.lane_counts_buffer(size),
             all_slots=cl.Buffer(context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
-                                hostbuf=np.arange(size, dtype=np.int32))))
+                                hostbuf=np.arange(size, dtype=np.int32)),
+            record_counts=mem.int_buffer(size), record_firsts=mem.int_buffer(size), listed=mem.int_buffer(size),
+            block_sums=mem.int_buffer(2 * (mem.padded(size) // mem.local_size)), listing=mem.int_buffer(LISTING_INTS)))
 
     def regenerate(self, p, slots, count):
         """bdpt_regenerate: the `count` slots listed in `slots` start the next samples of the
         budget (the rest go idle); the new subpaths join the end of the streams, after the lengths
-        on the device, and bdpt_regenerated adds them to those lengths. The host knows only a
-        bound on the lengths, which grows by the new subpaths."""
+        on the device, and the next walk step adds them to those lengths (p.appended). The host
+        knows only a bound on the lengths, which grows by the new subpaths."""
         ctx, pool = self.ctx, p.pool
         fresh = min(count, p.budget - p.next_id)
         if count:
-            listed = pool.regeneration_list    # the slots (list_terminated lists them there), then the lengths
-            if slots is not listed:
-                cl.enqueue_copy(ctx.queue, listed, slots, byte_count=4 * count)
-            cl.enqueue_copy(ctx.queue, listed, pool.counters, byte_count=8, src_offset=4 * WalkCounter.EYE_LENGTH,
-                            dst_offset=4 * pool.size)
-            r = BDPT_REGENERATION.record(count=count, fresh=fresh, first_id=p.next_id)
+            r = BDPT_REGENERATION.record(count=count, fresh=fresh, first_id=p.next_id, ring=p.ring,
+                                         appended=p.appended)
             ctx.kernels.launch("bdpt_regenerate", count, **ctx.kernels.scene_args(), cam=p.camera,
-                        pass_args=p.args, r=r, slot_list=listed, eye_stream=pool.eye.current,
+                        pass_args=p.args, r=r, slot_list=slots, counters=pool.counters, eye_stream=pool.eye.current,
                         light_stream=pool.light.current, eye_vertices=pool.eye.vertices,
                         light_vertices=pool.light.vertices, slots=pool.slots, **p.sampler_args)
-            ctx.kernels.launch("bdpt_regenerated", 1, counters=p.pool.counters, fresh=np.int32(fresh),
-                               count=np.int32(count))
         for stream in (p.pool.eye, p.pool.light):    # a stream holds at most one subpath per slot
             stream.length = min(stream.length + fresh, p.pool.size)
+        p.appended += fresh
         p.next_id += fresh
         p.in_flight += fresh - count
         p.regenerated_at = p.steps
@@ -308,24 +312,34 @@ class BdptEvaluator:
             ctx.recorder.stream_step("generate", fresh)
 
     def walk(self, p):
-        """One random-walk step of both streams (bdpt_extend, compacted at once), each launched over
-        a bound on its length that the host knows (the kernel reads the length on the device)."""
-        ctx = self.ctx
-        counters = p.pool.counters
+        """One random-walk step of both streams in one launch (bdpt_extend: the eye stream's
+        work-groups, then the light stream's, each compacted at once), over bounds on their lengths
+        that the host knows (the kernel reads the lengths on the device: pair p.ring of the
+        counters' ring, plus the subpaths regenerated since). Nothing to launch while both streams
+        are empty (the terminated samples wait for their connect phase)."""
+        ctx, pool = self.ctx, p.pool
+        eye, light = pool.eye, pool.light
         p.steps += 1
-        cl.enqueue_fill_buffer(ctx.queue, counters, np.int32(0), 0, 4 * WalkCounter.TERMINATED_SAMPLES)
-        for stream in (p.pool.eye, p.pool.light):
-            if stream.length:
-                self.extend(p, stream)
-        # The survivors are the streams' next lengths: copied on the device (two ints, one copy).
-        cl.enqueue_copy(ctx.queue, counters, counters, byte_count=8, src_offset=4 * WalkCounter.EYE_SURVIVORS,
-                        dst_offset=4 * WalkCounter.EYE_LENGTH)
+        if eye.length or light.length:
+            step = self._steps.get((p.ring, p.appended))
+            if step is None:
+                step = self._steps[p.ring, p.appended] = BDPT_STEP.record(ring=p.ring, appended=p.appended)
+            k, mem = ctx.kernels, ctx.memory
+            k.launch("bdpt_extend", mem.padded(eye.length) + mem.padded(light.length), **k.scene_args(), cam=p.camera,
+                     pass_args=p.args, walk_step=step, eye_stream=eye.current, eye_next=eye.spare,
+                     light_stream=light.current, light_next=light.spare, counters=pool.counters,
+                     eye_vertices=eye.vertices, light_vertices=light.vertices, slots=pool.slots,
+                     eye_lanes=eye.lane_counts, light_lanes=light.lane_counts, **p.sampler_args)
+            self.count_walk_step(p)
+            eye.advance()
+            light.advance()
+            p.ring, p.appended = (p.ring + 1) % 3, 0
 
-    def lengths_known(self, p, counters):
-        """The streams can hold no more subpaths than a read of the counters says (they only shrink
-        until the next regeneration): later steps launch over that many."""
-        p.pool.eye.length = min(p.pool.eye.length, int(counters[WalkCounter.EYE_LENGTH]))
-        p.pool.light.length = min(p.pool.light.length, int(counters[WalkCounter.LIGHT_LENGTH]))
+    def lengths_known(self, p, lengths):
+        """The streams can hold no more subpaths than a read of their (eye, light) lengths says (they
+        only shrink until the next regeneration): later steps launch over that many."""
+        p.pool.eye.length = min(p.pool.eye.length, int(lengths[0]))
+        p.pool.light.length = min(p.pool.light.length, int(lengths[1]))
 
     def listing_read(self, p):
         """The listing's read, looked at: (slots, listed slots, records). The walk's counters read
@@ -333,53 +347,40 @@ class BdptEvaluator:
         by as many steps as this one followed the last. None listed (too few had terminated): the
         next listing is at once, then after 1, 2, 4, ... steps, as if the regeneration had been
         that much before, so the steps waited add to the delay when it succeeds."""
-        slots, count, records, counters = p.listed.result()
+        slots, count, records, lengths = p.listed.result()
         if count:
             self.listing_delay, p.retry = max(1, p.listed.step - p.regenerated_at), 0
         else:                          # list again after 0, 1, 2, 4, ... steps (the longest subpaths of a pass's end)
             p.regenerated_at = p.steps + p.retry - self.listing_delay
             p.retry = max(1, 2 * p.retry)
         p.listed = None
-        self.lengths_known(p, counters)
+        self.lengths_known(p, lengths)
         return slots, count, records
-
-    def extend(self, p, stream):
-        """bdpt_extend: one vertex more on every subpath of `stream` (the launch covers
-        stream.length, the kernel reads the length on the device), survivors into its spare."""
-        ctx = self.ctx
-        step = BDPT_STEP.record(light_path=stream.is_light)
-        ctx.kernels.launch("bdpt_extend", stream.length, **ctx.kernels.scene_args(), cam=p.camera,
-                    pass_args=p.args, walk_step=step, stream=stream.current, next_stream=stream.spare,
-                    counters=p.pool.counters, vertices=stream.vertices, slots=p.pool.slots,
-                    lane_counts=p.pool.lane_counts, **p.sampler_args)
-        self.count_walk_step(p, stream)
-        stream.advance()
 
     def list_terminated(self, p):
         """The terminated samples, listed on the device for the next connect phase, if there are
-        enough of them (threshold): its record counts and their scan (connect.prepare, while the
+        enough of them (threshold): the connect phase's record counts (its count kernel, while the
         samples are SLOT_TERMINATED), then bdpt_mark_terminated (they become SLOT_CONNECTING, if
-        enough) and the compaction of their slots. What the host needs goes to one small buffer,
-        read behind the next steps (a Listing)."""
-        ctx, pool = self.ctx, p.pool.size
-        records = self.connect.prepare(p)
-        ctx.kernels.launch("bdpt_mark_terminated", pool, pool=np.int32(pool), threshold=np.int32(self.threshold(p)),
-                           counters=p.pool.counters, slots=p.pool.slots, flags=p.pool.terminated)
-        mem = ctx.memory
-        counts = mem.reused(("listing", pool), lambda: mem.int_buffer(LISTING_INTS))
-        listed, count = ctx.compactor.compact_on_device(p.pool.terminated, pool, p.pool.regeneration_list,
-                                                        method="immediate")
-        cl.enqueue_copy(ctx.queue, counts, count, byte_count=4)
-        cl.enqueue_copy(ctx.queue, counts, records, byte_count=4, dst_offset=4)
-        cl.enqueue_copy(ctx.queue, counts, p.pool.counters, byte_count=4 * len(WalkCounter), dst_offset=8)
-        return Listing(listed, mem.read_later(counts, (np.int32, LISTING_INTS)), p.steps)
+        enough), bdpt_list_offsets and bdpt_list_terminated (the scan of their records, the list of
+        their slots: cl/bdpt_walk.h). What the host needs goes to one small buffer, read behind
+        the next steps (a Listing)."""
+        ctx, pool = self.ctx, p.pool
+        k, size = ctx.kernels, pool.size
+        k.launch(self.connect.count_kernel, size, pool=k.int32(size), slots=pool.slots, counts=pool.record_counts)
+        k.launch("bdpt_mark_terminated", size, pool=k.int32(size), threshold=np.int32(self.threshold(p)),
+                 counters=pool.counters, slots=pool.slots, counts=pool.record_counts, block_sums=pool.block_sums)
+        k.launch("bdpt_list_offsets", 1, blocks=k.int32(ctx.memory.padded(size) // k.local_size), ring=k.int32(p.ring),
+                 counters=pool.counters, block_sums=pool.block_sums, listing=pool.listing)
+        k.launch("bdpt_list_terminated", size, pool=k.int32(size), slots=pool.slots, counts=pool.record_counts,
+                 block_starts=pool.block_sums, firsts=pool.record_firsts, listed_slots=pool.listed)
+        return Listing(pool.listed, ctx.memory.read_later(pool.listing, (np.int32, LISTING_INTS)), p.steps)
 
     # --- measuring and inspecting ------------------------------------------------------------
 
-    def count_walk_step(self, p, stream):
-        """SIMD counters of one walk step over `stream` (a no-op unless count_simd), summed on the
-        device: its lanes are the first of the stream's length there (counters), its slots those of
-        the subpaths it extended (for the walk as it would be without compaction)."""
+    def count_walk_step(self, p):
+        """SIMD counters of one walk step (a no-op unless count_simd), summed on the device, one
+        stream at a time: its lanes are the first of the length the step extended (counters), its
+        slots those of the subpaths it extended (for the walk as it would be without compaction)."""
         ctx = self.ctx
         if not ctx.recorder.on:
             return
@@ -388,16 +389,17 @@ class BdptEvaluator:
         def replay(recorder, sums):
             length = sums[SimdSum.LANES]
             if length == 0:
-                return      # a step the host queued over a stream the device had found empty
+                return      # a stream the device had found empty
             recorder.count_now("walk", length, numbered=True, capacity=pool, draining=draining)
             recorder.simd_counter().add_stream_step("compact", length)
             recorder.warp_loops(recorder.traversal_counter(), "closest", sums, "closest_steps")
             # without compaction each path keeps its slot's lane
             recorder.slot_warps(recorder.counter(WITHOUT_COMPACTION), "walk", sums, pool)
-        length = WalkCounter.LIGHT_LENGTH if stream.is_light else WalkCounter.EYE_LENGTH
-        ctx.recorder.lanes(replay, p.pool.lane_counts, 4, stream.length, length_at=p.pool.counters,
-                           length_index=int(length), slot_of=stream.current,
-                           slot_offset=SUBPATH.soa_offset("slot", p.pool.capacity) // 4, pool=pool)
+        for stream, length in ((p.pool.eye, WalkCounter.STEP_EYE_LENGTH), (p.pool.light, WalkCounter.STEP_LIGHT_LENGTH)):
+            if stream.length:
+                ctx.recorder.lanes(replay, stream.lane_counts, 4, stream.length, length_at=p.pool.counters,
+                                   length_index=int(length), slot_of=stream.current,
+                                   slot_offset=SUBPATH.soa_offset("slot", p.pool.capacity) // 4, pool=pool)
 
     def stats(self):
         """The walk's figures for the render stats."""
@@ -424,19 +426,6 @@ def read_buffer(queue, buffer, out):
     if out.size:
         cl.enqueue_copy(queue, out, buffer)
     return out
-
-
-def scan_slot_counts(ctx, p, kernel, label):
-    """Launch `kernel`, which writes a count per pool slot (records a connect phase will write),
-    and scan the counts on the device: (counts, firsts, total) with firsts[k] = sum of counts[0 .. k - 1]
-    and `total` a one-int buffer (valid until the compactor's next call: copy it).
-    The buffers are kept under `label` and reused by the next connect phases."""
-    pool = p.pool.size
-    mem = ctx.memory
-    counts, firsts = mem.reused((label, pool), lambda: (mem.int_buffer(pool), mem.int_buffer(pool)))
-    ctx.kernels.launch(kernel, pool, pool=np.int32(pool), slots=p.pool.slots, counts=counts)
-    firsts, total = ctx.compactor.exclusive_scan_on_device(counts, pool, out=firsts)
-    return counts, firsts, total
 
 
 def connect_args(p, firsts, values, pixels, lane_counts):

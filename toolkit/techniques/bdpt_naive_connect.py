@@ -4,9 +4,8 @@ cl/bdpt_naive_connect.cl); slots still walking idle.
 The random walk (compacted eye/light streams, postponed regeneration) is shared with
 bdpt_parallel_connect: see bdpt_evaluator.py and cl/bdpt_walk.h."""
 import numpy as np
-import pyopencl as cl
 
-from toolkit.techniques.bdpt_evaluator import Connections, connect_args, record_buffers, scan_slot_counts
+from toolkit.techniques.bdpt_evaluator import Connections, connect_args, record_buffers
 from toolkit.core.layout import LONGEST_SUBPATH
 from toolkit.core.bdpt_indices import (connection_count, naive_record_count, naive_splat_record, naive_strategy_record,
                                        naive_sum_record, strategy_count, strategy_index)
@@ -20,33 +19,29 @@ class NaiveConnect:
     """The plain connect phase (cl/bdpt_naive_connect.cl), launched through `ctx` (a BdptContext):
     the light-tracing (t = 1) splats of each slot, then one sum of its eye-path strategies per slot.
     `strategy_max_edges`: the kernels keep strategies apart (STRATEGY_IMAGES)."""
+    # Where each terminated slot's light-tracing records go: the evaluator scans their counts (so
+    # the records are packed, not MAX_VERTICES + 1 places per slot) into p.pool.record_firsts.
+    count_kernel = "bdpt_naive_connect_splats"
 
     def __init__(self, ctx, strategy_max_edges=None):
         self.ctx, self.strategy_max_edges = ctx, strategy_max_edges
-        self.counts = self.firsts = None   # the splat counts of the listed slots and their scan (prepare)
-
-    def prepare(self, p):
-        """Where each terminated slot's light-tracing records will go: a scan of their counts (so
-        the records are packed, not MAX_VERTICES + 1 places per slot), on the device. Returns the
-        one-int buffer of the splats' total."""
-        self.counts, self.firsts, splats = scan_slot_counts(self.ctx, p, "bdpt_naive_connect_splats", "splat counts")
-        return splats
 
     def __call__(self, p, count, splats):
-        """The `count` samples listed (SLOT_CONNECTING) with `splats` light-tracing records (prepare's total)."""
+        """The `count` samples listed (SLOT_CONNECTING) with `splats` light-tracing records (the listing's)."""
         ctx, pool = self.ctx, p.pool.size
         if count == 0:
             return Connections.none()
-        # the splats, one eye-path sum per slot, and with per-strategy images a record per eye-path strategy of the short paths
+        # the splats, one eye-path sum per slot, and with per-strategy images a record per eye-path
+        # strategy of the short paths; the kernel writes every record's pixel (-1: none)
         n = naive_record_count(splats, pool, self.record_strategy_count())
         values, pixels = record_buffers(ctx, n)
-        cl.enqueue_fill_buffer(ctx.queue, pixels, np.int32(-1), 0, 4 * n)   # records a slot may leave unwritten
-        ctx.kernels.launch("bdpt_naive_connect", pool, **ctx.kernels.scene_args(), cam=p.camera, pool=np.int32(pool),
-                    splats=np.int32(splats), **connect_args(p, self.firsts, values, pixels, p.pool.lane_counts))
+        k = ctx.kernels
+        k.launch("bdpt_naive_connect", pool, **k.scene_args(), cam=p.camera, pool=k.int32(pool),
+                 splats=np.int32(splats), **connect_args(p, p.pool.record_firsts, values, pixels, p.pool.lane_counts))
         self.count_connect(p)
         connections = Connections(n, values, pixels, ctx.queue)
         if self.strategy_max_edges:
-            connections.strategy = self.record_strategies(pool, ctx.memory.read_ints(self.counts, pool))
+            connections.strategy = self.record_strategies(pool, ctx.memory.read_ints(p.pool.record_counts, pool))
         return connections
 
     def record_strategy_count(self):

@@ -6,7 +6,7 @@ import numpy as np
 
 from toolkit.core.bdpt_indices import connection_strategy
 from toolkit.core.layout import BDPT_SLOT
-from toolkit.techniques.bdpt_evaluator import Connections, connect_args, record_buffers, scan_slot_counts
+from toolkit.techniques.bdpt_evaluator import Connections, connect_args, record_buffers
 from toolkit.techniques.strategy_images import strategy_index
 from toolkit.techniques.bdpt_base import BdptTechnique
 
@@ -16,27 +16,24 @@ class ParallelConnect:
     BdptContext). Its records of one slot are consecutive, in slot order. `strategy_max_edges`: the kernels keep
     strategies apart (STRATEGY_IMAGES), and each record gets its strategy; `read_slots`: the
     Connections carry the slots and their record counts (which sample each record belongs to)."""
+    # Step 1 for the terminated samples (SLOT_TERMINATED): their connection counts. The evaluator
+    # lists them and scans the counts (step 2) into p.pool.record_firsts.
+    count_kernel = "bdpt_parallel_connect_count"
 
     def __init__(self, ctx, strategy_max_edges=None, read_slots=False):
         self.ctx, self.strategy_max_edges = ctx, strategy_max_edges
         self.read_slots = read_slots or bool(strategy_max_edges)
-        self.counts = self.firsts = None   # the listed slots' connection counts and their scan (prepare)
-
-    def prepare(self, p):
-        """Steps 1 and 2 on the device for the terminated samples (SLOT_TERMINATED): their
-        connection counts and the scan. Returns the one-int buffer of the connections' total."""
-        self.counts, self.firsts, total = scan_slot_counts(self.ctx, p, "bdpt_parallel_connect_count", "counts")
-        return total
 
     def __call__(self, p, count, total):
-        """Every connection (`total`, prepare's) of the `count` samples listed then (SLOT_CONNECTING)."""
+        """Every connection (`total`, the listing's) of the `count` samples listed then (SLOT_CONNECTING)."""
         ctx, pool = self.ctx, p.pool.size
-        counts, firsts = self.counts, self.firsts
+        counts, firsts = p.pool.record_counts, p.pool.record_firsts
         if count == 0 or total == 0:
             return Connections.none()
         values, pixels, lanes = record_buffers(ctx, total, ctx.memory.lane_counts_buffer)
-        ctx.kernels.launch("bdpt_parallel_connect", total, **ctx.kernels.scene_args(), cam=p.camera,
-                    total=np.int32(total), pool=np.int32(pool), **connect_args(p, firsts, values, pixels, lanes))
+        k = ctx.kernels
+        k.launch("bdpt_parallel_connect", total, **k.scene_args(), cam=p.camera,
+                 total=np.int32(total), pool=k.int32(pool), **connect_args(p, firsts, values, pixels, lanes))
         if ctx.recorder.on:
             ctx.recorder.before_step("connect", total)
         connections = Connections(total, values, pixels, ctx.queue, slot_buffer=p.pool.slots, count_buffer=counts,
