@@ -156,39 +156,29 @@ HELPER bool subpath_extend(const SceneView* scene, Subpath* p, BdptSampler* rng,
  * SLOT_IDLE when the pass's budget left it empty. */
 #define RING_LENGTHS(ring) (LENGTH_RING + 2 * ((ring) % 3))   /* the eye length of a pair; the light length follows */
 
-/* One random-walk step of both streams in one launch: the first work-groups extend the eye
- * stream, the next ones the light stream (the eye stream's groups end where its length on the
- * device says, so no group mixes the two). Each stream is a compacted subpath stream of the
- * ring's length plus walk_step.appended (the subpaths regenerated since that count); the launch
- * may cover more (bounds the host knows), and a work-group wholly past its stream's length leaves
- * at once. Survivors are packed into the stream's next buffer and counted in the ring's next
- * pair; a subpath that ends records its vertex count, and the sample whose second subpath this
- * was counts as terminated. The streams are Subpath structures of arrays of pass_args.capacity
+/* One random-walk step of one stream (walk_step.light: 0 the eye stream, 1 the light stream;
+ * the host launches it once per stream). The stream is a compacted subpath stream of the ring's
+ * length plus walk_step.appended (the subpaths regenerated since that count); the launch may
+ * cover more (a bound the host knows), and a work-group wholly past the length leaves at once.
+ * Survivors are packed into the stream's next buffer and counted in the ring's next pair; a
+ * subpath that ends records its vertex count, and the sample whose second subpath this was
+ * counts as terminated. The streams are Subpath structures of arrays of pass_args.capacity
  * records (layout.h). */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
 void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const BdptStep walk_step,
-                 __global void* eye_stream, __global void* eye_next, __global void* light_stream,
-                 __global void* light_next, volatile __global int* counters, __global BdptVertex* eye_vertices,
-                 __global BdptVertex* light_vertices, volatile __global BdptSlot* slots,
-                 __global LaneCounts* eye_lanes, __global LaneCounts* light_lanes BDPT_SAMPLER_PARAM)
+                 __global void* stream, __global void* next_stream, volatile __global int* counters,
+                 __global BdptVertex* vertices, volatile __global BdptSlot* slots, __global LaneCounts* lane_counts
+                 BDPT_SAMPLER_PARAM)
 {
-    const int lengths = RING_LENGTHS(walk_step.ring);
-    const int eye_length = counters[lengths] + walk_step.appended;
-    const int light_length = counters[lengths + 1] + walk_step.appended;
+    const bool light_path = walk_step.light != 0;
+    const int length = counters[RING_LENGTHS(walk_step.ring) + walk_step.light] + walk_step.appended;
     if (get_global_id(0) == 0) {     /* no other work-item reads these during the step */
-        const int cleared = RING_LENGTHS(walk_step.ring + 2);
-        counters[cleared] = counters[cleared + 1] = 0;
-        counters[STEP_EYE_LENGTH] = eye_length;
-        counters[STEP_LIGHT_LENGTH] = light_length;
+        counters[RING_LENGTHS(walk_step.ring + 2) + walk_step.light] = 0;
+        counters[STEP_EYE_LENGTH + walk_step.light] = length;   /* STEP_LIGHT_LENGTH follows it */
     }
-    const int eye_groups = (eye_length + LOCAL_SIZE - 1) / LOCAL_SIZE;
-    const bool light_path = (int)get_group_id(0) >= eye_groups;
-    const int length = light_path ? light_length : eye_length;
-    const int first = (light_path ? (int)get_group_id(0) - eye_groups : (int)get_group_id(0)) * LOCAL_SIZE;
+    const int first = (int)get_group_id(0) * LOCAL_SIZE;
     /* All the group's work-items leave together, so none waits at a barrier the others skip. */
     if (first >= length) return;
-    __global void* stream = light_path ? light_stream : eye_stream;
-    __global BdptVertex* vertices = light_path ? light_vertices : eye_vertices;
     __local int scratch[COMPACT_SCRATCH_INTS];
     __local uint stage[LOCAL_SIZE * VERTEX_WORDS];
     __local int dest[LOCAL_SIZE];
@@ -210,37 +200,70 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
         }
     }
     store_vertex(vertices, store_at, &v, stage, dest);
-    const int survivors = RING_LENGTHS(walk_step.ring + 1) + (light_path ? 1 : 0);
+    const int survivors = RING_LENGTHS(walk_step.ring + 1) + walk_step.light;
     int slot = immediate_compact_slot(alive, scratch, &counters[survivors]);
-    if (slot >= 0) subpath_store(subpath_soa(light_path ? light_next : eye_next, pass_args.capacity), slot, &p);
+    if (slot >= 0) subpath_store(subpath_soa(next_stream, pass_args.capacity), slot, &p);
 #if COUNT_SIMD
     if (index < length) {
         LaneCounts lane = {.work = 1, .closest_steps = steps};
-        (light_path ? light_lanes : eye_lanes)[index] = lane;
+        lane_counts[index] = lane;
     }
 #endif
 }
 
+/* The light subpath of a new sample: y_0 on a light (chosen by power), then a cosine-weighted
+ * direction; stored at entry `at` of the light stream and vertex 0 of the slot's light vertices. */
+HELPER void bdpt_start_light_subpath(SceneView* scene, BdptSampler* rng, int slot, int at, int capacity,
+                                     __global void* stream, __global BdptVertex* vertices)
+{
+    LightSample ls = sample_light(scene, bdpt_sample(rng, BDPT_DIM_LIGHT_PICK),
+                                  bdpt_sample(rng, BDPT_DIM_LIGHT_POINT), bdpt_sample(rng, BDPT_DIM_LIGHT_POINT + 1));
+    float inv_pdf = 1.0f / ls.pdf_area;
+    BdptVertex y0 = {.pos = (float4)(ls.p, 0.0f), .normal = (float4)(ls.n, 0.0f), .wo = (float4)(0.0f),
+                     .beta = (float4)(inv_pdf, inv_pdf, inv_pdf, 0.0f),
+                     .material = scene->tris[scene->lights[ls.light].triangle].material, .flags = VERTEX_LIGHT,
+                     .light = ls.light, .pdf_fwd = ls.pdf_area, .pdf_rev = 0.0f};
+    vertices[vertex_index(slot, 0)] = y0;
+    float3 ts, tt;
+    make_basis(ls.n, &ts, &tt);
+    float3 emit_local = sample_cosine_hemisphere(bdpt_sample(rng, BDPT_DIM_EMIT_DIR), bdpt_sample(rng, BDPT_DIM_EMIT_DIR + 1));
+    float3 dir = to_world(emit_local, ts, tt, ls.n);
+    /* Le cos / (pdf_area * cos / pi) = Le pi / pdf_area */
+    float3 beta = ls.emission * (PI * inv_pdf);
+    /* .w lanes: SUBPATH_PDF_DIR the cosine-weighted emission's density, SUBPATH_RR_NORMALISER max(beta) */
+    Subpath l = {.origin = (float4)(offset_point(scene, ls.p, ls.n, dir), emit_local.z * INV_PI),
+                 .dir = (float4)(dir, 0.0f), .beta = (float4)(beta, max3(beta)), .prev_pos = (float4)(ls.p, 0.0f),
+                 .prev_normal = (float4)(ls.n, 0.0f), .slot = slot, .vertices = 1, .prev_flags = VERTEX_LIGHT};
+    subpath_store(subpath_soa(stream, capacity), at, &l);
+}
+
 /* Start new samples in the pool slots listed in `slot_list` (those bdpt_list_terminated listed):
  * the first r.fresh get samples r.first_id, r.first_id + 1, ... (consecutive pixels); the rest
- * go idle (budget spent). Writes z_0 (camera) and y_0 (point on a light) and appends both
- * subpaths to their streams, after the subpaths there: the lengths in the counters' ring (pair
- * r.ring) plus the r.appended subpaths appended since. The next walk step adds the new ones to
- * those lengths (BdptStep.appended), so the host needs not know them. */
+ * go idle (budget spent). Launched once per stream (r.light): the eye launch writes z_0 (camera),
+ * the eye subpath and the slot, the light launch y_0 (a point on a light) and the light subpath;
+ * each appends its subpaths to its stream, after the subpaths there: the length in the counters'
+ * ring (pair r.ring) plus the r.appended subpaths appended since. The next walk step adds the new
+ * ones to those lengths (BdptStep.appended), so the host needs not know them. The sampler gives
+ * each dimension by its number, so the two launches draw what one did. */
 __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const BdptRegeneration r,
-                              __global const int* slot_list, __global const int* counters, __global void* eye_stream,
-                              __global void* light_stream, __global BdptVertex* eye_vertices,
-                              __global BdptVertex* light_vertices, __global BdptSlot* slots BDPT_SAMPLER_PARAM)
+                              __global const int* slot_list, __global const int* counters, __global void* stream,
+                              __global BdptVertex* vertices, __global BdptSlot* slots BDPT_SAMPLER_PARAM)
 {
     int gid = get_global_id(0);
     if (gid >= r.count) return;
-    const int lengths = RING_LENGTHS(r.ring);
-    const int eye_base = counters[lengths] + r.appended, light_base = counters[lengths + 1] + r.appended;
+    const int base = counters[RING_LENGTHS(r.ring) + r.light] + r.appended;
     int slot = slot_list[gid];
     int id = bdpt_regeneration_sample(&r, gid);
-    if (id < 0) { slots[slot].live = SLOT_IDLE; return; }
+    if (id < 0) {
+        if (!r.light) slots[slot].live = SLOT_IDLE;
+        return;
+    }
     SceneView scene = SCENE_INIT;
     BdptSampler rng = bdpt_sampler(&cam, &pass_args, id);
+    if (r.light) {
+        bdpt_start_light_subpath(&scene, &rng, slot, base + gid, pass_args.capacity, stream, vertices);
+        return;
+    }
     float3 eye_pos = cam.origin.xyz, forward = cam.forward.xyz;
 
     /* Eye subpath: z_0 is the pinhole; the first direction is the camera sample (camera.h). */
@@ -250,33 +273,12 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pas
     BdptVertex z0 = {.pos = (float4)(eye_pos, 0.0f), .normal = (float4)(forward, 0.0f), .wo = (float4)(0.0f),
                      .beta = (float4)(1.0f, 1.0f, 1.0f, 0.0f), .material = -1, .flags = VERTEX_CAMERA,
                      .light = -1, .pdf_fwd = 1.0f, .pdf_rev = 0.0f};
-    eye_vertices[vertex_index(slot, 0)] = z0;
+    vertices[vertex_index(slot, 0)] = z0;
     /* .w lanes (layout.h): SUBPATH_PDF_DIR the camera's density of w, SUBPATH_RR_NORMALISER 1 */
     Subpath e = {.origin = (float4)(eye_pos, camera_pdf_dir(&cam, w)), .dir = (float4)(w, 0.0f),
                  .beta = (float4)(1.0f), .prev_pos = (float4)(eye_pos, 0.0f), .prev_normal = (float4)(forward, 0.0f),
                  .slot = slot, .vertices = 1, .prev_flags = VERTEX_CAMERA};
-    subpath_store(subpath_soa(eye_stream, pass_args.capacity), eye_base + gid, &e);
-
-    /* Light subpath: y_0 on a light (chosen by power), then a cosine-weighted direction. */
-    LightSample ls = sample_light(&scene, bdpt_sample(&rng, BDPT_DIM_LIGHT_PICK),
-                                  bdpt_sample(&rng, BDPT_DIM_LIGHT_POINT), bdpt_sample(&rng, BDPT_DIM_LIGHT_POINT + 1));
-    float inv_pdf = 1.0f / ls.pdf_area;
-    BdptVertex y0 = {.pos = (float4)(ls.p, 0.0f), .normal = (float4)(ls.n, 0.0f), .wo = (float4)(0.0f),
-                     .beta = (float4)(inv_pdf, inv_pdf, inv_pdf, 0.0f),
-                     .material = scene.tris[scene.lights[ls.light].triangle].material, .flags = VERTEX_LIGHT,
-                     .light = ls.light, .pdf_fwd = ls.pdf_area, .pdf_rev = 0.0f};
-    light_vertices[vertex_index(slot, 0)] = y0;
-    float3 ts, tt;
-    make_basis(ls.n, &ts, &tt);
-    float3 emit_local = sample_cosine_hemisphere(bdpt_sample(&rng, BDPT_DIM_EMIT_DIR), bdpt_sample(&rng, BDPT_DIM_EMIT_DIR + 1));
-    float3 dir = to_world(emit_local, ts, tt, ls.n);
-    /* Le cos / (pdf_area * cos / pi) = Le pi / pdf_area */
-    float3 beta = ls.emission * (PI * inv_pdf);
-    /* .w lanes: SUBPATH_PDF_DIR the cosine-weighted emission's density, SUBPATH_RR_NORMALISER max(beta) */
-    Subpath l = {.origin = (float4)(offset_point(&scene, ls.p, ls.n, dir), emit_local.z * INV_PI),
-                 .dir = (float4)(dir, 0.0f), .beta = (float4)(beta, max3(beta)), .prev_pos = (float4)(ls.p, 0.0f),
-                 .prev_normal = (float4)(ls.n, 0.0f), .slot = slot, .vertices = 1, .prev_flags = VERTEX_LIGHT};
-    subpath_store(subpath_soa(light_stream, pass_args.capacity), light_base + gid, &l);
+    subpath_store(subpath_soa(stream, pass_args.capacity), base + gid, &e);
 
     BdptSlot started = {.live = SLOT_BOTH_WALKING, .sample_id = id, .eye_vertices = 1, .light_vertices = 1,
                         .pixel = pixel};

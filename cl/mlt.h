@@ -41,7 +41,7 @@ HELPER float mlt_acceptance(float f_current, float f_proposal) {
  * N candidates the state is candidate i with probability f_i / sum f. The accepted vector is
  * copied into the chain's current one (its used dimensions). The splats' weights use the same a
  * (mlt_acceptance), computed before it by mlt_chain_splat_weights (cl/mlt_splat.h).
- * One chain's acceptance: the body of the kernel mlt_accept (the toy target's, toolkit/verify/mlt_toy.py)
+ * One chain's acceptance: the body of the kernel mlt_accept (cl/mlt_test.cl, the toy target's)
  * and of mlt_accept_and_weigh (cl/mlt_splat.h: the render's, weights and acceptance in one launch). */
 HELPER void mlt_accept_chain(const MltIteration it, int c, __global float* current, __global const float* proposal,
                              __global MltChain* chains, __global const float* f_proposal,
@@ -73,15 +73,6 @@ HELPER void mlt_accept_chain(const MltIteration it, int c, __global float* curre
     chain.f_proposal = fy;            /* the proposal as this acceptance saw it */
     chain.dims_proposal = dims_proposal[c];
     chains[c] = chain;
-}
-
-__kernel void mlt_accept(const MltIteration it, __global float* current, __global const float* proposal,
-                         __global MltChain* chains, __global const float* f_proposal,
-                         __global const int* dims_proposal)
-{
-    int c = get_global_id(0);
-    if (c >= it.active) return;
-    mlt_accept_chain(it, c, current, proposal, chains, f_proposal, dims_proposal);
 }
 
 /* start = pool: chain c starts at a large step that chain src_chain[c] evaluated in iteration

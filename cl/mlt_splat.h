@@ -63,13 +63,13 @@ HELPER void mlt_chain_splat_weights(const MltIteration it, int c, MltChain chain
 __kernel void mlt_accept_and_weigh(const MltIteration it, __global float* current, __global const float* proposal,
                                    __global MltChain* chains, __global const float* f_proposal,
                                    __global const int* dims_proposal, __global const float* weight,
-                                   __global const float* b_estimate, const int combine, const int unit_exponent,
+                                   __global const float* b_estimate, const int combine,
                                    __global float4* splat_weights, __global FilmAccumulator* b_sum,
                                    __global int* tallies)
 {
     int c = get_global_id(0);
     if (c >= it.active) return;
-    mlt_chain_splat_weights(it, c, chains[c], f_proposal[c], weight, b_estimate, combine, unit_exponent,
+    mlt_chain_splat_weights(it, c, chains[c], f_proposal[c], weight, b_estimate, combine, it.unit_exponent,
                             splat_weights, b_sum, tallies);
     mlt_accept_chain(it, c, current, proposal, chains, f_proposal, dims_proposal);
 }
@@ -87,11 +87,11 @@ HELPER void mlt_estimate_b(__global FilmAccumulator* b_sum, const int unit_expon
  * over the chains is b's sum over the count of chains (the start's large steps are the candidates).
  * All zero (no light found): the weights stay 1. */
 __kernel void mlt_resample_weights(const MltIteration it, __global const MltChain* chains,
-                                   __global FilmAccumulator* b_sum, const int unit_exponent, __global float* weight)
+                                   __global FilmAccumulator* b_sum, __global float* weight)
 {
     int c = get_global_id(0);
     if (c >= it.active) return;
-    float sum = ldexp(fixed_to_float(load_128(channel_words(b_sum, 0, 0))), unit_exponent);
+    float sum = ldexp(fixed_to_float(load_128(channel_words(b_sum, 0, 0))), it.unit_exponent);
     if (sum > 0.0f) weight[c] = chains[c].candidates * (float)it.chains / sum;
 }
 
@@ -128,12 +128,12 @@ __kernel void mlt_keep_records(const MltIteration it, __global const MltChain* c
                                __global const int* proposal_pixel, __global const int2* current_span,
                                __global const float4* current_value, __global const int* current_pixel,
                                __global int2* next_span, __global float4* next_value, __global int* next_pixel,
-                               __global int* next_chain, __global int* next_total, const int capacity,
-                               __global int* tallies, __global FilmAccumulator* b_sum,
-                               const int unit_exponent, __global float* b_estimate)
+                               __global int* next_chain, __global int* next_total, __global int* tallies,
+                               __global FilmAccumulator* b_sum, __global float* b_estimate)
 {
     int c = get_global_id(0);
-    if (c == 0) mlt_estimate_b(b_sum, unit_exponent, tallies, b_estimate);
+    int capacity = it.store_capacity;
+    if (c == 0) mlt_estimate_b(b_sum, it.unit_exponent, tallies, b_estimate);
     if (c >= it.chains) return;
     bool accepted = c < it.active && chains[c].accepted;
     if (accepted && it.mode == MLT_MUTATE) atomic_inc(&tallies[MLT_TALLY_ACCEPTED]);

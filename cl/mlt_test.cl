@@ -23,3 +23,14 @@ __kernel void mlt_test_target(const MltIteration it, __global const float* propo
         dims[c] = 2;
     }
 }
+
+/* The acceptance alone (the renderer does it in mlt_accept_and_weigh, cl/mlt_splat.h): the same
+ * mlt_accept_chain of cl/mlt.h. */
+__kernel void mlt_accept(const MltIteration it, __global float* current, __global const float* proposal,
+                         __global MltChain* chains, __global const float* f_proposal,
+                         __global const int* dims_proposal)
+{
+    int c = get_global_id(0);
+    if (c >= it.active) return;
+    mlt_accept_chain(it, c, current, proposal, chains, f_proposal, dims_proposal);
+}

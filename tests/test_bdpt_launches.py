@@ -50,10 +50,10 @@ def queued(monkeypatch, tech, width, height, spp):
 
 
 @pytest.mark.parametrize("cls", [BdptNaiveConnect, BdptParallelConnect])
-def test_a_walk_step_is_one_launch_and_a_pass_clears_copies_and_allocates_nothing(monkeypatch, queue, cornell_box, cls):
+def test_a_walk_step_is_a_launch_per_stream_and_a_pass_clears_copies_and_allocates_nothing(monkeypatch, queue, cornell_box, cls):
     """Inside a pass after the first (whose records may first outgrow their buffers), the host queues
-    per walk step one launch, per listing four and one read (not waited for), per connect phase
-    its kernel and the film's, per regeneration one launch: no fill, no copy on the device, no
+    per walk step two launches (eye, light), per listing four and one read (not waited for), per connect phase
+    its kernel and the film's, per regeneration two: no fill, no copy on the device, no
     buffer made."""
     tech = cls(queue, DeviceScene(queue, cornell_box), count_simd=False, pool_size=128)
     tech.target_batch = 16 * 16 * 2        # 16x16 at 6 spp: three passes of 2 spp
@@ -65,18 +65,21 @@ def test_a_walk_step_is_one_launch_and_a_pass_clears_copies_and_allocates_nothin
     # the one fill: start_pass clears the walk's counters (WalkCounter.COUNTER_INTS ints)
     assert [e for e in pass_events if e[0] == "fill"] == [("fill", 4 * WalkCounter.COUNTER_INTS)]
     steps, current = [], []
+    extends = 0
     for event in pass_events:
         if event == ("launch", "bdpt_extend"):
-            steps.append(current)
-            current = []
+            if extends % 2 == 0:           # a step begins with the eye stream's launch, the light's follows
+                steps.append(current)
+                current = []
+            extends += 1
         current.append(event)
     steps = steps[1:] + [current]          # each from its walk launch to the next
     connect = cls.connect_phase(tech).count_kernel
     listings = 0
     for step in steps:
         launches = [what for kind, what in step if kind == "launch"]
-        assert launches[0] == "bdpt_extend" and launches.count("bdpt_extend") == 1
-        rest = launches[1:]
+        assert launches[:2] == ["bdpt_extend"] * 2 and launches.count("bdpt_extend") == 2   # eye, then light
+        rest = launches[2:]
         if connect in rest:                # a listing: four launches and the read of its counts
             at = rest.index(connect)
             assert tuple(rest[at + 1:at + 4]) == LISTING

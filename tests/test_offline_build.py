@@ -23,8 +23,9 @@ from toolkit.verify.gpu_compiler_reports import amdgcn_kernels, ptxas_kernels
 from toolkit.verify.gpu_occupancy import warps_per_sm
 from toolkit.verify.gpu_programs import HostBuild, host_builds, stand_in_device
 
-SUBSET = dict(scenes=["cornell_spheres"], techniques=[*TECHNIQUES, "bdpt_parallel_connect/direct_scatter"],
-              counters=(True,))
+# pt_compact_regen/multipass: the only technique left that builds compact.cl (pyopencl-free scans)
+SUBSET = dict(scenes=["cornell_spheres"], counters=(True,),
+              techniques=[*TECHNIQUES, "bdpt_parallel_connect/direct_scatter", "pt_compact_regen/multipass"])
 
 
 def toolchain_or_skip():

@@ -206,7 +206,8 @@ BDPT_PASS = Record("BdptPass", [
 BDPT_STEP = Record("BdptStep", [
     ("ring", "int"),            # the step's place in the counters' ring of lengths (WalkCounter.LENGTH_RING): step k % 3
     ("appended", "int"),        # subpaths regenerated onto each stream since the lengths in the ring were counted
-], "One random-walk step over both streams (bdpt_extend).")
+    ("light", "int"),           # the stream this launch extends: 0 the eye stream, 1 the light stream
+], "One random-walk step of one stream (bdpt_extend, launched once per stream).")
 
 BDPT_REGENERATION = Record("BdptRegeneration", [
     ("count", "int"),           # terminated slots listed for regeneration
@@ -214,7 +215,8 @@ BDPT_REGENERATION = Record("BdptRegeneration", [
     ("first_id", "int"),        # id of the first new sample (the others follow, consecutive pixels)
     ("ring", "int"),            # where the streams' lengths are (the next walk step's place in the ring, WalkCounter)
     ("appended", "int"),        # subpaths already appended after those lengths (BdptStep.appended)
-], "One regeneration step of the BDPT pool.")
+    ("light", "int"),           # the stream this launch starts subpaths in: 0 eye (and the slots), 1 light
+], "One regeneration step of the BDPT pool (bdpt_regenerate, launched once per stream).")
 
 MLT_CHAIN = Record("MltChain", [
     ("f_current", "float"),     # scalar contribution (luminance of all strategies) of the current state
@@ -234,8 +236,8 @@ MLT_ITERATION = Record("MltIteration", [
     ("active", "int"),          # chains that mutate in this iteration (the first `active`)
     ("large_step", "float"),    # probability of a large step
     ("mode", "int"),            # MltMode: what the accept kernel does with the proposal
-    ("pad0", "int"),
-    ("pad1", "int"),
+    ("unit_exponent", "int"),   # the record films' and b's fixed point counts units of 2^unit_exponent
+    ("store_capacity", "int"),  # the records the next current-state store holds (mlt_keep_records)
 ], "What the mutate and accept kernels of one Metropolis iteration share.")
 
 # One pixel of a path-tracing pass, summed on the device (cl/film_reduce.cl): the host adds these

@@ -296,12 +296,13 @@ class BdptEvaluator:
         ctx, pool = self.ctx, p.pool
         fresh = min(count, p.budget - p.next_id)
         if count:
-            r = BDPT_REGENERATION.record(count=count, fresh=fresh, first_id=p.next_id, ring=p.ring,
-                                         appended=p.appended)
-            ctx.kernels.launch("bdpt_regenerate", count, **ctx.kernels.scene_args(), cam=p.camera,
-                        pass_args=p.args, r=r, slot_list=slots, counters=pool.counters, eye_stream=pool.eye.current,
-                        light_stream=pool.light.current, eye_vertices=pool.eye.vertices,
-                        light_vertices=pool.light.vertices, slots=pool.slots, **p.sampler_args)
+            for stream in (pool.eye, pool.light):   # the eye launch also starts the slots
+                r = BDPT_REGENERATION.record(count=count, fresh=fresh, first_id=p.next_id, ring=p.ring,
+                                             appended=p.appended, light=int(stream.is_light))
+                ctx.kernels.launch("bdpt_regenerate", count, **ctx.kernels.scene_args(), cam=p.camera,
+                                   pass_args=p.args, r=r, slot_list=slots, counters=pool.counters,
+                                   stream=stream.current, vertices=stream.vertices, slots=pool.slots,
+                                   **p.sampler_args)
         for stream in (p.pool.eye, p.pool.light):    # a stream holds at most one subpath per slot
             stream.length = min(stream.length + fresh, p.pool.size)
         p.appended += fresh
@@ -312,28 +313,31 @@ class BdptEvaluator:
             ctx.recorder.stream_step("generate", fresh)
 
     def walk(self, p):
-        """One random-walk step of both streams in one launch (bdpt_extend: the eye stream's
-        work-groups, then the light stream's, each compacted at once), over bounds on their lengths
-        that the host knows (the kernel reads the lengths on the device: pair p.ring of the
-        counters' ring, plus the subpaths regenerated since). Nothing to launch while both streams
-        are empty (the terminated samples wait for their connect phase)."""
+        """One random-walk step: bdpt_extend extends the eye stream, then the light stream (each
+        compacted at once), over bounds on their lengths that the host knows (the kernel reads the
+        lengths on the device: pair p.ring of the counters' ring, plus the subpaths regenerated
+        since). Both launch while either stream walks, an empty one as one work-group, because each
+        launch also clears its stream's count two steps ahead in the ring. Nothing to launch while
+        both are empty (the terminated samples wait for their connect phase)."""
         ctx, pool = self.ctx, p.pool
-        eye, light = pool.eye, pool.light
         p.steps += 1
-        if eye.length or light.length:
-            step = self._steps.get((p.ring, p.appended))
+        if not (pool.eye.length or pool.light.length):
+            return
+        k, mem = ctx.kernels, ctx.memory
+        for stream in (pool.eye, pool.light):
+            key = (p.ring, p.appended, stream.is_light)
+            step = self._steps.get(key)
             if step is None:
-                step = self._steps[p.ring, p.appended] = BDPT_STEP.record(ring=p.ring, appended=p.appended)
-            k, mem = ctx.kernels, ctx.memory
-            k.launch("bdpt_extend", mem.padded(eye.length) + mem.padded(light.length), **k.scene_args(), cam=p.camera,
-                     pass_args=p.args, walk_step=step, eye_stream=eye.current, eye_next=eye.spare,
-                     light_stream=light.current, light_next=light.spare, counters=pool.counters,
-                     eye_vertices=eye.vertices, light_vertices=light.vertices, slots=pool.slots,
-                     eye_lanes=eye.lane_counts, light_lanes=light.lane_counts, **p.sampler_args)
-            self.count_walk_step(p)
-            eye.advance()
-            light.advance()
-            p.ring, p.appended = (p.ring + 1) % 3, 0
+                step = self._steps[key] = BDPT_STEP.record(ring=p.ring, appended=p.appended,
+                                                           light=int(stream.is_light))
+            k.launch("bdpt_extend", mem.padded(stream.length), **k.scene_args(), cam=p.camera,
+                     pass_args=p.args, walk_step=step, stream=stream.current, next_stream=stream.spare,
+                     counters=pool.counters, vertices=stream.vertices, slots=pool.slots,
+                     lane_counts=stream.lane_counts, **p.sampler_args)
+        self.count_walk_step(p)
+        pool.eye.advance()
+        pool.light.advance()
+        p.ring, p.appended = (p.ring + 1) % 3, 0
 
     def lengths_known(self, p, lengths):
         """The streams can hold no more subpaths than a read of their (eye, light) lengths says (they

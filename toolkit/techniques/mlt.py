@@ -256,8 +256,7 @@ class Mlt(BdptPoolTechnique):
             for _ in range(self.candidates):
                 self.iterate(c, count, MltMode.CANDIDATE)
             self.kernels.launch("mlt_resample_weights", count, it=self.iteration_args(c, count, MltMode.CANDIDATE),
-                                chains=c.records, b_sum=c.b_sum, unit_exponent=np.int32(c.films[1].unit_exponent),
-                                weight=c.weight)
+                                chains=c.records, b_sum=c.b_sum, weight=c.weight)
         return c
 
     def iteration_args(self, c, active, mode):
@@ -265,6 +264,7 @@ class Mlt(BdptPoolTechnique):
         it = MLT_ITERATION.zeros(1)[0]
         it["seed"], it["iteration"], it["chains"], it["active"] = c.seed, c.iteration, c.count, active
         it["large_step"], it["mode"] = self.large_step, int(mode)
+        it["unit_exponent"] = c.films[1].unit_exponent   # b's sum and the films' fixed point (one scale)
         return it
 
     def iterate(self, c, active, mode):
@@ -329,7 +329,7 @@ class Mlt(BdptPoolTechnique):
         self.kernels.launch("mlt_accept_and_weigh", active, it=it, current=c.current, proposal=c.proposal,
                             chains=c.records, f_proposal=c.f_proposal, dims_proposal=c.dims_proposal,
                             weight=c.weight, b_estimate=c.b_estimate, combine=np.int32(self.combine),
-                            unit_exponent=np.int32(c.films[1].unit_exponent), splat_weights=c.splat_weights,
+                            splat_weights=c.splat_weights,
                             b_sum=c.b_sum, tallies=c.tallies)
         if self.count_simd:
             self.recorder.before_step("accept", active)
@@ -352,12 +352,12 @@ class Mlt(BdptPoolTechnique):
                                         record_value=store.value, record_pixel=store.pixel)
                     film.add(store.value, store.pixel, count, weighted=True)
         nxt = c.next_store(proposed)
+        it["store_capacity"] = nxt.capacity
         self.kernels.launch("mlt_keep_records", c.count, it=it, chains=c.records, proposal_span=c.proposals.span,
                             proposal_value=c.proposals.value, proposal_pixel=c.proposals.pixel,
                             current_span=current.span, current_value=current.value, current_pixel=current.pixel,
                             next_span=nxt.span, next_value=nxt.value, next_pixel=nxt.pixel, next_chain=nxt.chain,
-                            next_total=nxt.total, capacity=np.int32(nxt.capacity), tallies=c.tallies,
-                            b_sum=c.b_sum, unit_exponent=np.int32(c.films[1].unit_exponent), b_estimate=c.b_estimate)
+                            next_total=nxt.total, tallies=c.tallies, b_sum=c.b_sum, b_estimate=c.b_estimate)
         c.kept(nxt)
 
     def image(self, c):
