@@ -198,16 +198,19 @@ def test_a_big_scene_s_bvh_built_ahead_of_its_context_is_the_one_its_device_scen
     """toolkit.render builds a big scene's BVH before it makes the OpenCL context (build_ahead:
     the build's process and the runtime are then never in memory together). The DeviceScene takes
     that BVH, the same as it would build; a scene already held by a context is not built again."""
+    import weakref
     from toolkit.opencl import device_scene
+    from toolkit.opencl.session import session
+    kept = session()
     monkeypatch.setattr(device_scene, "SEPARATE_FROM", 1)
-    monkeypatch.setattr(device_scene, "_BUILT_AHEAD", {})
-    monkeypatch.setattr(device_scene, "_HELD", device_scene.weakref.WeakValueDictionary())
+    monkeypatch.setattr(kept, "built_ahead", {})
+    monkeypatch.setattr(kept, "held_bvhs", weakref.WeakValueDictionary())
     monkeypatch.setattr(queue.builds, "bvhs", {})
     scene = cornell_box
     device_scene.build_ahead(scene)
-    ahead, = device_scene._BUILT_AHEAD.values()
+    ahead, = kept.built_ahead.values()
     taken = device_scene.DeviceScene(queue, scene)
-    assert taken.bvh is ahead and device_scene._BUILT_AHEAD == {}
+    assert taken.bvh is ahead and kept.built_ahead == {}
     assert ahead.nodes.tobytes() == bvh.build_bvh(*device_scene._rebased(scene)[:1], scene.triangles).nodes.tobytes()
     device_scene.build_ahead(scene)             # held by the queue's context: nothing to build
-    assert device_scene._BUILT_AHEAD == {}
+    assert kept.built_ahead == {}

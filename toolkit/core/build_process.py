@@ -69,7 +69,8 @@ def _start():
     # mapping memory of its own grows with each big array freed), and the child's resident memory
     # grows with each: with arrays of 1 MB and more always mapped, and unmapped when freed, the
     # child of a million triangles peaks at about 270 MB instead of 340 (other C libraries ignore this).
-    env = dict(os.environ)
+    from toolkit.core.config import environment_copy   # here: the child runs this file without the toolkit
+    env = environment_copy()
     env.setdefault("MALLOC_MMAP_THRESHOLD_", str(1 << 20))
     return subprocess.Popen([sys.executable, str(HERE / "build_process.py")], stdin=subprocess.PIPE,
                             stdout=subprocess.PIPE, env=env)

@@ -59,6 +59,13 @@ def run_worker(args, reports):
             reason = None if check_name == "build" else SKIPPED + NEEDS_REFERENCE
         except KernelBuildError as error:
             reason = _build_reason(str(error), a.replaces, shown)
+        except MemoryError as error:
+            # In the build: the compiler's allocation failed at the worker's memory limit, and the
+            # runtime said so (pybind11 makes a C++ bad_alloc a MemoryError) instead of aborting.
+            reason = ("the compiler ran out of memory while building your kernel (at the worker's memory "
+                      "limit: a macro that expands without end?)") if check_name == "build" else (
+                      f"MemoryError: {str(error).strip()}".strip())
+            suspect = check_name != "build"
         except Exception as error:   # a broken kernel can make the host code fail anywhere
             text = str(error).strip().splitlines()
             reason = f"{type(error).__name__}: {text[0] if text else ''}".strip()

@@ -5,7 +5,6 @@ a scene translated far from the origin keeps the precision of one at the origin
 ("camera-relative" / origin rebasing). Ray offsets scale with the scene's size (scene_epsilon).
 """
 import hashlib
-import weakref
 
 import numpy as np
 import pyopencl as cl
@@ -13,11 +12,8 @@ import pyopencl as cl
 from toolkit.core.bvh import SEPARATE_FROM, aligned_zeros, build_bvh, collapse_wide, wide_stack_needed
 from toolkit.core.layout import BVH_KINDS, BVH_STACK_SIZE, CAMERA, LIGHT, LUMINANCE_WEIGHTS, MATERIAL, MATERIAL_TYPES, SCENE_ARGS, TRIANGLE, WIDE_NODES
 from toolkit.opencl import lanes
+from toolkit.opencl.session import session
 
-# BVHs built before their scene's OpenCL context (build_ahead), until a DeviceScene takes one; and
-# every host BVH any context holds, by the same key, so that build_ahead builds none twice.
-_BUILT_AHEAD = {}
-_HELD = weakref.WeakValueDictionary()
 
 
 def _rebased(scene):
@@ -46,8 +42,9 @@ def build_ahead(scene):
         return
     local, _ = _rebased(scene)
     key = _key(scene, local)
-    if key not in _BUILT_AHEAD and key not in _HELD:
-        _BUILT_AHEAD[key] = build_bvh(local, scene.triangles)
+    kept = session()
+    if key not in kept.built_ahead and key not in kept.held_bvhs:
+        kept.built_ahead[key] = build_bvh(local, scene.triangles)
 
 
 def _bvh_for(queue, scene, local):
@@ -56,8 +53,9 @@ def _bvh_for(queue, scene, local):
     bvhs = queue.builds.bvhs
     key = _key(scene, local)
     if key not in bvhs:
-        bvhs[key] = _BUILT_AHEAD.pop(key, None) or _HELD.get(key) or build_bvh(local, scene.triangles)
-        _HELD[key] = bvhs[key]
+        kept = session()
+        bvhs[key] = kept.built_ahead.pop(key, None) or kept.held_bvhs.get(key) or build_bvh(local, scene.triangles)
+        kept.held_bvhs[key] = bvhs[key]
     return bvhs[key]
 
 

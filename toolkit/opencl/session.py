@@ -19,6 +19,7 @@ What is kept, and why once per process:
   reads PYOPENCL_NO_CACHE once, when it is imported), `probe_cache.cpu_identity()`;
 - on Windows, the handles of os.add_dll_directory: the folder stays searched while they live.
 """
+import weakref
 
 
 class Session:
@@ -32,6 +33,10 @@ class Session:
         self.cache_problems_said = set()   # the kernel cache's problems already warned about
         self.dll_directories = []     # os.add_dll_directory's handles (Windows)
         self.done = {}                # a step done once per process: what it returned
+        # Host BVHs (toolkit/opencl/device_scene.py): built before their scene's context (build_ahead)
+        # until a DeviceScene takes one, and every one a context holds, so that none is built twice.
+        self.built_ahead = {}
+        self.held_bvhs = weakref.WeakValueDictionary()
         # `--verbose` (as TOOLKIT_VERBOSE=1 is: toolkit/core/config.py): print every build log in full
         # (Intel's compiler reports its progress and vectorization there; pyopencl would show any
         # non-empty log as a CompilerWarning).

@@ -6,7 +6,7 @@ go to a sink that the caller picks. bdpt_base.BdptTechnique gives the records to
 One pass, read like the talk's slides:
     regenerate all samples;
     repeat:
-        extend the eye stream and the light stream by one vertex each (compacted at once, one launch);
+        extend the eye stream, then the light stream, by one vertex each (compacted at once);
         when enough samples have terminated (default 60%):
             list them, connect their subpaths (the connect phase), hand the records to the sink,
             then regenerate them.
@@ -20,9 +20,9 @@ lengths) and goes on walking: LAG steps later it has them without the device hav
 queues the connect phase and the regeneration (or, if too few had terminated, lists again).
 It lists as many steps after a regeneration as the last successful listing took, so a connect
 phase costs one read (toolkit/techniques/pass_end.py says why reads are looked at late).
-Every launch costs a GPU's host time (issue 48): a walk step is one launch, a listing four and a
-read, a connect phase and a regeneration one launch each, and a pass clears nothing but its
-counters at its start.
+Every launch costs a GPU's host time (issue 48): a walk step is one launch per stream (one kernel
+extending both would take 20 arguments), a listing four and a read, a connect phase one launch, a
+regeneration one per stream, and a pass clears nothing but its counters at its start.
 The samples that terminate meanwhile wait for the next connect phase (SLOT_TERMINATED; the listed
 ones are SLOT_CONNECTING); regeneration appends to the streams after the lengths on the device.
 The SIMD counters too are summed on the device: counting changes no step.
