@@ -51,22 +51,24 @@ TIMED = ("host_cpu_ns_per_sample", "pass_cpu_ns_per_sample", "serial_ns_per_samp
          "wall_ns_per_sample", "kernel_share")
 
 
-def spp_of(technique, spp, gpu_sizes=False):
-    """N for `technique`: `spp` for a path tracer, a quarter of it (at least 1) for BDPT and Metropolis,
-    whose samples cost about ten times more; but `spp` for Metropolis at the GPU's sizes, whose
-    iterations of 262,144 chains are 4 mutations per pixel at 256x256 (module docstring: Precision)."""
-    if family(technique) == "pt" or (gpu_sizes and family(technique) == "mlt"):
-        return spp
-    return max(1, spp // 4)
+QUARTER = "N = spp / 4"
 
 
 def n_rule(technique, gpu_sizes):
-    """How N was chosen for `technique` (the JSON's `n_rule`)."""
+    """How N is chosen for `technique` (the JSON's `n_rule`): `spp` for a path tracer, a quarter of
+    it for BDPT and Metropolis, whose samples cost about ten times more; but `spp` for Metropolis at
+    the GPU's sizes, whose iterations of 262,144 chains are 4 mutations per pixel at 256x256 (module
+    docstring: Precision)."""
     if family(technique) == "pt":
         return "N = spp"
     if gpu_sizes and family(technique) == "mlt":
         return "N = spp (Metropolis at the GPU's sizes: enough iterations of its chains for a difference above the noise)"
-    return "N = spp / 4"
+    return QUARTER
+
+
+def spp_of(technique, spp, gpu_sizes=False):
+    """N for `technique` by its n_rule (at least 1)."""
+    return max(1, spp // 4) if n_rule(technique, gpu_sizes) == QUARTER else spp
 
 
 def sized_options(technique, gpu_sizes):

@@ -224,7 +224,7 @@ class BdptEvaluator:
     max_vertices: int          # per subpath (MAX_VERTICES)
     last_pass: PassState = None   # kept for inspection (tests, notebooks): the vertex memory of the last samples
     listing_delay: int = 1     # steps after a regeneration to list: as many as the last successful listing took
-    _steps: dict = field(default_factory=dict, repr=False)   # BdptStep records by (ring, appended), made once
+    _steps: dict = field(default_factory=dict, repr=False)   # BdptStep records by (ring, appended, stream), made once
 
     def __post_init__(self):
         fraction = self.regenerate_fraction
