@@ -15,7 +15,6 @@ from toolkit.opencl import lanes
 from toolkit.opencl.session import session
 
 
-
 def _rebased(scene):
     """The scene's vertices less the centre of their box (float64 rebasing), and that centre."""
     lo, hi = scene.vertices.min(0), scene.vertices.max(0)
