@@ -9,7 +9,9 @@
  * ray into a HitRecord stream, extend_in_place_shade shades it (emission, the shadow ray traced
  * inline, BSDF sample, roulette). Where work-items run as SIMD lanes, the traversal loop then
  * runs without the shading state around it (measured: results/issue22_lanes.md). Same image as
- * one kernel: the same steps in the same order.
+ * one kernel: the same steps in the same order. Each kernel's per-slot body is a helper
+ * (trace_in_place, shade_in_place), which pt_inplace_regen's own two kernels call around its
+ * regeneration (cl/pt_inplace_regen.cl: a step of two launches).
  * `paths`, `hits`: structures of arrays of pass_args.capacity records (layout.h); the first
  * `stream_length` slots take the step. */
 #ifndef EXTEND_IN_PLACE_H
@@ -17,22 +19,50 @@
 
 #include "path.h"
 
+/* Slot gid's part of the trace kernel: if its path is alive, the closest hit of its ray into `hits`.
+ * pt_inplace_regen's trace kernel calls it after regenerating (cl/pt_inplace_regen.cl). */
+HELPER void trace_in_place(const SceneView* scene, const PtPass* pass_args, __global void* paths,
+                           __global const int* alive, __global void* hits, __global LaneCounts* lane_counts, int gid)
+{
+    LaneCounters count = {0, 0, 0};
+    int was_alive = alive[gid];
+    if (was_alive)
+        path_trace_entry(scene, path_state_soa(paths, pass_args->capacity), hit_record_soa(hits, pass_args->capacity),
+                         gid, &count);
+#if COUNT_SIMD
+    lane_counts[gid] = lane_counts_of(was_alive, &count);   /* its traversal steps; shade adds the rest */
+#endif
+}
+
+/* Slot gid's part of the shade kernel (its path is alive): emission, the shadow ray traced inline,
+ * BSDF sample, roulette; a path that ends writes its sample's value and clears alive[gid]. */
+HELPER void shade_in_place(const SceneView* scene, const PtPass* pass_args, __global void* paths, __global int* alive,
+                           __global void* hits, __global float4* radiance, __global LaneCounts* lane_counts, int gid)
+{
+    LaneCounters count = {0, 0, 0};
+    PathStateSoA soa = path_state_soa(paths, pass_args->capacity);
+    PathState p = path_state_load(soa, gid);
+    ShadowRay shadow;
+    bool continues = path_shade_deferred(scene, &p, hit_record_load(hit_record_soa(hits, pass_args->capacity), gid),
+                                         pass_args->seed, &shadow);
+    if (shadow.slot >= 0 && shadow_unoccluded(scene, &shadow, &count)) p.radiance.xyz += shadow.contribution.xyz;
+    if (continues) path_state_store(soa, gid, &p);
+    else path_finish(radiance, &p);
+    alive[gid] = continues;
+#if COUNT_SIMD
+    lane_counts[gid].shadow_rays = count.shadow_rays;
+    lane_counts[gid].shadow_steps = count.shadow_steps;
+#endif
+}
+
 __kernel void extend_in_place_trace(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
                                     __global void* paths, __global const int* alive, __global void* hits,
                                     __global LaneCounts* lane_counts)
 {
     int gid = get_global_id(0);
     if (gid >= stream_length) return;
-    LaneCounters count = {0, 0, 0};
-    int was_alive = alive[gid];
-    if (was_alive) {
-        SceneView scene = SCENE_INIT;
-        path_trace_entry(&scene, path_state_soa(paths, pass_args.capacity), hit_record_soa(hits, pass_args.capacity),
-                         gid, &count);
-    }
-#if COUNT_SIMD
-    lane_counts[gid] = lane_counts_of(was_alive, &count);   /* its traversal steps; shade adds the rest */
-#endif
+    SceneView scene = SCENE_INIT;
+    trace_in_place(&scene, &pass_args, paths, alive, hits, lane_counts, gid);
 }
 
 __kernel void extend_in_place_shade(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
@@ -42,20 +72,7 @@ __kernel void extend_in_place_shade(SCENE_PARAMS, const PtPass pass_args, const 
     int gid = get_global_id(0);
     if (gid >= stream_length || !alive[gid]) return;
     SceneView scene = SCENE_INIT;
-    LaneCounters count = {0, 0, 0};
-    PathStateSoA soa = path_state_soa(paths, pass_args.capacity);
-    PathState p = path_state_load(soa, gid);
-    ShadowRay shadow;
-    bool continues = path_shade_deferred(&scene, &p, hit_record_load(hit_record_soa(hits, pass_args.capacity), gid),
-                                         pass_args.seed, &shadow);
-    if (shadow.slot >= 0 && shadow_unoccluded(&scene, &shadow, &count)) p.radiance.xyz += shadow.contribution.xyz;
-    if (continues) path_state_store(soa, gid, &p);
-    else path_finish(radiance, &p);
-    alive[gid] = continues;
-#if COUNT_SIMD
-    lane_counts[gid].shadow_rays = count.shadow_rays;
-    lane_counts[gid].shadow_steps = count.shadow_steps;
-#endif
+    shade_in_place(&scene, &pass_args, paths, alive, hits, radiance, lane_counts, gid);
 }
 
 #endif

@@ -18,7 +18,6 @@
  *   pt_compact_regen_generate    here (multi-pass compaction)
  *   pt_compact_regen_trace       here (immediate compaction: the last step's shadow rays + regenerate + trace)
  *   pt_compact_regen_shade       here (immediate compaction: shade + compact)
- *   pt_compact_regen_shadow      here (immediate compaction, SIMD counters on)
  *   extend_in_place_trace        cl/extend_in_place.h (multi-pass compaction; shared with pt_inplace_regen)
  *   extend_in_place_shade        cl/extend_in_place.h (multi-pass compaction; shared with pt_inplace_regen)
  *   the scan                     toolkit/opencl/compaction.py (multi-pass compaction)
@@ -89,13 +88,15 @@ HELPER void trace_queued_shadow_ray(const SceneView* scene, const PtPass* pass_a
 
 /* One launch for the start of a step (immediate compaction; the host's work per step is its
  * launches: results/issue48_launch_path.md):
- *   - the last step's shadow rays (its packed queue, last_counts->shadow_rays of them), unless
- *     the SIMD counters are on: then pt_compact_regen_shadow traces them in their own launch,
- *     where their lanes are counted. Either way a sample's additions come in the same order
- *     (its shade, then its shadow ray, then the next shade), so the image has the same bits;
+ *   - the last step's shadow rays (its packed queue, last_counts->shadow_rays of them). A
+ *     sample's additions come in order (its shade, then its shadow ray, then the next shade);
  *   - regeneration: a work-item past the last step's survivors starts its entry's sample;
  *   - trace: the closest hit of each entry's ray, into the hit stream (HitRecord, layout.h).
- * A new path goes through the stream's memory as it would between two kernels. */
+ * A new path goes through the stream's memory as it would between two kernels.
+ * SIMD counters: every work-item of the launch writes its LaneCounts, the entries past the
+ * stream's length with no work, and .shadow_steps is the queued shadow ray's traversal (the
+ * queue is packed from entry 0, as the stream is): so one sum of the launch's lanes counts the
+ * step's extension and the last step's shadow queue (pt_compact_regen.py PassCount). */
 __kernel void pt_compact_regen_trace(SCENE_PARAMS, const Camera cam, const PtPass pass_args, const int stream_size,
                                      __global const PtStep* last_counts, __global PtStep* counts,
                                      __global void* stream, __global void* hits, __global void* shadow_rays,
@@ -104,18 +105,18 @@ __kernel void pt_compact_regen_trace(SCENE_PARAMS, const Camera cam, const PtPas
     int gid = get_global_id(0);
     if (gid >= stream_size) return;
     SceneView scene = SCENE_INIT;
-    LaneCounters count = {0, 0, 0};
-#if !COUNT_SIMD
+    LaneCounters queued = {0, 0, 0}, count = {0, 0, 0};
     if (gid < last_counts->shadow_rays)
-        trace_queued_shadow_ray(&scene, &pass_args, shadow_rays, radiance, gid, &count);
-#endif
+        trace_queued_shadow_ray(&scene, &pass_args, shadow_rays, radiance, gid, &queued);
     int length;
     regenerate_entry(&cam, &pass_args, stream_size, last_counts, counts, stream, gid, &length);
-    if (gid >= length) return;
-    path_trace_entry(&scene, path_state_soa(stream, pass_args.capacity), hit_record_soa(hits, pass_args.capacity),
-                     gid, &count);
+    if (gid < length)
+        path_trace_entry(&scene, path_state_soa(stream, pass_args.capacity), hit_record_soa(hits, pass_args.capacity),
+                         gid, &count);
 #if COUNT_SIMD
-    lane_counts[gid] = lane_counts_of(1, &count);   /* its traversal steps; shade adds the rest */
+    LaneCounts lane = lane_counts_of(gid < length, &count);   /* its traversal steps; shade adds its shadow ray */
+    lane.shadow_steps = queued.shadow_steps;
+    lane_counts[gid] = lane;
 #endif
 }
 
@@ -150,24 +151,8 @@ void pt_compact_regen_shade(SCENE_PARAMS, const PtPass pass_args, __global PtSte
     int queued = immediate_compact_slot(ray.slot >= 0, scratch, &counts->shadow_rays);
     if (queued >= 0) shadow_ray_store(shadow_ray_soa(shadow_rays, pass_args.capacity), queued, &ray);
 #if COUNT_SIMD
-    /* trace wrote this lane's record; the shadow ray was queued, traced by pt_compact_regen_shadow */
+    /* trace wrote this lane's record; the shadow ray was queued, traced by the next step's trace */
     if (gid < length) lane_counts[gid].shadow_rays = ray.slot >= 0;
-#endif
-}
-
-/* Trace the queued shadow rays in a launch of their own, where the SIMD counters count their
- * lanes (with the counters off, the next step's pt_compact_regen_trace traces them). */
-__kernel void pt_compact_regen_shadow(SCENE_PARAMS, const PtPass pass_args, __global const PtStep* counts,
-                                      __global void* shadow_rays, __global float4* radiance,
-                                      __global int* shadow_steps)
-{
-    int gid = get_global_id(0);
-    if (gid >= counts->shadow_rays) return;
-    SceneView scene = SCENE_INIT;
-    LaneCounters count = {0, 0, 0};
-    trace_queued_shadow_ray(&scene, &pass_args, shadow_rays, radiance, gid, &count);
-#if COUNT_SIMD
-    shadow_steps[gid] = count.shadow_steps;
 #endif
 }
 

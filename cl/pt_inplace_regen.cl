@@ -1,19 +1,46 @@
 /* Path tracing with in-place sample regeneration (Novak et al. 2010; the talk's
  * "In-Place Sample Regeneration"). Each work-item owns one slot of the path stream.
  * After every extension step, the slots whose path ended start a new sample in place:
- * extension stays busy, but the regeneration step runs with only the terminated lanes
+ * extension stays busy, but the regeneration runs with only the terminated lanes
  * active (the talk: ~30% active threads per warp).
+ * A step is two launches (inside a render each launch costs the host tens of microseconds:
+ * results/issue48_launch_path.md): the regeneration runs at the start of the trace kernel.
  * Kernels this technique launches (toolkit/techniques/pt_inplace_regen.py):
- *   pt_inplace_regen_regenerate   here
- *   extend_in_place_trace         cl/extend_in_place.h (shared with pt_compact_regen)
- *   extend_in_place_shade         cl/extend_in_place.h (shared with pt_compact_regen) */
+ *   pt_inplace_regen_trace        here: regenerate, then trace (extend's first half)
+ *   pt_inplace_regen_shade        here: shade (extend's second half)
+ * and pt_inplace_regen_regenerate, the regeneration alone (the assignment's checks launch it). */
 #include "extend_in_place.h"
 
-/* Regenerate in place: a free slot takes the next sample of the pass's budget, if any is left.
- * Sample ids come from one atomic counter; the image does not depend on which slot gets
- * which sample because every random number is keyed by the sample, not by the slot.
- * Any slot that holds a live path afterwards sets *any_alive (the host clears it first).
+/* Regenerate slot gid in place: if it is free, it takes the next sample of the pass's budget, if
+ * any is left. Returns 1 if it started a sample. Sample ids come from one atomic counter; the
+ * image does not depend on which slot gets which sample because every random number is keyed by
+ * the sample, not by the slot. If the slot holds a live path afterwards it sets *any_alive.
  * `pass_args`: the pass's seed, sample_base, budget and the capacity of `paths` (PtPass, layout.h). */
+HELPER int regenerate_slot(const Camera* cam, const PtPass* pass_args, volatile __global int* next_sample,
+                           __global void* paths, __global int* alive, __global int* any_alive, int gid)
+{
+    int started = 0;
+    /* The counter is read before it is raised: once the budget is spent it stays put, so it
+     * never passes the budget + slots, however many iterations the pass takes (no int overflow).
+     * Read atomically (an atomic_add of 0): a plain read of a counter that other work-items
+     * atomic_inc meanwhile is a data race, undefined in OpenCL's memory model. The sample is the
+     * one atomic_inc returns, tested again: others may have taken the last ones in between. */
+    if (!alive[gid] && atomic_add(next_sample, 0) < pass_args->budget) {
+        int id = atomic_inc(next_sample);
+        if (id < pass_args->budget) {
+            PathState p;
+            path_start_sample(&p, cam, id, pass_args->sample_base, pass_args->seed);
+            path_state_store(path_state_soa(paths, pass_args->capacity), gid, &p);
+            alive[gid] = 1;
+            started = 1;
+        }
+    }
+    if (alive[gid]) *any_alive = 1;   /* every writer writes the same value */
+    return started;
+}
+
+/* The regeneration alone, over `slots` slots (the assignment's checks launch it; the technique
+ * regenerates inside pt_inplace_regen_trace). */
 __kernel void pt_inplace_regen_regenerate(const Camera cam, const PtPass pass_args, const int slots,
                                           volatile __global int* next_sample,
                                           __global void* paths, __global int* alive,
@@ -21,24 +48,45 @@ __kernel void pt_inplace_regen_regenerate(const Camera cam, const PtPass pass_ar
 {
     int gid = get_global_id(0);
     if (gid >= slots) return;
-    int started = 0;
-    /* The counter is read before it is raised: once the budget is spent it stays put, so it
-     * never passes the budget + slots, however many iterations the pass takes (no int overflow).
-     * Read atomically (an atomic_add of 0): a plain read of a counter that other work-items
-     * atomic_inc meanwhile is a data race, undefined in OpenCL's memory model. The sample is the
-     * one atomic_inc returns, tested again: others may have taken the last ones in between. */
-    if (!alive[gid] && atomic_add(next_sample, 0) < pass_args.budget) {
-        int id = atomic_inc(next_sample);
-        if (id < pass_args.budget) {
-            PathState p;
-            path_start_sample(&p, &cam, id, pass_args.sample_base, pass_args.seed);
-            path_state_store(path_state_soa(paths, pass_args.capacity), gid, &p);
-            alive[gid] = 1;
-            started = 1;
-        }
-    }
-    if (alive[gid]) *any_alive = 1;   /* every writer writes the same value */
+    int started = regenerate_slot(&cam, &pass_args, next_sample, paths, alive, any_alive, gid);
 #if COUNT_SIMD
     regenerated[gid] = started;
+#else
+    (void)started; (void)regenerated;
 #endif
+}
+
+/* A step's first launch: regenerate the free slots (only they are busy in that part, the
+ * talk's ~30%), then every slot with a live path finds its ray's closest hit (into `hits`).
+ * *any_alive is 0 when the launch starts (the last step's shade cleared it). */
+__kernel void pt_inplace_regen_trace(SCENE_PARAMS, const Camera cam, const PtPass pass_args, const int slots,
+                                     volatile __global int* next_sample, __global void* paths, __global int* alive,
+                                     __global void* hits, __global int* any_alive, __global int* regenerated,
+                                     __global LaneCounts* lane_counts)
+{
+    int gid = get_global_id(0);
+    if (gid >= slots) return;
+    int started = regenerate_slot(&cam, &pass_args, next_sample, paths, alive, any_alive, gid);
+#if COUNT_SIMD
+    regenerated[gid] = started;
+#else
+    (void)started; (void)regenerated;
+#endif
+    SceneView scene = SCENE_INIT;
+    trace_in_place(&scene, &pass_args, paths, alive, hits, lane_counts, gid);
+}
+
+/* A step's second launch: every slot with a live path shades its hit. Work-item 0 clears
+ * *any_alive for the next step's regeneration: the host's look at it (if any) is queued before
+ * this launch, and no work-item of this launch sets it. So the host never clears it. */
+__kernel void pt_inplace_regen_shade(SCENE_PARAMS, const PtPass pass_args, const int slots,
+                                     __global void* paths, __global int* alive, __global void* hits,
+                                     __global float4* radiance, __global int* any_alive,
+                                     __global LaneCounts* lane_counts)
+{
+    int gid = get_global_id(0);
+    if (gid == 0) *any_alive = 0;
+    if (gid >= slots || !alive[gid]) return;
+    SceneView scene = SCENE_INIT;
+    shade_in_place(&scene, &pass_args, paths, alive, hits, radiance, lane_counts, gid);
 }

@@ -73,9 +73,9 @@ def test_efficiency_of_a_phase_comes_from_its_counters(run):
     """A kernel's lane efficiency is active / issued over the counters it runs (phases.KERNEL_PHASES)."""
     table, _ = run
     row = table["pt_compact_regen"]
-    shadow = next(r for r in row["phases"] if r["kernel"] == "pt_compact_regen_shadow")
-    active, issued = row["simd_lane_steps"]["shadow"]
-    assert shadow["simd_efficiency"] == active / issued
+    trace = next(r for r in row["phases"] if r["kernel"] == "pt_compact_regen_trace")   # shadow + generate + extend
+    steps = [row["simd_lane_steps"][phase] for phase in ("shadow", "generate", "extend")]
+    assert trace["simd_efficiency"] == sum(a for a, _ in steps) / sum(i for _, i in steps)
     naive = next(r for r in table["pt_naive"]["phases"] if r["kernel"] == "pt_naive_render")
     assert naive["simd_efficiency"] == pytest.approx(table["pt_naive"]["simd_efficiency"]["overall"])
 

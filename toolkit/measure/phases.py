@@ -19,13 +19,15 @@ or a device runs idle lanes cheaply (a CPU without lanes).
 # those of toolkit/core/simd.py's PhaseCounter, as each technique's count_* hooks name them.
 KERNEL_PHASES = {
     "pt_naive_render": ("generate + extend + shade", ("generate", "extend", "shadow"), ("closest", "shadow")),
-    "pt_inplace_regen_regenerate": ("regenerate", ("generate",), ()),
+    "pt_inplace_regen_regenerate": ("regenerate", ("generate",), ()),   # the assignment's checks
+    "pt_inplace_regen_trace": ("regenerate + extend: trace", ("generate", "extend"), ("closest",)),
+    "pt_inplace_regen_shade": ("extend: shade", ("extend", "shadow"), ("shadow",)),
     "extend_in_place_trace": ("extend: trace", ("extend",), ("closest",)),
     "extend_in_place_shade": ("extend: shade", ("extend", "shadow"), ("shadow",)),
     "pt_compact_regen_generate": ("regenerate", ("generate",), ()),   # multi-pass compaction
-    "pt_compact_regen_trace": ("regenerate + extend: trace", ("generate", "extend"), ("closest",)),
+    "pt_compact_regen_trace": ("shadow rays + regenerate + extend: trace", ("shadow", "generate", "extend"),
+                               ("shadow", "closest")),   # the last step's queued shadow rays first
     "pt_compact_regen_shade": ("extend: shade + compact", ("extend", "compact"), ()),
-    "pt_compact_regen_shadow": ("shadow rays", ("shadow",), ("shadow",)),
     "pt_compact_regen_gather": ("compact (gather)", ("compact",), ()),
     "bdpt_regenerate": ("regenerate", ("generate",), ()),
     "bdpt_extend": ("walk + compact", ("walk", "compact"), ("closest",)),

@@ -9,7 +9,7 @@ Kernel: cl/pt_compact_regen.cl. The stream has a fixed size; one iteration:
     regenerate  - new samples fill the end of the stream: consecutive pixels, side by side
                   (queued as the next step's first work: the trace kernel's work-items past the
                   survivors start their sample, then trace it, one launch for both; the same
-                  launch first traces the last step's queued shadow rays, counters off).
+                  launch first traces the last step's queued shadow rays).
 With compaction="immediate" the compaction is fused into the shade kernel (one scan per
 work-group in local memory, one atomic per group); "multipass" extends in place
 (extend_in_place_trace and _shade, shared with pt_inplace_regen), then labels, scans and gathers.
@@ -43,7 +43,6 @@ class StreamBuffers:
     shadow_rays: cl.Buffer   # ShadowRay x capacity: the shadow rays a step queued, packed (immediate compaction)
     lane_counts: cl.Buffer   # LaneCounts per path: what it did in an extension step (COUNT_SIMD)
     alive: cl.Buffer         # int per path: 1 where the stream holds a live path (multi-pass compaction's flags)
-    shadow_steps: cl.Buffer  # int per queued shadow ray: the BVH nodes it visited (COUNT_SIMD)
     counts: cl.Buffer        # PtStep: this step's counts (its length, survivors, shadow rays, next sample)
     last_counts: cl.Buffer   # PtStep: the last step's, from which regeneration starts this step's
     indices: cl.Buffer       # int per path: the survivors' indices from the scan (multi-pass; None: immediate)
@@ -69,7 +68,7 @@ class PtCompactRegen(Technique):
         if compaction not in ("immediate", "multipass"):
             raise ValueError(f"compaction must be 'immediate' or 'multipass', not {compaction!r}")
         self.compaction = compaction
-        # immediate: shadow rays go to a queue traced (and counted) by a kernel of their own
+        # immediate: shadow rays go to a queue, traced (and counted) in the next step's trace kernel
         self.shadow_queue = compaction == "immediate"
         multipass = compaction == "multipass"
         self.compactor = Compactor(self.queue, self.local_size, self.sources.toolkit_only()) if multipass else None
@@ -81,7 +80,7 @@ class PtCompactRegen(Technique):
             stream=m.soa_buffer(PATH_STATE, size), next_stream=m.soa_buffer(PATH_STATE, size),
             hits=m.soa_buffer(HIT_RECORD, size),
             shadow_rays=m.soa_buffer(SHADOW_RAY, size), lane_counts=m.lane_counts_buffer(size),
-            alive=m.int_buffer(size), shadow_steps=m.int_buffer(size),
+            alive=m.int_buffer(size),
             counts=m.record_buffer(PT_STEP), last_counts=m.record_buffer(PT_STEP), indices=self.compacted_indices(size))
 
     def run_pass(self, film, camera, seed, sample_base, spp):
@@ -100,16 +99,16 @@ class PtCompactRegen(Technique):
         while True:
             # Regenerate the end of the stream with the next samples of the budget, extend every path by
             # one vertex (trace, then shade), and compact the survivors into next_stream.
+            # The shadow rays the step queued, a packed stream of their own, are traced by the next
+            # step's first launch.
             self.regenerate_and_extend(camera, pass_args, size, paths, mem)
-            # Trace the queued shadow rays: a packed stream of its own (the next step's first launch
-            # traces them, unless the SIMD counters count their lanes in a launch of their own).
-            self.trace_shadow_rays(pass_args, paths, mem)
             if counting:
                 self.count_step(counting, mem, paths, size, budget)
             mem.swap()
             if end.reached(mem.last_counts):
                 # A step some time ago left nothing to do: the steps since did nothing but trace its
-                # shadow rays (PassEnd says so at least one step after the step it read).
+                # shadow rays (PassEnd says so at least one step after the step it read, so the
+                # step after it, which traced them, was queued).
                 break
             paths = self.paths_at_most(end.latest, size, budget)   # from a step's counts, some steps old
         self.collect(film, mem.radiance, budget)
@@ -157,42 +156,39 @@ class PtCompactRegen(Technique):
         k.launch("pt_compact_regen_gather", paths, pass_args=pass_args, survivors=survivors, indices=indices,
                  stream=mem.stream, next_stream=mem.next_stream, counts=mem.counts, alive=mem.alive)
 
-    def trace_shadow_rays(self, pass_args, paths, mem):
-        """The shadow rays the step queued (counts.shadow_rays of them; immediate compaction only:
-        multi-pass traces them inside its extension step), in a launch of their own where the SIMD
-        counters count their lanes; without the counters the next step's trace kernel traces them."""
-        if self.shadow_queue and self.count_simd:
-            self.kernels.launch("pt_compact_regen_shadow", paths, **self.kernels.scene_args(), pass_args=pass_args,
-                                counts=mem.counts, shadow_rays=mem.shadow_rays, radiance=mem.radiance,
-                                shadow_steps=mem.shadow_steps)
-
     # --- SIMD counting, summed on the device (simd_recorder.py); no-op unless count_simd ----------
 
     def count_step(self, counting, mem, paths, size, budget):
-        """The SIMD counters of the step just queued: its lanes (the first counts.length of the
-        `paths` the launches covered) and its counts (PtStep, copied into the row), and with them
-        (aux) the shadow queue's traversal loops (counts.shadow_rays of them), summed on the device."""
-        length, queued = PT_STEP.dtype.fields["length"][1] // 4, PT_STEP.dtype.fields["shadow_rays"][1] // 4
-        shadow = dict(aux=mem.shadow_steps, aux_bound=paths, aux_length_index=queued) if self.shadow_queue else {}
-        self.recorder.lanes(counting.extended, mem.lane_counts, 4, paths, length_at=mem.counts, length_index=length,
-                            watch=mem.counts, watch_count=len(PT_STEP.dtype.names), **shadow)
+        """The SIMD counters of the step just queued, summed on the device: the `paths` lanes its
+        launches covered (past the stream's length a lane has no work, but its .shadow_steps counts
+        a ray of the last step's shadow queue: cl/pt_compact_regen.cl) and its counts (PtStep,
+        copied into the row)."""
+        self.recorder.lanes(counting.extended, mem.lane_counts, 4, paths,
+                            watch=mem.counts, watch_count=len(PT_STEP.dtype.names))
 
 
 class PassCount:
     """The counters of one pass's steps, replayed in order (by each recorder that counts them) from
-    each step's sums and its counts (PtStep, watched): regeneration, extension and compaction, and
-    the shadow queue. The first step that finds the stream empty ends the pass (budget spent and
-    drained): nothing after it is counted (the host went on queueing steps until it learned so:
+    each step's sums and its counts (PtStep, watched): the last step's shadow queue (traced by
+    this step's first launch), then regeneration, extension and compaction. The first step that
+    finds the stream empty ends the pass (budget spent and drained; it traced the last shadow
+    rays): nothing after it is counted (the host went on queueing steps until it learned so:
     pass_end.py)."""
 
     def __init__(self, size, budget, shadow_queue):
         self.size, self.budget, self.shadow_queue = size, budget, shadow_queue
         self.ended = set()          # the recorders that have counted the pass's end
+        self.queued = {}            # by recorder: the shadow rays the last step it counted queued
 
     def extended(self, recorder, sums):
         if recorder in self.ended:
             return
         counts = {name: sums.watched(k) for k, name in enumerate(PT_STEP.dtype.names)}
+        queued = self.queued.get(recorder, 0)
+        if self.shadow_queue and queued:   # the packed shadow queue: every lane busy,
+            recorder.simd_counter().add_stream_step("shadow", queued)   # traversal loops per warp
+            recorder.warp_loops(recorder.traversal_counter(), "shadow", sums, "shadow_steps")
+        self.queued[recorder] = counts["shadow_rays"]
         length, started = counts["length"], counts["started"]
         if length == 0:
             self.ended.add(recorder)
@@ -202,6 +198,3 @@ class PassCount:
             recorder.count_now("generate", started, before=True, capacity=self.size, draining=draining)
         recorder.extension_step(sums, capacity=self.size, draining=draining, shadow_queue=self.shadow_queue)
         recorder.simd_counter().add_stream_step("compact", length)
-        if self.shadow_queue and counts["shadow_rays"]:   # the packed shadow queue (aux): every lane busy,
-            recorder.simd_counter().add_stream_step("shadow", counts["shadow_rays"])   # traversal loops per warp
-            recorder.warp_loops(recorder.traversal_counter(), "shadow", sums, "aux")

@@ -1,10 +1,11 @@
 """Path tracing with in-place sample regeneration (Novak et al. 2010).
 
 Kernel: cl/pt_inplace_regen.cl. Each work-item owns a slot. One iteration:
-    extend     - every slot with a live path traces one more vertex (two kernels: trace, then shade);
-    regenerate - every slot whose path ended starts the next sample of the budget in place.
+    regenerate - every slot whose path ended starts the next sample of the budget in place;
+    extend     - every slot with a live path traces one more vertex (trace, then shade).
 Extension stays busy, but regeneration runs with only the terminated lanes active: the talk
-measures ~30% active threads per warp in that step.
+measures ~30% active threads per warp in that step. A step is two launches: regeneration runs
+at the start of the trace kernel (so the SIMD counters count it from its lanes, as before).
 
 Option `stream_size`: the slots (default: the device's, toolkit/opencl/work_sizes.py: 32,768 on a CPU).
 """
@@ -28,7 +29,7 @@ class SlotBuffers:
     regenerated: cl.Buffer   # int per slot: 1 where a regeneration started a sample (COUNT_SIMD)
     alive: cl.Buffer         # int per slot: 1 while it holds a live path, 0 while it is free
     next_sample: cl.Buffer   # one int: the next sample id of the pass to start (the slots' atomic counter)
-    any_alive: cl.Buffer     # one int: set by every slot that holds a live path after a regeneration
+    any_alive: cl.Buffer     # one int: set by every slot that holds a live path after a regeneration, cleared by shade
     radiance: cl.Buffer = None   # float4 per sample of the pass (DeviceMemory.output_buffer): set by each pass
 
 
@@ -58,6 +59,7 @@ class PtInplaceRegen(Technique):
         mem = self.memory.reused(("slots", slots), lambda: self.slot_buffers(slots))
         self.memory.fill_ints(mem.alive, 0)        # every slot free
         self.memory.fill_ints(mem.next_sample, 0)  # the pass's first sample comes next
+        self.memory.fill_ints(mem.any_alive, 0)    # then each step's shade clears it for the next
         mem.radiance = self.memory.output_buffer(budget)
         pass_args = PT_PASS.record(seed=seed, sample_base=sample_base, budget=budget,
                                    capacity=self.memory.stream_capacity(slots))
@@ -66,18 +68,23 @@ class PtInplaceRegen(Technique):
         end = PassEnd(self.memory, np.int32, lambda any_alive: any_alive == 0, every=self.reads_every,
                       at_least=-(-budget // slots))
         counting = PassCount() if self.count_simd else None
+        k = self.kernels
         while True:
-            # Regenerate: every free slot starts the next sample of the budget, if one is left.
-            cl.enqueue_fill_buffer(self.queue, mem.any_alive, np.int32(0), 0, 4)
-            self.kernels.launch("pt_inplace_regen_regenerate", slots, cam=camera, pass_args=pass_args,
-                                slots=self.kernels.int32(slots), next_sample=mem.next_sample, paths=mem.paths, alive=mem.alive,
-                                any_alive=mem.any_alive, regenerated=mem.regenerated)
-            # Extend: every slot with a live path traces one more vertex.
-            self.extend_in_place(pass_args, slots, mem.paths, mem.alive, mem.hits, mem.radiance, mem.lane_counts)
+            # Regenerate: every free slot starts the next sample of the budget, if one is left;
+            # then extend's first half, trace: every slot with a live path finds its ray's hit.
+            # One launch for both: inside a render each launch costs the host tens of us.
+            k.launch("pt_inplace_regen_trace", slots, **k.scene_args(), cam=camera, pass_args=pass_args,
+                     slots=k.int32(slots), next_sample=mem.next_sample, paths=mem.paths, alive=mem.alive,
+                     hits=mem.hits, any_alive=mem.any_alive, regenerated=mem.regenerated, lane_counts=mem.lane_counts)
+            # Looked at here, before shade clears it for the next step (the flag needs no host fill).
+            if end.reached(mem.any_alive):
+                break   # a regeneration some time ago left no live path: the steps since did nothing
+            # Extend's second half, shade: each live path adds a vertex's light and goes on or ends.
+            k.launch("pt_inplace_regen_shade", slots, **k.scene_args(), pass_args=pass_args, slots=k.int32(slots),
+                     paths=mem.paths, alive=mem.alive, hits=mem.hits, radiance=mem.radiance,
+                     any_alive=mem.any_alive, lane_counts=mem.lane_counts)
             if counting:
                 self.count_extend(counting, mem, slots, budget)
-            if end.reached(mem.any_alive):
-                break   # a step some time ago found no live path: the steps since did nothing
         self.collect(film, mem.radiance, budget)
 
     # --- SIMD counting, summed on the device (simd_recorder.py); no-op unless count_simd ----------
