@@ -5,13 +5,14 @@
  * (pt_compact_regen) reads.
  *
  * The step is two kernels, as pt_compact_regen's immediate compaction does it (a wavefront split,
- * Laine, Karras and Aila 2013): extend_in_place_trace finds the closest hit of each live slot's
- * ray into a HitRecord stream, extend_in_place_shade shades it (emission, the shadow ray traced
- * inline, BSDF sample, roulette). Where work-items run as SIMD lanes, the traversal loop then
- * runs without the shading state around it (measured: results/issue22_lanes.md). Same image as
- * one kernel: the same steps in the same order. Each kernel's per-slot body is a helper
- * (trace_in_place, shade_in_place), which pt_inplace_regen's own two kernels call around its
- * regeneration (cl/pt_inplace_regen.cl: a step of two launches).
+ * Laine, Karras and Aila 2013): the trace kernel finds the closest hit of each live slot's ray
+ * into a HitRecord stream (trace_in_place), the shade kernel shades it (shade_in_place: emission,
+ * the shadow ray traced inline, BSDF sample, roulette). Where work-items run as SIMD lanes, the
+ * traversal loop then runs without the shading state around it (measured:
+ * results/issue22_lanes.md). Same image as one kernel: the same steps in the same order. The
+ * kernels are the techniques' own: pt_inplace_regen's regenerate at the start of the trace
+ * kernel (cl/pt_inplace_regen.cl), multi-pass compaction's do the step alone
+ * (extend_in_place_trace and _shade, cl/pt_compact_regen.cl).
  * `paths`, `hits`: structures of arrays of pass_args.capacity records (layout.h); the first
  * `stream_length` slots take the step. */
 #ifndef EXTEND_IN_PLACE_H
@@ -53,26 +54,6 @@ HELPER void shade_in_place(const SceneView* scene, const PtPass* pass_args, __gl
     lane_counts[gid].shadow_rays = count.shadow_rays;
     lane_counts[gid].shadow_steps = count.shadow_steps;
 #endif
-}
-
-__kernel void extend_in_place_trace(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
-                                    __global void* paths, __global const int* alive, __global void* hits,
-                                    __global LaneCounts* lane_counts)
-{
-    int gid = get_global_id(0);
-    if (gid >= stream_length) return;
-    SceneView scene = SCENE_INIT;
-    trace_in_place(&scene, &pass_args, paths, alive, hits, lane_counts, gid);
-}
-
-__kernel void extend_in_place_shade(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
-                                    __global void* paths, __global int* alive, __global void* hits,
-                                    __global float4* radiance, __global LaneCounts* lane_counts)
-{
-    int gid = get_global_id(0);
-    if (gid >= stream_length || !alive[gid]) return;
-    SceneView scene = SCENE_INIT;
-    shade_in_place(&scene, &pass_args, paths, alive, hits, radiance, lane_counts, gid);
 }
 
 #endif

@@ -18,8 +18,8 @@
  *   pt_compact_regen_generate    here (multi-pass compaction)
  *   pt_compact_regen_trace       here (immediate compaction: the last step's shadow rays + regenerate + trace)
  *   pt_compact_regen_shade       here (immediate compaction: shade + compact)
- *   extend_in_place_trace        cl/extend_in_place.h (multi-pass compaction; shared with pt_inplace_regen)
- *   extend_in_place_shade        cl/extend_in_place.h (multi-pass compaction; shared with pt_inplace_regen)
+ *   extend_in_place_trace        here (multi-pass compaction; its body shared with pt_inplace_regen: extend_in_place.h)
+ *   extend_in_place_shade        here (multi-pass compaction; likewise)
  *   the scan                     toolkit/opencl/compaction.py (multi-pass compaction)
  *   pt_compact_regen_gather      here (multi-pass compaction)
  * Every stream is a structure of arrays of pass_args.capacity records in one buffer (layout.h);
@@ -154,6 +154,28 @@ void pt_compact_regen_shade(SCENE_PARAMS, const PtPass pass_args, __global PtSte
     /* trace wrote this lane's record; the shadow ray was queued, traced by the next step's trace */
     if (gid < length) lane_counts[gid].shadow_rays = ray.slot >= 0;
 #endif
+}
+
+/* The in-place extension step of multi-pass compaction (cl/extend_in_place.h): the entries whose
+ * alive flag is set trace, then shade, in place. */
+__kernel void extend_in_place_trace(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
+                                    __global void* paths, __global const int* alive, __global void* hits,
+                                    __global LaneCounts* lane_counts)
+{
+    int gid = get_global_id(0);
+    if (gid >= stream_length) return;
+    SceneView scene = SCENE_INIT;
+    trace_in_place(&scene, &pass_args, paths, alive, hits, lane_counts, gid);
+}
+
+__kernel void extend_in_place_shade(SCENE_PARAMS, const PtPass pass_args, const int stream_length,
+                                    __global void* paths, __global int* alive, __global void* hits,
+                                    __global float4* radiance, __global LaneCounts* lane_counts)
+{
+    int gid = get_global_id(0);
+    if (gid >= stream_length || !alive[gid]) return;
+    SceneView scene = SCENE_INIT;
+    shade_in_place(&scene, &pass_args, paths, alive, hits, radiance, lane_counts, gid);
 }
 
 /* Move the survivors listed in `indices` (from the scan; *survivors of them, the scan's total)

@@ -48,7 +48,8 @@ def test_every_kernel_launched_is_a_phase_with_its_launches(run):
         assert set(rows) <= set(KERNEL_PHASES), f"{name}: a kernel without a stage: {set(rows) - set(KERNEL_PHASES)}"
     # what the talk's phases are, per technique: each one a kernel of its own here
     stages = {name: {r["stage"] for r in table[name]["phases"]} for name in TECHNIQUES}
-    assert {"regenerate + extend: trace", "extend: shade + compact", "shadow rays"} <= stages["pt_compact_regen"]
+    assert {"shadow rays + regenerate + extend: trace", "extend: shade + compact"} <= stages["pt_compact_regen"]
+    assert {"regenerate + extend: trace", "extend: shade"} <= stages["pt_inplace_regen"]
     assert {"regenerate", "walk + compact", "connect", "scan"} <= stages["bdpt_parallel_connect"]
 
 

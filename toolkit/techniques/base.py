@@ -99,7 +99,8 @@ class Technique:
 
     def extend_in_place(self, pass_args, length, paths, alive, hits, radiance, lane_counts):
         """The in-place extension step (cl/extend_in_place.h) over the first `length` slots of
-        `paths`: trace into `hits`, then shade; pt_inplace_regen and multi-pass compaction share it."""
+        `paths`: trace into `hits`, then shade (multi-pass compaction's; pt_inplace_regen has kernels of
+        its own that also regenerate, around the same per-slot code)."""
         k = self.kernels
         k.launch("extend_in_place_trace", length, **k.scene_args(), pass_args=pass_args,
                  stream_length=k.int32(length), paths=paths, alive=alive, hits=hits, lane_counts=lane_counts)

@@ -12,7 +12,7 @@ Kernel: cl/pt_compact_regen.cl. The stream has a fixed size; one iteration:
                   launch first traces the last step's queued shadow rays).
 With compaction="immediate" the compaction is fused into the shade kernel (one scan per
 work-group in local memory, one atomic per group); "multipass" extends in place
-(extend_in_place_trace and _shade, shared with pt_inplace_regen), then labels, scans and gathers.
+(extend_in_place_trace and _shade, whose per-slot code pt_inplace_regen shares), then labels, scans and gathers.
 The counts stay on the device: each step's PtStep record (toolkit/core/layout.py) holds the
 stream's length, what compaction counted and the next sample to start; every kernel is launched
 over the whole stream and a work-item past the count returns at once. The host never waits for a
