@@ -19,8 +19,9 @@ from toolkit.opencl.device_scene import DeviceScene
 from toolkit.techniques import PtCompactRegen, PtInplaceRegen, get_technique
 from toolkit.techniques.pass_end import LAG
 
-# The kernel that starts each iteration (one extension step over the stream).
-EXTEND = {"pt_inplace_regen": "extend_in_place_trace", "pt_compact_regen": "pt_compact_regen_trace",
+# The kernel that starts each iteration (one extension step over the stream; in place, the
+# regeneration runs at its start).
+EXTEND = {"pt_inplace_regen": "pt_inplace_regen_trace", "pt_compact_regen": "pt_compact_regen_trace",
           "pt_compact_regen/multipass": "extend_in_place_trace"}
 # What a look at the counts reads: in place, the "any path alive" flag; compaction, the step's
 # counts (PtStep: its length, survivors, shadow rays, next sample).
