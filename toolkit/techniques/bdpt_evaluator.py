@@ -18,8 +18,8 @@ marks them only if enough have terminated; the scan of their records and the lis
 cl/bdpt_walk.h), queues one read of the counts it needs (listed samples, records, the streams'
 lengths) and goes on walking: LAG steps later it has them without the device having waited, and
 queues the connect phase and the regeneration (or, if too few had terminated, lists again).
-It lists about as many steps after a regeneration as the last successful listing took, so a
-connect phase costs one read or two (toolkit/techniques/pass_end.py says why reads are looked at
+It lists a few steps after a regeneration (listing_delay), and again after 0, 1, 2, 4, ... steps
+while too few have terminated, so a connect phase costs a read or a few (toolkit/techniques/pass_end.py says why reads are looked at
 late). The drain's last listing, which waits for every sample in flight (mlt's only one: its pool
 holds every chain), comes when the walk has ended: as long after the pass's start as the longest
 of the last passes' walks (the device counts their steps), and never later than the step by which
@@ -231,7 +231,7 @@ class BdptEvaluator:
     regenerate_fraction: float  # connect (and regenerate) once this share of the samples in flight has terminated
     max_vertices: int          # per subpath (MAX_VERTICES)
     last_pass: PassState = None   # kept for inspection (tests, notebooks): the vertex memory of the last samples
-    listing_delay: int = 1     # steps after a regeneration to list: about as many as the last successful listing took
+    listing_delay: int = 1     # steps after a regeneration to list (grows when a listing succeeds only later)
     walk_steps: list = field(default_factory=list)   # the walks' lengths (steps) of the last RECENT_WALKS passes
     _steps: dict = field(default_factory=dict, repr=False)   # BdptStep records by (ring, appended, stream), made once
 
@@ -375,15 +375,15 @@ class BdptEvaluator:
     def listing_read(self, p):
         """The listing's read, looked at: (slots, listed slots, records). The walk's counters read
         with it bound the streams' lengths. Listed: the next listing follows the next regeneration
-        by as many steps as this one followed the last, or one fewer if it listed at the first try
-        (it might have listed sooner); the drain's last listing keeps the walk's length for the next
-        passes. None listed (too few had terminated): the drain's last lists again once every
+        by as many steps more as this one came after its planned step (a retry at once lists on the
+        next step), so the delay grows until listings succeed when planned; the drain's last listing
+        keeps the walk's length for the next passes. None listed (too few had terminated): the drain's last lists again once every
         subpath has ended; another lists again at once, then after 1, 2, 4, ... steps."""
         slots, count, records, lengths, walked = p.listed.result()
         if count and p.listed.waits_for_all:
             self.walk_steps = (self.walk_steps + [walked])[-RECENT_WALKS:]
-        elif count:
-            self.listing_delay = max(1, p.listed.step - p.regenerated_at - (p.retry == 0))
+        elif count:                   # listed later than planned (a retry): list that much later next time
+            self.listing_delay = max(1, self.listing_delay + p.listed.step - p.list_at)
         elif p.listed.waits_for_all and p.steps < self.every_subpath_ended(p):
             p.list_at = self.every_subpath_ended(p)             # sure to list them all then
         else:
