@@ -14,9 +14,10 @@ from toolkit.techniques.pass_end import LAG
 
 def test_an_mlt_iteration_lists_once_or_twice_and_walks_no_step_past_every_subpaths_end(monkeypatch, queue, cornell_box):
     """mlt on cornell_box (subpaths of up to MAX_VERTICES = 64 vertices), 256 chains in one pool,
-    5 iterations (a naive start and 4 of mutations), then 2 more after a walk of 5 steps. Per iteration, looked at from outside: the
-    last walk step that found subpaths (S: the streams' lengths read after every step), the
-    listings, the reads (pyopencl's copies to the host) and the walk steps. The first pass knows
+    5 iterations (a naive start and 4 of mutations), then 2 more after a walk of 5 steps. Per
+    iteration, looked at from outside: the last walk step that found subpaths (S: the streams'
+    lengths read after every step), the listings, the reads (pyopencl's copies to the host) and
+    the walk steps. The first pass knows
     no earlier walk: it lists once, at step MAX_VERTICES - 1, when every subpath has surely ended.
     Each pass teaches the evaluator its walk's length: the device's count equals S. A later pass
     lists at the longest of the last walks, once if its walk ended by then, else once more at

@@ -19,12 +19,13 @@ cl/bdpt_walk.h), queues one read of the counts it needs (listed samples, records
 lengths) and goes on walking: LAG steps later it has them without the device having waited, and
 queues the connect phase and the regeneration (or, if too few had terminated, lists again).
 It lists a few steps after a regeneration (listing_delay), and again after 0, 1, 2, 4, ... steps
-while too few have terminated, so a connect phase costs a read or a few (toolkit/techniques/pass_end.py says why reads are looked at
-late). The drain's last listing, which waits for every sample in flight (mlt's only one: its pool
-holds every chain), comes when the walk has ended: as long after the pass's start as the longest
-of the last passes' walks (the device counts their steps), and never later than the step by which
-every subpath has ended (MAX_VERTICES - 1 after the last samples started), where it lists again
-if it was too early. A walk step past the end costs two launches, a listing too early four and a read.
+while too few have terminated, so a connect phase costs a read or a few (toolkit/techniques/
+pass_end.py says why reads are looked at late). The drain's last listing, which waits for every
+sample in flight (mlt's only one: its pool holds every chain), comes when the walk has ended: as
+long after the pass's start as the longest of the last passes' walks (the device counts their
+steps), and never later than the step by which every subpath has ended (MAX_VERTICES - 1 after the
+last samples started), where it lists again if it was too early. A walk step past the end costs
+two launches, a listing too early four and a read.
 Every launch costs a GPU's host time (issue 48): a walk step is one launch per stream (one kernel
 extending both would take 20 arguments), a listing four and a read, a connect phase one launch, a
 regeneration one per stream, and a pass clears nothing but its counters at its start.
@@ -272,8 +273,8 @@ class BdptEvaluator:
         pool = self.sample_pool(min(self.pool_size, budget))
         args = BDPT_PASS.record(seed=seed, sample_base=sample_base, pool=pool.size, capacity=pool.capacity,
                                 chains=vector_stride)
-        # the streams' lengths: 0 here and on the device; nothing terminated
-        cl.enqueue_fill_buffer(ctx.queue, pool.counters, np.int32(0), 0, 4 * WalkCounter.COUNTER_INTS)   # WALK_STEPS too
+        # the streams' lengths: 0 here and on the device; nothing terminated, no walk step yet
+        cl.enqueue_fill_buffer(ctx.queue, pool.counters, np.int32(0), 0, 4 * WalkCounter.COUNTER_INTS)
         pool.eye.length = pool.light.length = 0
         # every slot counts as in flight until the first regeneration (of them all) starts them
         self.last_pass = PassState(pool, camera, args, budget, dict(sampler_args or {}), in_flight=pool.size)
@@ -377,8 +378,9 @@ class BdptEvaluator:
         with it bound the streams' lengths. Listed: the next listing follows the next regeneration
         by as many steps more as this one came after its planned step (a retry at once lists on the
         next step), so the delay grows until listings succeed when planned; the drain's last listing
-        keeps the walk's length for the next passes. None listed (too few had terminated): the drain's last lists again once every
-        subpath has ended; another lists again at once, then after 1, 2, 4, ... steps."""
+        keeps the walk's length for the next passes. None listed (too few had terminated): the
+        drain's last lists again once every subpath has ended; another lists again at once, then
+        after 1, 2, 4, ... steps."""
         slots, count, records, lengths, walked = p.listed.result()
         if count and p.listed.waits_for_all:
             self.walk_steps = (self.walk_steps + [walked])[-RECENT_WALKS:]
