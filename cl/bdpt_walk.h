@@ -148,8 +148,9 @@ HELPER bool subpath_extend(const SceneView* scene, Subpath* p, BdptSampler* rng,
  * pair (k + 1) % 3, which the step before cleared, and clears pair (k + 2) % 3 for the step after.
  * counters[TERMINATED_SAMPLES] counts the samples that terminated and wait to be listed;
  * counters[STEP_EYE_LENGTH], [STEP_LIGHT_LENGTH] the lengths the last step extended (the SIMD
- * counters read them). The host reads the buffer behind the walk, so it never waits for a count
- * before the next launch.
+ * counters read them); counters[WALK_STEPS] the steps that found subpaths to extend (how long
+ * the pass's walk took, which tells the host when to list the next pass's last samples). The
+ * host reads the buffer behind the walk, so it never waits for a count before the next launch.
  * A slot's `live` counts its subpaths still walking (SlotState in toolkit/core/layout.py):
  * SLOT_BOTH_WALKING after regeneration, SLOT_ONE_WALKING, SLOT_TERMINATED when both have
  * ended (it waits for its connections), SLOT_CONNECTING once listed for a connect phase,
@@ -175,6 +176,9 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
     if (get_global_id(0) == 0) {     /* no other work-item reads these during the step */
         counters[RING_LENGTHS(walk_step.ring + 2) + walk_step.light] = 0;
         counters[STEP_EYE_LENGTH + walk_step.light] = length;   /* STEP_LIGHT_LENGTH follows it */
+        /* the eye launch counts the step if either stream has subpaths (the light's length is final) */
+        if (!light_path && length + counters[RING_LENGTHS(walk_step.ring) + 1] + walk_step.appended > 0)
+            counters[WALK_STEPS] += 1;
     }
     const int first = (int)get_group_id(0) * LOCAL_SIZE;
     /* All the group's work-items leave together, so none waits at a barrier the others skip. */
@@ -319,9 +323,9 @@ void bdpt_mark_terminated(const int pool, const int threshold, __global const in
 /* One work-group: block_sums (the `blocks` groups' records and listed slots) become their
  * exclusive scan, where each group's records and listed slots start. Each work-item adds a run
  * of consecutive groups, one scan over the work-group gives the runs' starts, and each work-item
- * walks its run again. listing[0], [1]: the slots listed and their records; [2], [3]: the
- * streams' lengths now (pair `ring` of the counters), which bound the host's later launches.
- * The listed samples no longer count as terminated. */
+ * walks its run again. listing (ListingInt in toolkit/core/layout.py): the slots listed and their
+ * records, the streams' lengths now (pair `ring` of the counters), which bound the host's later
+ * launches, and the walk's steps so far. The listed samples no longer count as terminated. */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
 void bdpt_list_offsets(const int blocks, const int ring, volatile __global int* counters,
                        __global int2* block_sums, __global int* listing)
@@ -341,10 +345,11 @@ void bdpt_list_offsets(const int blocks, const int ring, volatile __global int* 
     if (lid == 0) {
         counters[TERMINATED_SAMPLES] -= listed;
         const int lengths = RING_LENGTHS(ring);
-        listing[0] = listed;
-        listing[1] = records;
-        listing[2] = counters[lengths];
-        listing[3] = counters[lengths + 1];
+        listing[LISTING_LISTED] = listed;
+        listing[LISTING_RECORDS] = records;
+        listing[LISTING_EYE_LENGTH] = counters[lengths];
+        listing[LISTING_LIGHT_LENGTH] = counters[lengths + 1];
+        listing[LISTING_WALK_STEPS] = counters[WALK_STEPS];
     }
 }
 

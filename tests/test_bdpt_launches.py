@@ -4,7 +4,7 @@ import numpy as np
 import pyopencl as cl
 import pytest
 
-from toolkit.core.layout import BDPT_SLOT, SlotState, WalkCounter
+from toolkit.core.layout import BDPT_SLOT, ListingInt, SlotState, WalkCounter
 from toolkit.opencl import program
 from toolkit.opencl.device_scene import DeviceScene
 from toolkit.techniques import BdptNaiveConnect, BdptParallelConnect
@@ -98,7 +98,8 @@ def test_the_listing_kernels_mark_scan_and_list_like_numpy(queue, cornell_box):
     with enough terminated samples, the terminated slots become SLOT_CONNECTING, firsts is the
     exclusive scan of their records (0 for the others), the list is their slots in order, the
     listing holds their count, their records and the streams' lengths, and they no longer count as
-    terminated; with too few, nothing changes but the scan of nothing."""
+    terminated; with too few, nothing changes but the scan of nothing. The listing also holds the
+    walk's steps so far."""
     tech = BdptParallelConnect(queue, DeviceScene(queue, cornell_box), count_simd=False, pool_size=64)
     k, mem = tech.kernels, tech.memory
     rng = np.random.default_rng(48)
@@ -112,20 +113,21 @@ def test_the_listing_kernels_mark_scan_and_list_like_numpy(queue, cornell_box):
         counters = np.zeros(WalkCounter.COUNTER_INTS, np.int32)
         counters[WalkCounter.TERMINATED_SAMPLES] = terminated.sum()
         counters[WalkCounter.LENGTH_RING + 2 * 2:][:2] = (123, 45)      # pair 2 of the ring
+        counters[WalkCounter.WALK_STEPS] = 17
         rw, copy = cl.mem_flags.READ_WRITE, cl.mem_flags.COPY_HOST_PTR
         d_slots, d_counts, d_counters = (cl.Buffer(queue.context, rw | copy, hostbuf=a) for a in (slots, counts, counters))
-        block_sums, firsts, listed_slots, listing = (mem.int_buffer(n) for n in (2 * blocks, pool, pool, 4))
+        block_sums, firsts, listed_slots, listing = (mem.int_buffer(n) for n in (2 * blocks, pool, pool, ListingInt.INTS))
         k.launch("bdpt_mark_terminated", pool, np.int32(pool), np.int32(threshold), d_counters, d_slots, d_counts, block_sums)
         k.launch("bdpt_list_offsets", 1, np.int32(blocks), np.int32(2), d_counters, block_sums, listing)
         k.launch("bdpt_list_terminated", pool, np.int32(pool), d_slots, d_counts, block_sums, firsts, listed_slots)
         got_slots = mem.read_structs(BDPT_SLOT, d_slots, pool)
-        got_counters, got_listing = mem.read_ints(d_counters, WalkCounter.COUNTER_INTS), mem.read_ints(listing, 4)
+        got_counters, got_listing = mem.read_ints(d_counters, WalkCounter.COUNTER_INTS), mem.read_ints(listing, ListingInt.INTS)
         got_firsts = mem.read_ints(firsts, pool)
         marked = terminated if listed else np.zeros(pool, bool)
         kept = np.where(marked, counts, 0)
         expected_live = np.where(marked, SlotState.CONNECTING, slots["live"])
         assert np.array_equal(got_slots["live"], expected_live)
         assert np.array_equal(got_firsts, np.cumsum(kept) - kept)
-        assert got_listing.tolist() == [marked.sum(), kept.sum(), 123, 45]
+        assert got_listing.tolist() == [marked.sum(), kept.sum(), 123, 45, 17]
         assert got_counters[WalkCounter.TERMINATED_SAMPLES] == terminated.sum() - marked.sum()
         assert np.array_equal(mem.read_ints(listed_slots, pool)[:marked.sum()], np.flatnonzero(marked))

@@ -312,8 +312,20 @@ class WalkCounter(IntEnum):
     TERMINATED_SAMPLES = 0  # samples whose second subpath ended and that no listing has listed yet
     STEP_EYE_LENGTH = 1     # the eye subpaths the last walk step extended (for the SIMD counters)
     STEP_LIGHT_LENGTH = 2   # the same for the light stream
-    LENGTH_RING = 3         # pair r of the ring: eye length at LENGTH_RING + 2r, light length after it
-    COUNTER_INTS = 9        # the buffer's ints: the three above and the ring's six
+    WALK_STEPS = 3          # the pass's walk steps so far that found subpaths to extend (in either stream)
+    LENGTH_RING = 4         # pair r of the ring: eye length at LENGTH_RING + 2r, light length after it
+    COUNTER_INTS = 10       # the buffer's ints: the four above and the ring's six
+
+
+class ListingInt(IntEnum):
+    """What the host reads of a listing of the terminated samples (cl/bdpt_walk.h bdpt_list_offsets,
+    bdpt_evaluator.py Listing): one small buffer, read behind the walk."""
+    LISTED = 0              # slots listed for the connect phase (0: too few had terminated)
+    RECORDS = 1             # their records
+    EYE_LENGTH = 2          # the streams' lengths when listed: they bound the host's later launches
+    LIGHT_LENGTH = 3
+    WALK_STEPS = 4          # WalkCounter.WALK_STEPS when listed: how long the pass's walk has been
+    INTS = 5                # the buffer's ints
 
 
 class WideChild(IntEnum):
@@ -371,7 +383,7 @@ class SimdSum(IntEnum):
 
 
 NAMED_VALUES = [(MaterialType, "MAT_"), (WideChild, "WIDE_"), (VertexFlag, "VERTEX_"), (SlotState, "SLOT_"),
-                (WalkCounter, ""), (MltMode, "MLT_"), (MltTally, "MLT_TALLY_"), (SimdSum, "SIMD_")]
+                (WalkCounter, ""), (ListingInt, "LISTING_"), (MltMode, "MLT_"), (MltTally, "MLT_TALLY_"), (SimdSum, "SIMD_")]
 SIMD_WATCH_INTS = int(SimdSum.FIELDS - SimdSum.WATCH)   # ints a step's row keeps of the device's counts
 
 # ---- single constants --------------------------------------------------------------------

@@ -18,8 +18,14 @@ marks them only if enough have terminated; the scan of their records and the lis
 cl/bdpt_walk.h), queues one read of the counts it needs (listed samples, records, the streams'
 lengths) and goes on walking: LAG steps later it has them without the device having waited, and
 queues the connect phase and the regeneration (or, if too few had terminated, lists again).
-It lists as many steps after a regeneration as the last successful listing took, so a connect
-phase costs one read (toolkit/techniques/pass_end.py says why reads are looked at late).
+It lists a few steps after a regeneration (listing_delay), and again after 0, 1, 2, 4, ... steps
+while too few have terminated, so a connect phase costs a read or a few (toolkit/techniques/
+pass_end.py says why reads are looked at late). The drain's last listing, which waits for every
+sample in flight (mlt's only one: its pool holds every chain), comes when the walk has ended: as
+long after the pass's start as the longest of the last passes' walks (the device counts their
+steps), and never later than the step by which every subpath has ended (MAX_VERTICES - 1 after the
+last samples started), where it lists again if it was too early. A walk step past the end costs
+two launches, a listing too early four and a read.
 Every launch costs a GPU's host time (issue 48): a walk step is one launch per stream (one kernel
 extending both would take 20 arguments), a listing four and a read, a connect phase one launch, a
 regeneration one per stream, and a pass clears nothing but its counters at its start.
@@ -40,7 +46,7 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.core.layout import (LONGEST_SUBPATH, BDPT_PASS, BDPT_REGENERATION, BDPT_SLOT, BDPT_STEP, BDPT_VERTEX, CONNECT_ARGS, SUBPATH,
-                                 SimdSum, WalkCounter)
+                                 ListingInt, SimdSum, WalkCounter)
 from toolkit.core.scene import NO_LIMIT
 from toolkit.opencl.work_sizes import checked_size
 from toolkit.techniques.base import Technique, pixel_count
@@ -51,6 +57,7 @@ from toolkit.techniques.simd_recorder import SimdRecorder
 
 
 WITHOUT_COMPACTION = "walk_without_compaction"   # the recorder's counter of the walk as it would be without compaction
+RECENT_WALKS = 4   # passes whose walks' lengths say when the next pass's walk ends (BdptEvaluator.walk_steps)
 
 
 def walk_defines(scene, longest, coalesced_scatter):
@@ -98,26 +105,26 @@ class SamplePool:
     record_firsts: cl.Buffer  # int[size]: where each listed slot's records start (their exclusive scan)
     listed: cl.Buffer         # int[size]: the slots listed for the next connect phase, then regenerated
     block_sums: cl.Buffer     # int2[work-groups of the pool]: the listing's sums per work-group, then their scan
-    listing: cl.Buffer        # int[LISTING_INTS]: what the host reads of a listing (Listing)
+    listing: cl.Buffer        # int[ListingInt.INTS]: what the host reads of a listing (Listing)
 
 
 @dataclass
 class Listing:
     """The terminated samples listed on the device for a connect phase (BdptEvaluator.list_terminated):
     their slots, and the read of what the host needs, queued at walk step `step` and looked at LAG
-    steps later: the listed slots (0: too few had terminated), the connect phase's records, and
-    the streams' lengths as they were (cl/bdpt_walk.h bdpt_list_offsets)."""
+    steps later: the listed slots (0: too few had terminated), the connect phase's records, the
+    streams' lengths as they were and the walk's steps so far (cl/bdpt_walk.h bdpt_list_offsets).
+    `waits_for_all`: it lists only once every sample in flight has terminated (the drain's last)."""
     slots: cl.Buffer          # int[pool]: the listed slots, the first `count` of it
-    counts: object            # PendingRead of int[LISTING_INTS]
+    counts: object            # PendingRead of int[ListingInt.INTS]
     step: int
+    waits_for_all: bool = False
 
     def result(self):
-        """(slots, listed slots, records, the streams' (eye, light) lengths)."""
+        """(slots, listed slots, records, the streams' (eye, light) lengths, the walk's steps)."""
         counts = self.counts.result()
-        return self.slots, int(counts[0]), int(counts[1]), counts[2:]
-
-
-LISTING_INTS = 4   # what a Listing reads: listed slots, records, the eye and light streams' lengths
+        return (self.slots, int(counts[ListingInt.LISTED]), int(counts[ListingInt.RECORDS]),
+                counts[ListingInt.EYE_LENGTH:ListingInt.LIGHT_LENGTH + 1], int(counts[ListingInt.WALK_STEPS]))
 
 
 @dataclass
@@ -134,6 +141,8 @@ class PassState:
     ring: int = 0             # where the next walk step reads the streams' lengths: pair `ring` of the counters' ring
     appended: int = 0         # subpaths regenerated onto each stream since the last walk step
     regenerated_at: int = 0   # the step of the last regeneration
+    started_at: int = 0       # the step of the last regeneration that started samples
+    list_at: int = 0          # the step of the next listing
     retry: int = 0            # steps before the next listing after one that listed none (doubles each time)
     listed: Listing = None    # the terminated samples listed for the next connect phase, if any
 
@@ -223,7 +232,8 @@ class BdptEvaluator:
     regenerate_fraction: float  # connect (and regenerate) once this share of the samples in flight has terminated
     max_vertices: int          # per subpath (MAX_VERTICES)
     last_pass: PassState = None   # kept for inspection (tests, notebooks): the vertex memory of the last samples
-    listing_delay: int = 1     # steps after a regeneration to list: as many as the last successful listing took
+    listing_delay: int = 1     # steps after a regeneration to list (grows when a listing succeeds only later)
+    walk_steps: list = field(default_factory=list)   # the walks' lengths (steps) of the last RECENT_WALKS passes
     _steps: dict = field(default_factory=dict, repr=False)   # BdptStep records by (ring, appended, stream), made once
 
     def __post_init__(self):
@@ -237,7 +247,7 @@ class BdptEvaluator:
         while p.in_flight > 0:
             self.walk(p)                                          # one vertex more on every subpath
             if p.listed is None:
-                if p.steps >= p.regenerated_at + self.listing_delay:
+                if p.steps >= p.list_at:
                     p.listed = self.list_terminated(p)            # postponed regeneration: list the terminated
             elif p.steps >= p.listed.step + LAG:                  #   samples if enough; their counts, read late:
                 slots, count, records = self.listing_read(p)
@@ -263,7 +273,7 @@ class BdptEvaluator:
         pool = self.sample_pool(min(self.pool_size, budget))
         args = BDPT_PASS.record(seed=seed, sample_base=sample_base, pool=pool.size, capacity=pool.capacity,
                                 chains=vector_stride)
-        # the streams' lengths: 0 here and on the device; nothing terminated
+        # the streams' lengths: 0 here and on the device; nothing terminated, no walk step yet
         cl.enqueue_fill_buffer(ctx.queue, pool.counters, np.int32(0), 0, 4 * WalkCounter.COUNTER_INTS)
         pool.eye.length = pool.light.length = 0
         # every slot counts as in flight until the first regeneration (of them all) starts them
@@ -286,7 +296,7 @@ class BdptEvaluator:
             all_slots=cl.Buffer(context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                                 hostbuf=np.arange(size, dtype=np.int32)),
             record_counts=mem.int_buffer(size), record_firsts=mem.int_buffer(size), listed=mem.int_buffer(size),
-            block_sums=mem.int_buffer(2 * (mem.padded(size) // mem.local_size)), listing=mem.int_buffer(LISTING_INTS)))
+            block_sums=mem.int_buffer(2 * (mem.padded(size) // mem.local_size)), listing=mem.int_buffer(ListingInt.INTS)))
 
     def regenerate(self, p, slots, count):
         """bdpt_regenerate: the `count` slots listed in `slots` start the next samples of the
@@ -308,7 +318,10 @@ class BdptEvaluator:
         p.appended += fresh
         p.next_id += fresh
         p.in_flight += fresh - count
-        p.regenerated_at = p.steps
+        p.regenerated_at, p.retry = p.steps, 0
+        if fresh:
+            p.started_at = p.steps
+        p.list_at = self.walk_end(p) if self.waits_for_all(p) else p.steps + self.listing_delay
         if ctx.recorder.on and fresh:
             ctx.recorder.stream_step("generate", fresh)
 
@@ -345,18 +358,38 @@ class BdptEvaluator:
         p.pool.eye.length = min(p.pool.eye.length, int(lengths[0]))
         p.pool.light.length = min(p.pool.light.length, int(lengths[1]))
 
+    def waits_for_all(self, p):
+        """Whether the next listing lists only once every sample in flight has terminated: the
+        budget is spent (nothing will be regenerated) and the threshold is all of them."""
+        return p.next_id == p.budget and self.threshold(p) >= p.in_flight
+
+    def every_subpath_ended(self, p):
+        """The walk step by which every subpath has ended: one has at most MAX_VERTICES vertices,
+        the first made when its sample started."""
+        return p.started_at + self.max_vertices - 1
+
+    def walk_end(self, p):
+        """The step by which the walk has likely ended: as long after the pass's start as the longest
+        of the last passes' walks, and no later than every subpath's end."""
+        return min(self.every_subpath_ended(p), max(self.walk_steps, default=self.every_subpath_ended(p)))
+
     def listing_read(self, p):
         """The listing's read, looked at: (slots, listed slots, records). The walk's counters read
         with it bound the streams' lengths. Listed: the next listing follows the next regeneration
-        by as many steps as this one followed the last. None listed (too few had terminated): the
-        next listing is at once, then after 1, 2, 4, ... steps, as if the regeneration had been
-        that much before, so the steps waited add to the delay when it succeeds."""
-        slots, count, records, lengths = p.listed.result()
-        if count:
-            self.listing_delay, p.retry = max(1, p.listed.step - p.regenerated_at), 0
-        else:                          # list again after 0, 1, 2, 4, ... steps (the longest subpaths of a pass's end)
-            p.regenerated_at = p.steps + p.retry - self.listing_delay
-            p.retry = max(1, 2 * p.retry)
+        by as many steps more as this one came after its planned step (a retry at once lists on the
+        next step), so the delay grows until listings succeed when planned; the drain's last listing
+        keeps the walk's length for the next passes. None listed (too few had terminated): the
+        drain's last lists again once every subpath has ended; another lists again at once, then
+        after 1, 2, 4, ... steps."""
+        slots, count, records, lengths, walked = p.listed.result()
+        if count and p.listed.waits_for_all:
+            self.walk_steps = (self.walk_steps + [walked])[-RECENT_WALKS:]
+        elif count:                   # listed later than planned (a retry): list that much later next time
+            self.listing_delay = max(1, self.listing_delay + p.listed.step - p.list_at)
+        elif p.listed.waits_for_all and p.steps < self.every_subpath_ended(p):
+            p.list_at = self.every_subpath_ended(p)             # sure to list them all then
+        else:
+            p.list_at, p.retry = p.steps + p.retry, max(1, 2 * p.retry)
         p.listed = None
         self.lengths_known(p, lengths)
         return slots, count, records
@@ -377,7 +410,8 @@ class BdptEvaluator:
                  counters=pool.counters, block_sums=pool.block_sums, listing=pool.listing)
         k.launch("bdpt_list_terminated", size, pool=k.int32(size), slots=pool.slots, counts=pool.record_counts,
                  block_starts=pool.block_sums, firsts=pool.record_firsts, listed_slots=pool.listed)
-        return Listing(pool.listed, ctx.memory.read_later(pool.listing, (np.int32, LISTING_INTS)), p.steps)
+        return Listing(pool.listed, ctx.memory.read_later(pool.listing, (np.int32, ListingInt.INTS)), p.steps,
+                       self.waits_for_all(p))
 
     # --- measuring and inspecting ------------------------------------------------------------
 
