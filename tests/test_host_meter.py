@@ -238,9 +238,10 @@ def test_repeated_pairs_report_the_median_and_exact_counts(cornell_box, monkeypa
 
 
 def test_the_meter_renders_once_unmeasured_at_n_before_its_pairs(cornell_box, monkeypatch):
-    """warm_up_full: one render of the N render's options before the first pair (PoCL's kernels for
-    a full render's sizes, the first touch after another technique's), then per measured render the
-    small warm-up; repeats default to 1 at the device's own sizes (GPU_REPEATS at the GPU's)."""
+    """warm_up_full (the default at the GPU's sizes): one render of the N render's options before the
+    first pair (PoCL's kernels for a full render's sizes, the first touch after another technique's),
+    then per measured render the small warm-up; at the device's own sizes neither it nor more than one
+    pair by default (GPU_REPEATS pairs at the GPU's)."""
     import toolkit.measure.host_meter as meter
     seen = []
     real = meter.render
@@ -249,9 +250,9 @@ def test_the_meter_renders_once_unmeasured_at_n_before_its_pairs(cornell_box, mo
         seen.append((options.spp, tuple(options.resolution), options.time_phases))
         return real(scene, technique, options, **fields)
     monkeypatch.setattr(meter, "render", render)
-    report = meter.host_meter(cornell_box, ("pt_naive",), spp=2, resolution=(8, 4))
+    report = meter.host_meter(cornell_box, ("pt_naive",), spp=2, resolution=(8, 4), warm_up_full=True)
     assert report["repeats"] == 1 and report["warm_up_full"]
     assert seen == [(2, (8, 4), False), (1, (16, 16), False), (2, (8, 4), True), (1, (16, 16), False), (8, (8, 4), True)]
     seen.clear()
-    meter.host_meter(cornell_box, ("pt_naive",), spp=2, resolution=(8, 4), warm_up_full=False)
-    assert [spp for spp, _, _ in seen] == [1, 2, 1, 8]
+    report = meter.host_meter(cornell_box, ("pt_naive",), spp=2, resolution=(8, 4))
+    assert [spp for spp, _, _ in seen] == [1, 2, 1, 8] and not report["warm_up_full"]

@@ -31,7 +31,8 @@ Three things keep the 3N more samples well above that noise:
   of 262,144 samples, ~1.5 s of kernel work beside a first touch that could take 3 s more; and for
   Metropolis a quarter of 16 spp is one iteration of its 262,144 chains against four (at 16 and 64
   it is 12 iterations more, beside a start of 17 iterations of its own).
-- A first render of the N render's options, unmeasured, before the first pair (`warm_up_full`):
+- A first render of the N render's options, unmeasured, before the first pair (`warm_up_full`, by
+  default at the GPU's sizes):
   PoCL compiles a kernel anew for the sizes of its first launches at a full render's size (seconds
   of wall time with an empty kernel cache), and the first render after another technique's took
   the largest of the first-touch costs.
@@ -187,17 +188,19 @@ def median_of_pairs(pairs):
 
 
 def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_sizes=False, count_simd=False,
-               repeats=None, warm_up_full=True, **fields):
+               repeats=None, warm_up_full=None, **fields):
     """The host meter's report: for each technique, its renders at N and GROWTH x N samples per pixel
     (N: spp_of(technique, spp, gpu_sizes)) and what the extra samples cost (`costs`). `options`: a RenderOptions
     (its fields as keywords on top); resolution None is RESOLUTION. A small render precedes each measured one
     (metered_render's warm_up), so no build and no freeing of the render before is measured; and with
-    `warm_up_full`, a render of the N render's options, unmeasured, before the first pair (module
-    docstring: Precision). `count_simd`: the renders count SIMD efficiency. `repeats`: the pair of
+    `warm_up_full` (None: at the GPU's sizes only), a render of the N render's options, unmeasured,
+    before the first pair (module docstring: Precision). `count_simd`: the renders count SIMD efficiency. `repeats`: the pair of
     renders made that many times (None: GPU_REPEATS at the GPU's sizes, else 1), each figure the median
     of the pairs' (median_of_pairs); `renders` are the first pair's."""
     if repeats is None:
         repeats = GPU_REPEATS if gpu_sizes else 1
+    if warm_up_full is None:
+        warm_up_full = bool(gpu_sizes)
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise ValueError(f"repeats must be a whole number of at least 1, got {repeats!r}")
     options = with_fields(options, **fields)
