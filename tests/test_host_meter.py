@@ -252,7 +252,8 @@ def test_the_meter_renders_once_unmeasured_at_n_before_its_pairs(cornell_box, mo
     monkeypatch.setattr(meter, "render", render)
     report = meter.host_meter(cornell_box, ("pt_naive",), spp=2, resolution=(8, 4), warm_up_full=True)
     assert report["repeats"] == 1 and report["warm_up_full"]
-    assert seen == [(2, (8, 4), False), (1, (16, 16), False), (2, (8, 4), True), (1, (16, 16), False), (8, (8, 4), True)]
+    assert seen == [(2, (8, 4), False), (1, (16, 16), False), (2, (8, 4), True),
+                    (1, (16, 16), False), (8, (8, 4), True)]
     seen.clear()
     report = meter.host_meter(cornell_box, ("pt_naive",), spp=2, resolution=(8, 4))
     assert [spp for spp, _, _ in seen] == [1, 2, 1, 8] and not report["warm_up_full"]

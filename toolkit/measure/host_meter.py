@@ -2,8 +2,9 @@
 on any device, so that a CPU can tell what will hold a GPU back.
 
 Each technique renders twice, at N and at 4N samples per pixel (path tracers 16 and 64 by default,
-BDPT and Metropolis a quarter of that), and the meter reports what the 3N more samples cost: the
-fixed costs of a render (buffers made, kernels found built, the scene's upload) drop out.
+BDPT and Metropolis a quarter of that, but 16 and 64 at the GPU's sizes), and the meter reports what
+the 3N more samples cost: the fixed costs of a render (buffers made, kernels found built, the scene's
+upload) drop out.
 Per sample: the CPU time of the thread that drives the queue (time.thread_time), the part of it
 during which the device's queue was empty (`serial`: toolkit/opencl/traffic.py), the bytes read
 back and written, the kernels' device time (OpenCL's profiling events). Per million samples: the
@@ -32,10 +33,10 @@ Three things keep the 3N more samples well above that noise:
   Metropolis a quarter of 16 spp is one iteration of its 262,144 chains against four (at 16 and 64
   it is 12 iterations more, beside a start of 17 iterations of its own).
 - A first render of the N render's options, unmeasured, before the first pair (`warm_up_full`, by
-  default at the GPU's sizes):
-  PoCL compiles a kernel anew for the sizes of its first launches at a full render's size (seconds
-  of wall time with an empty kernel cache), and the first render after another technique's took
-  the largest of the first-touch costs.
+  default at the GPU's sizes): PoCL compiles a kernel anew for the sizes of its first launches at a
+  full render's size (seconds of wall time with an empty kernel cache), and most of the dearest
+  first touches measured came in a technique's first full-size render (in a process, or after
+  another technique's).
 - `repeats` (3 by default at the GPU's sizes): the pair of renders is made that many times and each
   figure is the median of the pairs' figures, with the lowest and highest in `spread` (the JSON's
   `pairs` holds every pair's figures): a pair whose one render paid a dearer first touch is outvoted.
@@ -194,9 +195,10 @@ def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_si
     (its fields as keywords on top); resolution None is RESOLUTION. A small render precedes each measured one
     (metered_render's warm_up), so no build and no freeing of the render before is measured; and with
     `warm_up_full` (None: at the GPU's sizes only), a render of the N render's options, unmeasured,
-    before the first pair (module docstring: Precision). `count_simd`: the renders count SIMD efficiency. `repeats`: the pair of
-    renders made that many times (None: GPU_REPEATS at the GPU's sizes, else 1), each figure the median
-    of the pairs' (median_of_pairs); `renders` are the first pair's."""
+    before the first pair (module docstring: Precision). `count_simd`: the renders count SIMD
+    efficiency. `repeats`: the pair of renders made that many times (None: GPU_REPEATS at the GPU's
+    sizes, else 1), each figure the median of the pairs' (median_of_pairs); `renders` are the first
+    pair's."""
     if repeats is None:
         repeats = GPU_REPEATS if gpu_sizes else 1
     if warm_up_full is None:
