@@ -1,4 +1,5 @@
-"""Renders at the GPU's sizes in one process, each after the meter's small warm-up: python seq.py TECH:spp ..."""
+"""Renders at the GPU's sizes in one process, each after the meter's small warm-up (issue 48 check 4, run C of results/issue48_model_inputs.md):
+PYTHONPATH=. python results/issue48/model_inputs/seq.py TECH:spp ..."""
 import sys, time, resource
 from toolkit.api import as_scene, render
 from toolkit.measure.host_meter import sized_options, RESOLUTION
