@@ -206,11 +206,13 @@ def test_median_of_pairs_takes_each_figure_s_middle_value_and_its_spread():
     assert median_of_pairs(pairs[:2])["kernel_share"] == 2.0           # even: the mean of the middle two
 
 
-def test_mlt_at_the_gpu_s_sizes_takes_n_equal_to_spp():
+def test_every_technique_at_the_gpu_s_sizes_takes_n_equal_to_spp():
     """At the GPU's sizes a quarter of 16 spp is one iteration of Metropolis's 262,144 chains at
-    256x256: N = spp there (12 iterations more, not 3); elsewhere a quarter, as for BDPT."""
+    256x256, and one pool of BDPT's, beside a first touch of gigabytes that every render pays: N = spp
+    there (12 iterations more, not 3); elsewhere a quarter for BDPT and mlt."""
     assert spp_of("mlt", 16, gpu_sizes=True) == 16 and spp_of("mlt", 16) == 4
-    assert spp_of("bdpt_parallel_connect", 16, gpu_sizes=True) == 4 and spp_of("pt_naive", 16, gpu_sizes=True) == 16
+    assert spp_of("bdpt_parallel_connect", 16, gpu_sizes=True) == 16 and spp_of("bdpt_naive_connect", 16) == 4
+    assert spp_of("pt_naive", 16, gpu_sizes=True) == 16 == spp_of("pt_naive", 16)
 
 
 def test_repeated_pairs_report_the_median_and_exact_counts(cornell_box, monkeypatch):
@@ -230,5 +232,28 @@ def test_repeated_pairs_report_the_median_and_exact_counts(cornell_box, monkeypa
     assert low <= row["host_cpu_ns_per_sample"] <= high
     for r in row["renders"]:    # the passes' share of the thread's time: part of it
         assert 0 < r["pass_cpu_seconds"] <= r["cpu_seconds"]
+        assert r["page_faults"] >= 0 and r["system_seconds"] >= 0     # the fixed cost's check, per render
     with pytest.raises(ValueError, match="repeats"):
         host_meter(cornell_box, ("pt_naive",), repeats=0)
+
+
+def test_the_meter_renders_once_unmeasured_at_n_before_its_pairs(cornell_box, monkeypatch):
+    """warm_up_full (the default at the GPU's sizes): one render of the N render's options before the
+    first pair (PoCL's kernels for a full render's sizes, the first touch after another technique's),
+    then per measured render the small warm-up; at the device's own sizes neither it nor more than one
+    pair by default (GPU_REPEATS pairs at the GPU's)."""
+    import toolkit.measure.host_meter as meter
+    seen = []
+    real = meter.render
+
+    def render(scene, technique, options=None, **fields):
+        seen.append((options.spp, tuple(options.resolution), options.time_phases))
+        return real(scene, technique, options, **fields)
+    monkeypatch.setattr(meter, "render", render)
+    report = meter.host_meter(cornell_box, ("pt_naive",), spp=2, resolution=(8, 4), warm_up_full=True)
+    assert report["repeats"] == 1 and report["warm_up_full"]
+    assert seen == [(2, (8, 4), False), (1, (16, 16), False), (2, (8, 4), True),
+                    (1, (16, 16), False), (8, (8, 4), True)]
+    seen.clear()
+    report = meter.host_meter(cornell_box, ("pt_naive",), spp=2, resolution=(8, 4))
+    assert [spp for spp, _, _ in seen] == [1, 2, 1, 8] and not report["warm_up_full"]

@@ -29,7 +29,7 @@ def add_command(sub):
                         "with --peer: the scene's own)")
     p.add_argument("--repeats", type=positive, default=None,
                    help="runs of each row (default 3); with --host: pairs of renders per technique, each figure "
-                        "their median (default 1)")
+                        "their median (default 1; 3 with --gpu-sizes)")
     p.add_argument("--peer", choices=["embree", "mitsuba"],
                    help="instead: embree: closest-hit rays/s of our BVHs against embreex on the same rays; "
                         "mitsuba: Mitsuba 3's path integrator beside the toolkit (spp/s, variance per sample, "
@@ -42,7 +42,7 @@ def add_command(sub):
                         "pt_naive,pt_compact_regen,bdpt_parallel_connect; resolution 64x64)")
     p.add_argument("--host", action="store_true",
                    help="instead: the host meter: each technique rendered at N and 4N samples per pixel (N: --spp "
-                        "for path tracers, a quarter of it for BDPT and mlt, but --spp for mlt with --gpu-sizes), and what the 3N more samples cost the "
+                        "for path tracers, a quarter of it for BDPT and mlt, but --spp for all with --gpu-sizes), and what the 3N more samples cost the "
                         "host: CPU time, bytes read back and written, blocking reads, launches, the kernels' share "
                         f"(default techniques {','.join(HOST_DEFAULT)}; resolution 256x256)")
     p.add_argument("--gpu-sizes", action="store_true",
@@ -102,7 +102,7 @@ def cmd_bench_host(args):
         raise ValueError("--host is a bench of its own: not with --peer, --specialization or --equal-time")
     report = host_meter(args.scene, tuple(technique_list(args.techniques or ",".join(HOST_DEFAULT))),
                         render_options(args, lanes=None), spp=args.spp, gpu_sizes=args.gpu_sizes,
-                        count_simd=args.host_count_simd, repeats=args.repeats or 1)
+                        count_simd=args.host_count_simd, repeats=args.repeats)
     print(format_host_meter(report))
     if args.json:
         print(json.dumps(report))

@@ -28,7 +28,11 @@ the whole against the H200's):
    mlt by bdpt_parallel_connect's, whose kernels evaluate its proposals (no efficiency recorded
    for mlt on the GPU: no correction).
 6. Fixed costs (buffers made, the first launch) are left out of the per-sample figures: the meter's
-   figures are what its 3N more samples cost.
+   figures are what its 3N more samples cost. (At the GPU's sizes a render's fixed cost on this CPU
+   includes faulting in gigabytes of fresh pool memory, at a price that varies by seconds: the meter's
+   method there, host_meter.py's Precision, keeps it from the difference.) The GPU's recorded kernel
+   times are one render each, not a difference: BDPT's is one pool walked to its end, whose tail a
+   steady state would spread over more samples (results/issue48_model_inputs.md estimates it).
 """
 from toolkit.measure.phases import COUNTER_KERNELS, HOST
 

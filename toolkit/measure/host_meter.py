@@ -2,8 +2,9 @@
 on any device, so that a CPU can tell what will hold a GPU back.
 
 Each technique renders twice, at N and at 4N samples per pixel (path tracers 16 and 64 by default,
-BDPT and Metropolis a quarter of that), and the meter reports what the 3N more samples cost: the
-fixed costs of a render (buffers made, kernels found built, the scene's upload) drop out.
+BDPT and Metropolis a quarter of that, but 16 and 64 at the GPU's sizes), and the meter reports what
+the 3N more samples cost: the fixed costs of a render (buffers made, kernels found built, the scene's
+upload) drop out.
 Per sample: the CPU time of the thread that drives the queue (time.thread_time), the part of it
 during which the device's queue was empty (`serial`: toolkit/opencl/traffic.py), the bytes read
 back and written, the kernels' device time (OpenCL's profiling events). Per million samples: the
@@ -19,17 +20,33 @@ Metropolis's chain cap), so that a CPU measures the host's work of a GPU's rende
 
 Precision. The difference of two renders is exact for the counts and noisy for the times: a
 render's fixed cost (its start, the buffers it frees) varies by tens of milliseconds on a loaded
-machine. Two things keep the 3N more samples well above that noise. Metropolis at the GPU's sizes
-takes N = spp, not a quarter of it (`spp_of`): with 262,144 chains at 256x256 a quarter of 16 spp is
-one iteration against four, so the difference was 3 iterations (a few tens of ms of host time) beside a
-start of 17 iterations of its own (start = pool: 16 candidates and the picked states), and the
-figure came out anywhere from -56 to +171 ns per mutation; at 16 and 64 it is 12 (4 against 16). And
-`repeats`: the pair of renders is made that many times and each figure is the median of the pairs'
-figures, with the lowest and highest in `spread` (the JSON's `pairs` holds every pair's figures).
+machine, and at the GPU's sizes by seconds. There every render makes its technique's memory anew
+(api.render), BDPT's pool and Metropolis's chains: about 2.3 GB of vertex memory at a pool of
+270,336, which PoCL takes from the operating system and which the kernels that first write it
+(bdpt_regenerate) fault in, page by page: ~580,000 minor page faults in every such render, the N
+one and the 4N one alike, so that they cancel in the difference, but at a cost that varied from
+0.6 s to 9.7 s of bdpt_regenerate's kernel time (1.1 to 4.8 s of the process's system time) from
+render to render on this shared machine (results/issue48_model_inputs.md). A GPU pays none of it.
+Three things keep the 3N more samples well above that noise:
+- N = spp at the GPU's sizes for every technique (`n_rule`): BDPT's quarter of 16 spp was one pool
+  of 262,144 samples, ~1.5 s of kernel work beside a first touch that could take 3 s more; and for
+  Metropolis a quarter of 16 spp is one iteration of its 262,144 chains against four (at 16 and 64
+  it is 12 iterations more, beside a start of 17 iterations of its own).
+- A first render of the N render's options, unmeasured, before the first pair (`warm_up_full`, by
+  default at the GPU's sizes): PoCL compiles a kernel anew for the sizes of its first launches at a
+  full render's size (seconds of wall time with an empty kernel cache), and most of the dearest
+  first touches measured came in a technique's first full-size render (in a process, or after
+  another technique's).
+- `repeats` (3 by default at the GPU's sizes): the pair of renders is made that many times and each
+  figure is the median of the pairs' figures, with the lowest and highest in `spread` (the JSON's
+  `pairs` holds every pair's figures): a pair whose one render paid a dearer first touch is outvoted.
+Each render's minor page faults and the process's system CPU seconds are in its figures
+(`page_faults`, `system_seconds`), so that a dear first touch shows.
 Beside the host CPU per sample, `pass_cpu_ns_per_sample` counts only the thread's time inside the
 technique's passes (run_pass): what the extra samples cost as well, without the start's and the
 end's noise (but also without any per-sample work a technique defers to its end).
 """
+import resource
 import time
 from contextlib import contextmanager
 
@@ -52,17 +69,18 @@ TIMED = ("host_cpu_ns_per_sample", "pass_cpu_ns_per_sample", "serial_ns_per_samp
 
 
 QUARTER = "N = spp / 4"
+GPU_REPEATS = 3   # pairs of renders at the GPU's sizes by default (module docstring: Precision)
 
 
 def n_rule(technique, gpu_sizes):
     """How N is chosen for `technique` (the JSON's `n_rule`): `spp` for a path tracer, a quarter of
-    it for BDPT and Metropolis, whose samples cost about ten times more; but `spp` for Metropolis at
-    the GPU's sizes, whose iterations of 262,144 chains are 4 mutations per pixel at 256x256 (module
-    docstring: Precision)."""
+    it for BDPT and Metropolis, whose samples cost about ten times more; but `spp` for every technique
+    at the GPU's sizes, where a render's fixed cost is seconds (module docstring: Precision)."""
     if family(technique) == "pt":
         return "N = spp"
-    if gpu_sizes and family(technique) == "mlt":
-        return "N = spp (Metropolis at the GPU's sizes: enough iterations of its chains for a difference above the noise)"
+    if gpu_sizes:
+        return ("N = spp (at the GPU's sizes: enough samples for a difference above the first touch of the "
+                "pool's or the chains' memory that every render pays)")
     return QUARTER
 
 
@@ -90,10 +108,15 @@ def metered_render(scene, technique, options, count_simd=False, warm_up=None):
     if warm_up is not None:
         render(scene, technique, warm_up)
     cls = get_technique(technique)[0]
+    before = resource.getrusage(resource.RUSAGE_SELF)
     with counted_passes(cls) as passes, Traffic() as traffic:
         result = render(scene, technique, with_fields(options, count_simd=count_simd, time_phases=True))
+    after = resource.getrusage(resource.RUSAGE_SELF)
     stats = result.stats
-    return {**traffic.figures(), "pass_cpu_seconds": passes[1], "seconds": stats["seconds"],
+    # the memory the render faulted in (first touches) and the whole process's system time (module
+    # docstring: Precision): not per sample, a check that the two renders' fixed costs were alike
+    faults = {"page_faults": after.ru_minflt - before.ru_minflt, "system_seconds": after.ru_stime - before.ru_stime}
+    return {**traffic.figures(), **faults, "pass_cpu_seconds": passes[1], "seconds": stats["seconds"],
             "kernel_seconds": sum(k["seconds"] for k in stats["kernel_times"].values()),
             "samples": round(stats["samples_per_second"] * stats["seconds"]), "passes": passes[0]}
 
@@ -166,13 +189,20 @@ def median_of_pairs(pairs):
 
 
 def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_sizes=False, count_simd=False,
-               repeats=1, **fields):
+               repeats=None, warm_up_full=None, **fields):
     """The host meter's report: for each technique, its renders at N and GROWTH x N samples per pixel
     (N: spp_of(technique, spp, gpu_sizes)) and what the extra samples cost (`costs`). `options`: a RenderOptions
     (its fields as keywords on top); resolution None is RESOLUTION. A small render precedes each measured one
-    (metered_render's warm_up), so no build and no freeing of the render before is measured. `count_simd`:
-    the renders count SIMD efficiency. `repeats`: the pair of renders made that many times, each figure
-    the median of the pairs' (median_of_pairs); `renders` are the first pair's."""
+    (metered_render's warm_up), so no build and no freeing of the render before is measured; and with
+    `warm_up_full` (None: at the GPU's sizes only), a render of the N render's options, unmeasured,
+    before the first pair (module docstring: Precision). `count_simd`: the renders count SIMD
+    efficiency. `repeats`: the pair of renders made that many times (None: GPU_REPEATS at the GPU's
+    sizes, else 1), each figure the median of the pairs' (median_of_pairs); `renders` are the first
+    pair's."""
+    if repeats is None:
+        repeats = GPU_REPEATS if gpu_sizes else 1
+    if warm_up_full is None:
+        warm_up_full = bool(gpu_sizes)
     if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
         raise ValueError(f"repeats must be a whole number of at least 1, got {repeats!r}")
     options = with_fields(options, **fields)
@@ -180,13 +210,15 @@ def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_si
     scene = as_scene(scene)
     report = {"scene": scene.name, "resolution": list(options.resolution), "gpu_sizes": bool(gpu_sizes),
               "sizes": GPU_SIZES if gpu_sizes else "the device's own", "count_simd": bool(count_simd),
-              "repeats": repeats, "techniques": {}}
+              "repeats": repeats, "warm_up_full": bool(warm_up_full), "techniques": {}}
     for technique in techniques:
         own = {**options.technique_options, **sized_options(technique, gpu_sizes)}
         base = with_fields(options, technique_options=own)
         n = spp_of(technique, spp, gpu_sizes)
         warm_up = with_fields(base, spp=1, resolution=(16, 16), count_simd=count_simd)
         renders, pairs = None, []
+        if warm_up_full:
+            render(scene, technique, with_fields(base, spp=n, count_simd=count_simd))
         for _ in range(repeats):
             first, second = (metered_render(scene, technique, with_fields(base, spp=k), count_simd, warm_up=warm_up)
                              for k in (n, GROWTH * n))
