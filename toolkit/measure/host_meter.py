@@ -46,7 +46,6 @@ Beside the host CPU per sample, `pass_cpu_ns_per_sample` counts only the thread'
 technique's passes (run_pass): what the extra samples cost as well, without the start's and the
 end's noise (but also without any per-sample work a technique defers to its end).
 """
-import resource
 import time
 from contextlib import contextmanager
 
@@ -108,17 +107,28 @@ def metered_render(scene, technique, options, count_simd=False, warm_up=None):
     if warm_up is not None:
         render(scene, technique, warm_up)
     cls = get_technique(technique)[0]
-    before = resource.getrusage(resource.RUSAGE_SELF)
+    before = _usage()
     with counted_passes(cls) as passes, Traffic() as traffic:
         result = render(scene, technique, with_fields(options, count_simd=count_simd, time_phases=True))
-    after = resource.getrusage(resource.RUSAGE_SELF)
+    after = _usage()
     stats = result.stats
     # the memory the render faulted in (first touches) and the whole process's system time (module
     # docstring: Precision): not per sample, a check that the two renders' fixed costs were alike
-    faults = {"page_faults": after.ru_minflt - before.ru_minflt, "system_seconds": after.ru_stime - before.ru_stime}
+    faults = {key: after[key] - before[key] for key in before}
     return {**traffic.figures(), **faults, "pass_cpu_seconds": passes[1], "seconds": stats["seconds"],
             "kernel_seconds": sum(k["seconds"] for k in stats["kernel_times"].values()),
             "samples": round(stats["samples_per_second"] * stats["seconds"]), "passes": passes[0]}
+
+
+def _usage():
+    """The process's minor page faults and system CPU seconds so far; {} where the platform has no
+    `resource` module (Windows): the figures are then left out, the meter still runs."""
+    try:
+        import resource
+    except ImportError:
+        return {}
+    usage = resource.getrusage(resource.RUSAGE_SELF)
+    return {"page_faults": usage.ru_minflt, "system_seconds": usage.ru_stime}
 
 
 @contextmanager
