@@ -27,3 +27,26 @@ void film_accumulate(__global const FilmPixel* pass, const int pixels, __global 
     counts[2 * p] += f.missing;
     counts[2 * p + 1] += f.dropped;
 }
+
+/* A BDPT pass's image (cl/record_film.cl's resolve: float4 per pixel, the RGB sums of its records
+ * and in .w the records dropped there), added as the host film's add_pass adds it
+ * (toolkit/core/film.py): the pass's mean v = sum / spp, then spp * v and spp * v * v into the sums.
+ * The same operations in the same order: the host's bits, provided no multiply and add are fused
+ * into one rounding (FP_CONTRACT OFF). */
+#pragma OPENCL FP_CONTRACT OFF
+__kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
+void film_accumulate_pass(__global const float4* image, const int spp, const int pixels,
+                          __global double* sums, __global int* counts)
+{
+    int p = get_global_id(0);
+    if (p >= pixels) return;
+    float4 f = image[p];
+    const double n = (double)spp;
+    const double v[3] = {(double)f.x / n, (double)f.y / n, (double)f.z / n};
+    __global double* s = sums + 6 * p;
+    for (int c = 0; c < 3; c++) {
+        s[c] += n * v[c];
+        s[3 + c] += n * (v[c] * v[c]);
+    }
+    counts[2 * p + 1] += (int)f.w;
+}

@@ -85,10 +85,12 @@ def test_a_walk_step_is_a_launch_per_stream_and_a_pass_clears_copies_and_allocat
             assert tuple(rest[at + 1:at + 4]) == LISTING
             del rest[at:at + 4]
             listings += 1
-        # the pass's end: its image resolved on the device and read, one pass behind
+        # the pass's end: its image resolved on the device, and added to the film there (a device
+        # with float64) or read, one pass behind
         assert set(rest) <= {tech.source.removesuffix(".cl"), "record_film_add", "bdpt_regenerate",
-                             "record_film_resolve"}, rest
-        assert sum(e == ("copy", "read") for e in step) == (connect in launches) + ("record_film_resolve" in rest)
+                             "record_film_resolve", "film_accumulate_pass"}, rest
+        image_read = "record_film_resolve" in rest and "film_accumulate_pass" not in rest
+        assert sum(e == ("copy", "read") for e in step) == (connect in launches) + image_read
     assert listings >= 2
 
 

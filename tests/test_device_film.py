@@ -1,7 +1,8 @@
 """A path tracer's film kept on the device (toolkit/opencl/device_film.py, cl/film_accumulate.cl)
 against the host's film (toolkit/core/film.py): the same float32 pass sums added in float64 in
 the same order give the same bits, from 1e-6 to 1e6; a sample never written still raises, at the
-end; a device without float64 keeps the host's film."""
+end; a device without float64 keeps the host's film. BDPT's whole-image passes (DevicePassFilm)
+likewise."""
 from types import SimpleNamespace
 
 import numpy as np
@@ -10,7 +11,7 @@ import pytest
 
 from toolkit.core.film import Film
 from toolkit.core.layout import FILM_PIXEL
-from toolkit.opencl.device_film import DeviceFilm, film_path, has_fp64
+from toolkit.opencl.device_film import DeviceFilm, DevicePassFilm, film_path, has_fp64
 from toolkit.opencl.device_scene import DeviceScene
 from toolkit.techniques import get_technique
 
@@ -83,6 +84,49 @@ def test_a_render_on_the_device_film_has_the_host_films_bits(fp64_queue, cornell
     assert films[True].device is not None and films[False].device is None
     for what in ("sum", "sum_sq", "count"):
         assert getattr(films[True], what).tobytes() == getattr(films[False], what).tobytes(), what
+    assert films[True].stderr().tobytes() == films[False].stderr().tobytes()
+    assert films[True].nonfinite_samples == films[False].nonfinite_samples
+
+
+def test_bdpt_passes_added_on_the_device_give_the_host_film_bits_from_1e_minus_6_to_1e6(fp64_queue):
+    """Nine whole-image passes (BDPT's: a pass's RGB sums, the records dropped in .w) of 1 to 9
+    samples per pixel, their sums spanning twelve decades: the device divides, multiplies and adds
+    in float64 as Film.add_pass does, so the passes' sums, the image and its error are the host's bits."""
+    pixels, rng = 97, np.random.default_rng(13)
+    host, device = Film(pixels, 1), Film(pixels, 1)
+    device.keep_passes_on_device(DevicePassFilm(fp64_queue, pixels))
+    for spp in range(1, 10):
+        image = (10.0 ** rng.uniform(-6, 6, (pixels, 4))).astype(np.float32)
+        image[:, 3] = rng.integers(0, 3, pixels)
+        host.add_pass(image[:, :3].astype(np.float64) / spp, spp, nonfinite=int(image[:, 3].sum()))
+        device.device.add(device_buffer(fp64_queue, image), spp)
+        device.add_device_image_pass(spp)
+    for what in ("pass_sum", "pass_sum_sq", "count"):
+        assert getattr(device, what).tobytes() == getattr(host, what).tobytes(), what
+    assert device.passes == host.passes == 9
+    assert device.image().tobytes() == host.image().tobytes()
+    assert device.stderr().tobytes() == host.stderr().tobytes()
+    assert device.nonfinite_samples == host.nonfinite_samples > 0
+    with pytest.raises(ValueError, match="kept on a device"):
+        device.add_pass(np.ones((pixels, 3)), 1)
+
+
+@pytest.mark.parametrize("technique", ["bdpt_naive_connect", "bdpt_parallel_connect"])
+def test_a_bdpt_render_on_the_device_film_has_the_host_films_bits(fp64_queue, cornell_box, technique):
+    """Four passes of one sample per pixel: the film on the device and the host's give the same
+    image, error and sums, bit for bit, and the device's reads no pass's image back."""
+    cls, options = get_technique(technique)
+    scene = DeviceScene(fp64_queue, cornell_box)
+    films = {}
+    for on_device in (True, False):
+        tech = cls(fp64_queue, scene, count_simd=False, pass_spp=1, **options)
+        tech.film_on_device = on_device
+        films[on_device] = tech.render(16, 8, 4, seed=5)
+    assert films[True].device is not None and films[False].device is None
+    assert films[True].passes == films[False].passes == 4
+    for what in ("pass_sum", "pass_sum_sq", "count"):
+        assert getattr(films[True], what).tobytes() == getattr(films[False], what).tobytes(), what
+    assert np.any(films[True].pass_sum > 0)
     assert films[True].stderr().tobytes() == films[False].stderr().tobytes()
     assert films[True].nonfinite_samples == films[False].nonfinite_samples
 

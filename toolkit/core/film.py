@@ -40,10 +40,13 @@ class Film:
         self.passes = 0   # whole-image passes (add_pass) instead of per-sample sums
         self.pass_sum = np.zeros((height * width, 3))
         self.pass_sum_sq = np.zeros((height * width, 3))
+        self.device_passes = False   # whether the device keeps the passes' sums (keep_passes_on_device)
 
-    # The per-sample sums: on the host, or read from the device when asked for.
+    # The per-sample sums and the passes' sums: on the host, or read from the device when asked for.
     sum = _ReadFromDevice()
     sum_sq = _ReadFromDevice()
+    pass_sum = _ReadFromDevice()
+    pass_sum_sq = _ReadFromDevice()
     nonfinite_samples = _ReadFromDevice()    # samples dropped as non-finite (counted as zeros)
 
     def keep_on_device(self, device_sums):
@@ -53,6 +56,19 @@ class Film:
         if self.count.any() or self.device is not None:
             raise ValueError("a film's sums move to a device before its first pass, once")
         self.device = device_sums
+
+    def keep_passes_on_device(self, device_passes):
+        """As keep_on_device, for whole-image passes (add_pass): `device_passes.read()` returns the
+        passes' sums (pass_sum, pass_sum_sq) and the samples dropped (toolkit/opencl/device_film.py
+        DevicePassFilm), and each pass adds there and calls add_device_image_pass."""
+        self.keep_on_device(device_passes)
+        self.device_passes = True
+
+    def add_device_image_pass(self, spp):
+        """A whole-image pass of `spp` samples per pixel was added on the device (keep_passes_on_device)."""
+        self.passes += 1
+        self.count += spp
+        self._device_read = False
 
     def add_device_pass(self, samples):
         """A pass of `samples` per pixel was added on the device (keep_on_device)."""
@@ -64,7 +80,10 @@ class Film:
         read raises (a sample never written)."""
         if self._device_read:
             return
-        self._sum, self._sum_sq, self._nonfinite_samples = self.device.read()
+        if self.device_passes:
+            self._pass_sum, self._pass_sum_sq, self._nonfinite_samples = self.device.read()
+        else:
+            self._sum, self._sum_sq, self._nonfinite_samples = self.device.read()
         self._device_read = True
 
     def add_pixel_sums(self, sums, sums_sq, samples, dropped=0):
@@ -84,6 +103,8 @@ class Film:
         other pixels, like BDPT's light tracing): each pass is an independent estimate of the
         image. Passes may differ in size: a pass of n samples has variance sigma^2 / n, so
         passes are weighted by n and sigma^2 is estimated from their spread (see stderr)."""
+        if self.device is not None:
+            raise ValueError("this film's sums are kept on a device (keep_on_device)")
         value = image.reshape(-1, 3).astype(np.float64)
         self.passes += 1
         self.pass_sum += spp * value

@@ -44,6 +44,7 @@ KERNEL_PHASES = {
     "compact_scatter": ("compact (scatter)", (), ()),
     "film_reduce": ("film: sum per pixel", (), ()),
     "film_accumulate": ("film: add the pass", (), ()),
+    "film_accumulate_pass": ("film: add the pass", (), ()),
     "record_film_add": ("film: add records", (), ()),
     "record_film_resolve": ("film: sum per pixel", (), ()),
     # the SIMD counters' own work (toolkit/opencl/simd_counters.py): a counted render's cost of measuring

@@ -73,3 +73,23 @@ class DeviceFilm:
             raise RuntimeError(f"{self.owner}: {missing} of {self.samples} samples were never written "
                                "(sample accounting bug)")
         return sums[:, :3].copy(), sums[:, 3:].copy(), int(dropped)
+
+
+class DevicePassFilm(DeviceFilm):
+    """A BDPT film kept on the device: each pass's image (RecordFilm.resolve_on_device: the RGB sums of
+    its records per pixel, the records dropped in .w) is added as Film.add_pass adds it on the host,
+    in float64 and in the same order (cl/film_accumulate.cl film_accumulate_pass): the same bits.
+    `read` returns the passes' sums (of spp x mean and of spp x mean^2, per pixel) and the records
+    dropped. Reading each pass's image back cost 16 bytes per pixel per pass: at 16 samples per pixel
+    a pass, 1 byte per sample, ten times what issue 48 allows."""
+
+    def __init__(self, queue, pixels, local_size=program.LOCAL_SIZE, sources=None, owner="BDPT"):
+        super().__init__(queue, pixels, local_size, sources, owner)
+        self.kernel = program.kernel(program.build(queue, self.source, self.defines(local_size), directory=sources),
+                                     "film_accumulate_pass")
+
+    def add(self, image, spp):
+        """Queue the addition of a pass's resolved image of `spp` samples per pixel; nothing waits."""
+        self.samples += spp * self.pixels
+        program.launch(self.queue, self.kernel, self.pixels, image, np.int32(spp), *self.args,
+                       local_size=self.local_size)

@@ -80,11 +80,18 @@ class RecordFilm:
                            np.int32(bool(weighted)), self.unit_exponent, np.int32(self.pixels), self.sums,
                            local_size=self.local_size)
 
+    def resolve_on_device(self):
+        """Queue the pass's image (`image`: float4 per pixel, RGB sums and, in .w, the records
+        dropped there) and start the next pass at zero; returns the image's buffer, overwritten by
+        the next pass's resolve (the queue is in order: what is queued before that reads this pass's)."""
+        program.launch(self.queue, self.resolve_kernel, self.pixels, self.sums, self.unit_exponent,
+                       np.int32(self.pixels), self.image, local_size=self.local_size)
+        return self.image
+
     def resolve(self):
         """Queue the pass's image and its read, and start the next pass at zero: returns (the host's
         (pixels, 4) float32 array: RGB sums and, in column 3, the records dropped at each pixel;
         the read's event). Nothing waits: wait for the event before reading the array."""
-        program.launch(self.queue, self.resolve_kernel, self.pixels, self.sums, self.unit_exponent,
-                       np.int32(self.pixels), self.image, local_size=self.local_size)
+        self.resolve_on_device()
         result = np.empty((self.pixels, 4), np.float32)
         return result, cl.enqueue_copy(self.queue, result, self.image, is_blocking=False)

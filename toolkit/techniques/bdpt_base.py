@@ -4,7 +4,9 @@ phase, bdpt_evaluator.py) whose connect phases hand their records to an image.
 One pass: every sample of its budget goes through the evaluator; each connect phase's records
 (pixel, value) go to an ImageSink, which adds them to the pass's image on the device
 (toolkit/opencl/record_film.py: exact integer sums, so no float atomics and the same bits in any
-order). The host reads the pass's image, one pass behind, and the film adds it in float64. A
+order). The film adds the pass's image in float64: on the device where it has float64
+(device_film.py DevicePassFilm, the host's bits; nothing is read until the film is asked for), else
+on the host, which reads the image one pass behind. A
 sample's light-tracing records land on other pixels than its own, so a pixel has no per-sample
 values to square: a pass is an image, and the standard error comes from independent passes
 (Film.add_pass).
@@ -13,6 +15,7 @@ on a CPU); each stores MAX_VERTICES eye and light vertices.
 """
 import numpy as np
 
+from toolkit.opencl.device_film import DevicePassFilm, has_fp64
 from toolkit.opencl.record_film import RecordFilm, unit_exponent_for
 from toolkit.techniques.base import pixel_count
 from toolkit.techniques.bdpt_evaluator import BdptEvaluator, BdptPoolTechnique
@@ -61,7 +64,17 @@ class BdptTechnique(BdptPoolTechnique):
         p = self.bdpt.start_pass(camera, seed, sample_base, pixel_count(camera) * spp)
         records = self.record_film(p.pixels)
         self.bdpt.evaluate(p, ImageSink(records, self.strategy_pass(camera, p.budget)))
-        sums, done = records.resolve()       # the pass's image, read while the next pass runs
+        if self.film_on_device is None:
+            self.film_on_device = has_fp64(self.queue.device)
+        if self.film_on_device:              # the pass's image added to the film on the device: nothing read
+            if film.device is None:
+                film.keep_passes_on_device(DevicePassFilm(self.queue, p.pixels, self.local_size,
+                                                          self.sources.toolkit_only(), owner=self.name))
+            film.device.add(records.resolve_on_device(), spp)
+            film.add_device_image_pass(spp)
+            self.queue.flush()               # start the queued work now, not at the next wait
+            return
+        sums, done = records.resolve()       # no float64 on the device: the pass's image, read while the next pass runs
         shape = (int(camera["height"]), int(camera["width"]), 3)
         self.collect_later(done, lambda: film.add_pass(sums[:, :3].astype(np.float64).reshape(shape) / spp, spp,
                                                        nonfinite=int(sums[:, 3].sum())))
