@@ -6,9 +6,10 @@
  * A step is two launches (inside a render each launch costs the host tens of microseconds:
  * results/issue48_launch_path.md): the regeneration runs at the start of the trace kernel.
  * Kernels this technique launches (toolkit/techniques/pt_inplace_regen.py):
- *   pt_inplace_regen_trace        here: regenerate, then trace (extend's first half)
- *   pt_inplace_regen_shade        here: shade (extend's second half)
- * and pt_inplace_regen_regenerate, the regeneration alone (the assignment's checks launch it). */
+ *   pt_inplace_regen_trace        regenerate, then trace (extend's first half)
+ *   pt_inplace_regen_shade        shade (extend's second half)
+ * and pt_inplace_regen_regenerate, the regeneration alone (the assignment's checks launch it),
+ * all three in cl/pt_inplace_regen_kernels.h, around regenerate_slot here. */
 #include "extend_in_place.h"
 
 /* Regenerate slot gid in place: if it is free, it takes the next sample of the pass's budget, if
@@ -39,54 +40,5 @@ HELPER int regenerate_slot(const Camera* cam, const PtPass* pass_args, volatile 
     return started;
 }
 
-/* The regeneration alone, over `slots` slots (the assignment's checks launch it; the technique
- * regenerates inside pt_inplace_regen_trace). */
-__kernel void pt_inplace_regen_regenerate(const Camera cam, const PtPass pass_args, const int slots,
-                                          volatile __global int* next_sample,
-                                          __global void* paths, __global int* alive,
-                                          __global int* any_alive, __global int* regenerated)
-{
-    int gid = get_global_id(0);
-    if (gid >= slots) return;
-    int started = regenerate_slot(&cam, &pass_args, next_sample, paths, alive, any_alive, gid);
-#if COUNT_SIMD
-    regenerated[gid] = started;
-#else
-    (void)started; (void)regenerated;
-#endif
-}
-
-/* A step's first launch: regenerate the free slots (only they are busy in that part, the
- * talk's ~30%), then every slot with a live path finds its ray's closest hit (into `hits`).
- * *any_alive is 0 when the launch starts (the last step's shade cleared it). */
-__kernel void pt_inplace_regen_trace(SCENE_PARAMS, const Camera cam, const PtPass pass_args, const int slots,
-                                     volatile __global int* next_sample, __global void* paths, __global int* alive,
-                                     __global void* hits, __global int* any_alive, __global int* regenerated,
-                                     __global LaneCounts* lane_counts)
-{
-    int gid = get_global_id(0);
-    if (gid >= slots) return;
-    int started = regenerate_slot(&cam, &pass_args, next_sample, paths, alive, any_alive, gid);
-#if COUNT_SIMD
-    regenerated[gid] = started;
-#else
-    (void)started; (void)regenerated;
-#endif
-    SceneView scene = SCENE_INIT;
-    trace_in_place(&scene, &pass_args, paths, alive, hits, lane_counts, gid);
-}
-
-/* A step's second launch: every slot with a live path shades its hit. Work-item 0 clears
- * *any_alive for the next step's regeneration: the host's look at it (if any) is queued before
- * this launch, and no work-item of this launch sets it. So the host never clears it. */
-__kernel void pt_inplace_regen_shade(SCENE_PARAMS, const PtPass pass_args, const int slots,
-                                     __global void* paths, __global int* alive, __global void* hits,
-                                     __global float4* radiance, __global int* any_alive,
-                                     __global LaneCounts* lane_counts)
-{
-    int gid = get_global_id(0);
-    if (gid == 0) *any_alive = 0;
-    if (gid >= slots || !alive[gid]) return;
-    SceneView scene = SCENE_INIT;
-    shade_in_place(&scene, &pass_args, paths, alive, hits, radiance, lane_counts, gid);
-}
+/* The kernels that call it: the regeneration alone, and a step's trace and shade. */
+#include "pt_inplace_regen_kernels.h"

@@ -36,6 +36,7 @@ class DeviceFilm:
     about a sample never written."""
 
     source = "film_accumulate.cl"
+    kernel_name = "film_accumulate"     # what `add` launches: a pass's FilmPixel sums
 
     @staticmethod
     def defines(local_size):
@@ -46,7 +47,7 @@ class DeviceFilm:
         """`sources`: where the build finds cl/'s files (program.Sources; None: cl/)."""
         self.queue, self.pixels, self.local_size, self.owner = queue, int(pixels), local_size, owner
         built = program.build(queue, self.source, self.defines(local_size), directory=sources)
-        self.kernel = program.kernel(built, "film_accumulate")
+        self.kernel = program.kernel(built, self.kernel_name)
         context, flags = queue.context, cl.mem_flags.READ_WRITE
         size = program.padded(self.pixels, local_size)
         # per pixel: the sums of r, g, b and of their squares; the samples missing and dropped
@@ -83,10 +84,10 @@ class DevicePassFilm(DeviceFilm):
     dropped. Reading each pass's image back cost 16 bytes per pixel per pass: at 16 samples per pixel
     a pass, 1 byte per sample, ten times what issue 48 allows."""
 
+    kernel_name = "film_accumulate_pass"
+
     def __init__(self, queue, pixels, local_size=program.LOCAL_SIZE, sources=None, owner="BDPT"):
         super().__init__(queue, pixels, local_size, sources, owner)
-        self.kernel = program.kernel(program.build(queue, self.source, self.defines(local_size), directory=sources),
-                                     "film_accumulate_pass")
 
     def add(self, image, spp):
         """Queue the addition of a pass's resolved image of `spp` samples per pixel; nothing waits."""

@@ -9,7 +9,7 @@ from toolkit.opencl import program
 from toolkit.techniques import PtInplaceRegen
 
 ASSIGNMENT = Assignment("inplace_regen", "In-place sample regeneration", "pt_inplace_regen.cl",
-                        "inplace_regen_stub.cl", headers=("extend_in_place.h",))
+                        "inplace_regen_stub.cl", headers=("extend_in_place.h", "pt_inplace_regen_kernels.h"))
 
 
 @ASSIGNMENT.builds
