@@ -140,7 +140,6 @@ class PassState:
     steps: int = 0            # walk steps so far
     ring: int = 0             # where the next walk step reads the streams' lengths: pair `ring` of the counters' ring
     appended: int = 0         # subpaths regenerated onto each stream since the last walk step
-    regenerated_at: int = 0   # the step of the last regeneration
     started_at: int = 0       # the step of the last regeneration that started samples
     list_at: int = 0          # the step of the next listing
     retry: int = 0            # steps before the next listing after one that listed none (doubles each time)
@@ -318,7 +317,7 @@ class BdptEvaluator:
         p.appended += fresh
         p.next_id += fresh
         p.in_flight += fresh - count
-        p.regenerated_at, p.retry = p.steps, 0
+        p.retry = 0
         if fresh:
             p.started_at = p.steps
         p.list_at = self.walk_end(p) if self.waits_for_all(p) else p.steps + self.listing_delay
