@@ -7,7 +7,7 @@ One pass, read like the talk's slides:
     regenerate all samples;
     repeat:
         extend the eye stream, then the light stream, by one vertex each (compacted at once);
-        when enough samples have terminated (default 60%):
+        when enough samples have terminated (default 60%; once the budget is spent, all):
             list them, connect their subpaths (the connect phase), hand the records to the sink,
             then regenerate them.
 The counts stay on the device, and the host never waits for one before a launch: a walk step
@@ -20,8 +20,11 @@ lengths) and goes on walking: LAG steps later it has them without the device hav
 queues the connect phase and the regeneration (or, if too few had terminated, lists again).
 It lists a few steps after a regeneration (listing_delay), and again after 0, 1, 2, 4, ... steps
 while too few have terminated, so a connect phase costs a read or a few (toolkit/techniques/
-pass_end.py says why reads are looked at late). The drain's last listing, which waits for every
-sample in flight (mlt's only one: its pool holds every chain), comes when the walk has ended: as
+pass_end.py says why reads are looked at late). Once the budget is spent (the drain) nothing is
+left to regenerate, so the 60% rule has nothing to gain: the drain lists once, when every sample
+in flight has terminated (a tail of ever smaller connect phases cost BDPT 7 more listings, each
+four launches and a read, per pass of 270,336 samples: issue 48). That listing (mlt's only one:
+its pool holds every chain) comes when the walk has ended: as
 long after the pass's start as the longest of the last passes' walks (the device counts their
 steps), and never later than the step by which every subpath has ended (MAX_VERTICES - 1 after the
 last samples started), where it lists again if it was too early. A walk step past the end costs
@@ -256,9 +259,12 @@ class BdptEvaluator:
 
     def threshold(self, p):
         """Terminated samples that make a connect phase worth it: the share regenerate_fraction of
-        the samples in flight (so once every one has terminated, whatever the share). Also once
-        the budget is spent, as the talk's postponed regeneration: the connect phases of a pass's
-        end keep their idle lanes (the naive connect's lesson)."""
+        the samples in flight (so once every one has terminated, whatever the share). Once the
+        budget is spent, regeneration starts nothing: every one (one connect phase, not a tail of
+        ever smaller ones, each a listing and a read). The naive connect's idle lanes stay: on
+        cornell_box 64x64 its connect phase keeps 24% of its lanes busy (21% with the tail)."""
+        if p.next_id >= p.budget:
+            return p.in_flight
         return max(1, math.ceil(self.regenerate_fraction * p.in_flight))
 
     # --- the stages of a pass, one kernel each ---------------------------------------------
