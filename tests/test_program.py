@@ -342,3 +342,33 @@ def test_launch_sets_what_changed_and_sees_a_record_changed_in_place(queue, tmp_
     assert run(np.int32(4), outs[0]) == [4, 7, 2]   # an equal or new number, another object
     assert run(three, outs[1]) == [3, 7, 2]         # another buffer
     assert run(three, outs[0]) == [3, 7, 2] and run(np.int32(3), outs[1]) == [3, 7, 2]
+
+
+def test_a_frozen_record_is_known_by_its_object_and_cannot_change_in_place(queue, tmp_path, monkeypatch):
+    """A read-only record (record.frozen, what Record.record and the camera give) is set once: the
+    same object given again is not compared by its bytes; a new frozen record with other values is set."""
+    from toolkit.core.record import frozen
+    built = program.build(queue, write(tmp_path, "args.cl", ARGS_CL), {}, directory=tmp_path)
+    kernel = program.kernel(built, "args")
+    pair_type = np.dtype([("a", np.int32), ("b", np.int32)])
+
+    def made(a, b):
+        records = np.zeros(1, pair_type)
+        records[0]["a"], records[0]["b"] = a, b
+        return frozen(records)
+    out = cl.Buffer(queue.context, cl.mem_flags.READ_WRITE, 12)
+    looked_at = []
+    real = program._fingerprint
+    monkeypatch.setattr(program, "_fingerprint", lambda value: looked_at.append(value) or real(value))
+
+    def run(n, pair):
+        program.launch(queue, kernel, 1, n, pair, out)
+        got = np.zeros(3, np.int32)
+        cl.enqueue_copy(queue, got, out)
+        return got.tolist()
+    three, pair = np.int32(3), made(1, 2)
+    with pytest.raises(ValueError):
+        pair["a"] = 7                                # read-only
+    assert run(three, pair) == [3, 1, 2] and len(looked_at) == 3     # the first launch sets all three
+    assert run(three, pair) == [3, 1, 2] and len(looked_at) == 3     # the same objects: nothing looked at
+    assert run(three, made(5, 6)) == [3, 5, 6] and len(looked_at) == 4

@@ -20,6 +20,14 @@ def _align(offset, alignment):
     return (offset + alignment - 1) // alignment * alignment
 
 
+
+def frozen(records):
+    """The first of `records` (a numpy structured array), read-only: a kernel argument that cannot
+    change in place, so program.launch knows it by the object, without comparing its bytes at
+    every launch. A record to change between launches is made with zeros(1)[0] instead."""
+    records.flags.writeable = False
+    return records[0]
+
 class Record:
     """A struct of named fields of the C types in _C_TYPES, described once for host and device."""
     def __init__(self, name, fields, doc=""):
@@ -120,15 +128,16 @@ class Record:
         return [(a, t) for a, t, _ in self.soa_arrays]
 
     def record(self, **values):
-        """One record with every field but the padding set by name (a field left out is an error)."""
+        """One record with every field but the padding set by name (a field left out is an error),
+        read-only (frozen)."""
         missing = {f for f, _ in self.fields if not f.startswith("pad")} - set(values)
         unknown = set(values) - set(self.dtype.names)
         if missing or unknown:
             raise TypeError(f"{self.name}: missing fields {sorted(missing)}, unknown fields {sorted(unknown)}")
-        out = self.zeros(1)[0]
+        out = self.zeros(1)
         for f, value in values.items():
-            out[f] = value
-        return out
+            out[0][f] = value
+        return frozen(out)
 
     def zeros(self, n):
         return np.zeros(n, self.dtype)

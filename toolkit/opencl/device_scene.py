@@ -10,6 +10,7 @@ import numpy as np
 import pyopencl as cl
 
 from toolkit.core.bvh import SEPARATE_FROM, aligned_zeros, build_bvh, collapse_wide, wide_stack_needed
+from toolkit.core.record import frozen
 from toolkit.core.layout import BVH_KINDS, BVH_STACK_SIZE, CAMERA, LIGHT, LUMINANCE_WEIGHTS, MATERIAL, MATERIAL_TYPES, SCENE_ARGS, TRIANGLE, WIDE_NODES
 from toolkit.opencl import lanes
 from toolkit.opencl.session import session
@@ -177,13 +178,14 @@ class DeviceScene:
         """The Camera record for an image of width x height (same field of view as the scene's)."""
         cam = self.scene.camera
         forward, right, up = cam.basis(width, height)
-        rec = CAMERA.zeros(1)[0]
+        records = CAMERA.zeros(1)
+        rec = records[0]
         rec["origin"][:3] = cam.origin - self.center
         rec["forward"][:3] = forward
         rec["right"][:3] = right
         rec["up"][:3] = up
         rec["width"], rec["height"] = width, height
-        return rec
+        return frozen(records)    # the same object at every launch of the render (program.launch)
 
     def args(self):
         """The SCENE_PARAMS kernel arguments, in the order of layout.SCENE_ARGS."""

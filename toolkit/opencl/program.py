@@ -394,7 +394,10 @@ def _same_fingerprint(previous, current):
 
 def _kept_by_identity(value):
     """Whether the same object given again is surely the same argument value: a buffer (set by
-    identity anyway) or an immutable numpy number; not a record (np.void), which may change in place."""
+    identity anyway), an immutable numpy number or a read-only record (record.frozen); not a
+    writable record (np.void), which may change in place."""
+    if isinstance(value, np.void):
+        return not value.flags.writeable
     return isinstance(value, cl.MemoryObjectHolder) or (isinstance(value, np.number) and np.ndim(value) == 0)
 
 
