@@ -372,3 +372,23 @@ def test_a_frozen_record_is_known_by_its_object_and_cannot_change_in_place(queue
     assert run(three, pair) == [3, 1, 2] and len(looked_at) == 3     # the first launch sets all three
     assert run(three, pair) == [3, 1, 2] and len(looked_at) == 3     # the same objects: nothing looked at
     assert run(three, made(5, 6)) == [3, 5, 6] and len(looked_at) == 4
+
+
+def test_a_kernel_copy_per_turn_of_swapping_buffers_sets_no_argument_again(queue, tmp_path, monkeypatch):
+    """program.kernel(..., copy=k) is one kernel object per copy, each retrieved once; launch keeps
+    each one's arguments, so buffers that take turns (pt_compact_regen's streams) are set once per copy."""
+    built = program.build(queue, write(tmp_path, "args.cl", ARGS_CL), {}, directory=tmp_path)
+    copies = [program.kernel(built, "args", copy=k) for k in (0, 1)]
+    assert copies[0] is not copies[1]
+    assert copies == [program.kernel(built, "args", copy=k) for k in (0, 1)] and copies[0] is program.kernel(built, "args")
+    set_args = []
+    real = program._set_arg
+    monkeypatch.setattr(program, "_set_arg", lambda kernel, i, value: set_args.append(i) or real(kernel, i, value))
+    outs = [cl.Buffer(queue.context, cl.mem_flags.READ_WRITE, 12) for _ in range(2)]
+    n, pair = np.int32(3), np.zeros(1, np.dtype([("a", np.int32), ("b", np.int32)]))[0]
+    for step in range(6):
+        program.launch(queue, copies[step % 2], 1, n, pair, outs[step % 2])
+    assert sorted(set_args) == [0, 0, 1, 1, 2, 2]       # each copy set its three arguments once
+    got = np.zeros(3, np.int32)
+    cl.enqueue_copy(queue, got, outs[1])
+    assert got.tolist() == [3, 0, 0]

@@ -332,11 +332,14 @@ def _format_build_error(name, log, options):
             + f"Full compiler log:\n{log}")
 
 
-def kernel(built, name):
-    """The kernel `name` of a program build() made, retrieved once (each retrieval makes a new cl.Kernel)."""
-    if name not in built.kernels_by_name:
-        built.kernels_by_name[name] = getattr(built, name)
-    return built.kernels_by_name[name]
+def kernel(built, name, copy=0):
+    """The kernel `name` of a program build() made, retrieved once per `copy` (each retrieval makes
+    a new cl.Kernel). launch keeps each kernel object's last arguments: a loop whose buffers take
+    turns (streams that swap every step) launches one copy per turn and sets no argument."""
+    key = name if copy == 0 else (name, copy)
+    if key not in built.kernels_by_name:
+        built.kernels_by_name[key] = getattr(built, name) if copy == 0 else cl.Kernel(built, name)
+    return built.kernels_by_name[key]
 
 
 def padded(n, local_size=LOCAL_SIZE):

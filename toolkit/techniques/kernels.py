@@ -16,9 +16,10 @@ class Kernels:
         self._scene_args = None   # scene_args, made at its first use: the scene's arguments never change
         self._int32s = {}         # int32's numbers, one object per value
 
-    def kernel(self, name):
-        """The kernel object, retrieved once (each retrieval makes a new cl.Kernel)."""
-        return program.kernel(self.program, name)
+    def kernel(self, name, copy=0):
+        """The kernel object, retrieved once per `copy` (program.kernel: a copy per turn of buffers
+        that take turns, so that no launch sets an argument)."""
+        return program.kernel(self.program, name, copy)
 
     def launch(self, kernel, n, /, *args, **named):
         """program.launch of `kernel` (a kernel object or its name) over n work-items. Arguments given

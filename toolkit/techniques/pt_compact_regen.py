@@ -47,11 +47,13 @@ class StreamBuffers:
     last_counts: cl.Buffer   # PtStep: the last step's, from which regeneration starts this step's
     indices: cl.Buffer       # int per path: the survivors' indices from the scan (multi-pass; None: immediate)
     radiance: cl.Buffer = None   # float4 per sample of the pass (DeviceMemory.output_buffer): set by each pass
+    turn: int = 0            # which of the two buffers of each pair is the stream (flips with swap)
 
     def swap(self):
         """After a step: the survivors, packed into next_stream, are the stream, and its counts the last step's."""
         self.stream, self.next_stream = self.next_stream, self.stream
         self.counts, self.last_counts = self.last_counts, self.counts
+        self.turn ^= 1
 
 
 class PtCompactRegen(Technique):
@@ -143,9 +145,11 @@ class PtCompactRegen(Technique):
         regeneration = dict(cam=camera, pass_args=pass_args, stream_size=k.int32(size),
                             last_counts=mem.last_counts, counts=mem.counts, stream=mem.stream)
         if self.compaction == "immediate":
-            k.launch("pt_compact_regen_trace", paths, **k.scene_args(), **regeneration, hits=mem.hits,
+            # A kernel object per turn of the swapping streams: each keeps its arguments set (program.kernel).
+            trace, shade = (k.kernel(name, copy=mem.turn) for name in ("pt_compact_regen_trace", "pt_compact_regen_shade"))
+            k.launch(trace, paths, **k.scene_args(), **regeneration, hits=mem.hits,
                      shadow_rays=mem.shadow_rays, radiance=mem.radiance, lane_counts=mem.lane_counts)
-            k.launch("pt_compact_regen_shade", paths, **k.scene_args(), pass_args=pass_args,
+            k.launch(shade, paths, **k.scene_args(), pass_args=pass_args,
                      counts=mem.counts, stream=mem.stream, hits=mem.hits, next_stream=mem.next_stream,
                      shadow_rays=mem.shadow_rays, radiance=mem.radiance, lane_counts=mem.lane_counts)
             return
