@@ -401,8 +401,8 @@ class Mlt(BdptPoolTechnique):
     def extra_stats(self):
         c = self.last_chains
         return {**super().extra_stats(),
-                "mlt": {"chains": c.count, "start": self.start, "candidates": c.candidates, "large_step": self.large_step,
-                        "combine": self.combine,
+                "mlt": {"chains": c.count, "start": self.start, "candidates": c.candidates,
+                        "large_step": self.large_step, "combine": self.combine,
                         "mutations": c.mutations, "mutations_per_chain": c.mutations / c.count,
                         "acceptance_rate": c.accepted / max(c.mutations, 1), "b": c.b, "large_steps": c.large_count,
                         "max_dims": self.max_dims, "overflow_proposals": c.overflow}}
