@@ -65,7 +65,9 @@ together in proportion to f (systematic resampling: chains x N candidates, `chai
 spaced draws on the cumulative f), and every chain weighs 1. The chains then start distributed
 like f / b up to the resampling of a finite pool: a bias of O(1 / (chains x N)), like the ratio
 above, with no weights to add variance. A bright candidate may start several chains; they part
-with their first mutations. The candidates' records are not kept: the picked ones are evaluated
+with their first mutations. N is `candidates`, by default such that the pool holds POOL_CANDIDATES
+(default_candidates: a larger pool removes no bias the tests can see, and every candidate costs a
+BDPT sample). The candidates' records are not kept: the picked ones are evaluated
 once more from their vectors (MltMode.PICKED: the same path, so the same records; not counted in b).
 
 Splats are summed on the device, into two record films (toolkit/opencl/record_film.py: exact
@@ -90,8 +92,8 @@ Options (keyword arguments of toolkit.render(..., options=...)):
 | `chains` | the device's (`devices` shows it; toolkit/opencl/work_sizes.py mlt_chains): a GPU's resident work-items, CPU_CHAINS_PER_UNIT per core on a CPU: enough to fill the device, as every chain more adds startup bias | independent chains; 1 .. 2^18 (`mlt.chains`), at most the mutations of the render |
 | `large_step` | 0.3 | probability of a large step (every dimension fresh) |
 | `small_step` | 1/16 | the largest size of a small step, Kelemen's s2 (the smallest, s1, is s2 / 16); see SMALL_STEP |
-| `start` | `pool` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of its own `candidates` large steps, chosen in proportion to f, and weighted. `pool`: at one of all chains' candidates, chosen in proportion to f, weight 1. `pool` is the default because the default chain count fills the device, whatever the image: at 256 mutations per pixel on this 2-core CPU's 2,048 chains, naive chains were still biased on cornell_spheres (32x32, 11 seeds: worst region |z| 19.7, p 2e-9 against the Bonferroni threshold 5e-5), pool and resample were not (3.8 and 2.8), and pool passed on every bundled scene down to 8 mutations per chain (results/issue48_mlt_start.md). At equal time (30 s, 32x32, two-core CPU) pool's RMSE was 0.0064 against naive's 0.0066 on covered_lamp and 0.0091 against 0.019 on cornell_spheres, where naive chains are still biased; on cornell_box, where they are not, naive was ahead (0.0060 against 0.0072). At 10 s (3 repetitions, results/issue10_mlt.md) pool removes naive's detected bias on covered_lamp and cornell_spheres but adds variance (chains that start at the same bright candidate): RMSE 0.113 against 0.108 (covered_lamp), 0.072 against 0.128 (cornell_spheres). `naive` is the talk's start, one iteration long: toolkit/measure/mlt_bias.py and tutorial 06 measure its bias |
-| `candidates` | 16 | large steps per chain for `start = resample` or `pool` (`mlt.candidates`) |
+| `start` | `pool` | `naive`: each chain starts at one large step (the talk; biased at first). `resample`: at one of its own `candidates` large steps, chosen in proportion to f, and weighted. `pool`: at one of all chains' candidates, chosen in proportion to f, weight 1. `pool` is the default because the default chain count fills the device, whatever the image: at 256 mutations per pixel on this 2-core CPU's 2,048 chains, naive chains were still biased on cornell_spheres (32x32, 11 seeds: worst region |z| 19.7, p 2e-9 against the Bonferroni threshold 5e-5), pool and resample were not (3.8 and 2.8), and pool passed on every bundled scene down to 8 mutations per chain (results/issue48_mlt_start.md), with 16 candidates per chain; with a GPU's chain count, 1 mutation per chain and the default candidates (16,384 chains x 2), it passes too on cornell_spheres (worst |z| 5.3, naive: 162; tests/test_mlt.py). At equal time (30 s, 32x32, two-core CPU) pool's RMSE was 0.0064 against naive's 0.0066 on covered_lamp and 0.0091 against 0.019 on cornell_spheres, where naive chains are still biased; on cornell_box, where they are not, naive was ahead (0.0060 against 0.0072). At 10 s (3 repetitions, results/issue10_mlt.md) pool removes naive's detected bias on covered_lamp and cornell_spheres but adds variance (chains that start at the same bright candidate): RMSE 0.113 against 0.108 (covered_lamp), 0.072 against 0.128 (cornell_spheres). `naive` is the talk's start, one iteration long: toolkit/measure/mlt_bias.py and tutorial 06 measure its bias |
+| `candidates` | 16 up to 2,048 chains, then fewer: POOL_CANDIDATES (32,768) / chains, rounded up, at least 1 (`default_candidates`: 4,096 chains draw 8 each, a GPU's 262,144 draw 1) | large steps per chain for `start = resample` or `pool` (`mlt.candidates`). The default keeps the pool at the size validated on every bundled scene (results/issue48_mlt_start.md), whose bias, O(1 / (chains x candidates)), is far below the tests' resolution, and no larger: every candidate costs a BDPT sample, and 16 each on a GPU's chains cost four times the mutations of a 16-spp render at 256x256. The same rule for `resample`: its weights' ratio-estimator bias and variance come from all chains' candidates together too. The stats' `mlt.candidates` is the number used |
 | `max_dims` | 128 | primary-sample dimensions a chain stores: 8 + 8 per vertex of the longer subpath after the first, so 128 holds subpaths of 16 vertices (DEFAULT_MAX_DIMS) (`mlt.max_dims`). A path that reads more gets fresh random numbers for the extra dimensions at every iteration (cl/mlt_proposals.h): still correct, and counted (`overflow_proposals`) |
 | `combine` | true | Kelemen's combination: the large steps also splat as BDPT samples, joined with the Metropolis states by the balance heuristic (above) |
 | `time_limit` | none | seconds: stop after the iteration that passes it (the image holds the mutations made so far) |
@@ -119,6 +121,21 @@ from toolkit.techniques.mlt_chains import Chains, ProposalSink, systematic_picks
 
 STARTS = ("naive", "resample", "pool")
 
+# The candidates the start draws in all, chains x candidates, by default: the pool validated
+# against every bundled reference (results/issue48_mlt_start.md: 2,048 chains x 16). The start's
+# bias is O(1 / pool size), already far below the tests' resolution there, while every candidate
+# costs a BDPT sample: a GPU's 262,144 chains x 16 would be 4.2 M of them, four times the
+# mutations of a 16-spp render at 256x256 (results/issue48_bench_ab.md).
+POOL_CANDIDATES = 32768
+MOST_CANDIDATES = 16    # per chain, by default: the validated 16 (fewer chains draw no more each)
+
+
+def default_candidates(chains):
+    """Large steps per chain for start = pool or resample when `candidates` is not given: enough
+    for POOL_CANDIDATES in all, at least 1 and at most MOST_CANDIDATES each (2,048 chains: 16;
+    262,144: 1)."""
+    return min(MOST_CANDIDATES, max(1, -(-POOL_CANDIDATES // chains)))    # -(-a // b): a / b rounded up
+
 
 # Subpaths whose every dimension a chain stores by default: 16 vertices, 128 dimensions
 # (toolkit/core/sample_dims.py used_dims); longer paths read fresh numbers past them.
@@ -143,7 +160,7 @@ class Mlt(BdptPoolTechnique):
     source = "mlt.cl"
     family = "mlt"
 
-    def __init__(self, queue, device_scene, chains=None, large_step=0.3, start="pool", candidates=16,
+    def __init__(self, queue, device_scene, chains=None, large_step=0.3, start="pool", candidates=None,
                  max_dims=DEFAULT_MAX_DIMS, combine=True, time_limit=None, small_step=SMALL_STEP, pool_size=None,
                  regenerate_fraction=None, coalesced_scatter=True, **kwargs):
         self.check_options(device_scene.scene, chains, large_step, start, candidates, max_dims, combine,
@@ -176,7 +193,8 @@ class Mlt(BdptPoolTechnique):
         if start not in STARTS:
             raise InputError(f"start must be one of {', '.join(STARTS)}, got {start!r}")
         self.start = start
-        self.candidates = whole_number("mlt.candidates", candidates, "candidates")
+        # None: default_candidates of the chains a render starts (candidates_for)
+        self.candidates = None if candidates is None else whole_number("mlt.candidates", candidates, "candidates")
         self.max_dims = whole_number("mlt.max_dims", max_dims, "max_dims")
         if combine not in (True, False):
             raise InputError(f"combine must be true or false, got {combine!r}")
@@ -190,6 +208,10 @@ class Mlt(BdptPoolTechnique):
             raise InputError("mlt renders in one pass of chains (see `chains`); pass_spp does not apply to it")
         self.small_step = finite_number("mlt.small_step", small_step, "small_step")
 
+    def candidates_for(self, chains):
+        """Large steps per chain that a start of `chains` chains draws: the option, else the default."""
+        return default_candidates(chains) if self.candidates is None else self.candidates
+
     # --- the render: start the chains, then iterate ------------------------------------------
     # One render is one set of chains: its passes are not independent images (Technique.render
     # adds each pass to the film) but stretches of the same chains, one mutation per pixel each.
@@ -197,11 +219,12 @@ class Mlt(BdptPoolTechnique):
 
     def begin_render(self, camera, seed, spp):
         self.total = pixel_count(camera) * spp          # mutations in all
-        if self.total + self.candidates * min(self.chain_count, self.total) >= 2 ** 31:
+        chains = min(self.chain_count, self.total)
+        if self.total + self.candidates_for(chains) * chains >= 2 ** 31:
             raise InputError(f"mlt counts its mutations and large steps in 32-bit integers on the device: "
                              f"{self.total:,} mutations are too many; render fewer pixels or samples per pixel")
         self.started = time.perf_counter()
-        self.begin(camera, seed, min(self.chain_count, self.total))
+        self.begin(camera, seed, chains)
 
     def spp_per_pass(self, pixels, spp):
         return 1    # a pass: the iterations that make one more mutation per pixel (progress, time_limit)
@@ -227,6 +250,7 @@ class Mlt(BdptPoolTechnique):
     def begin(self, camera, seed, count):
         """The chains' memory and their first states (`start`)."""
         ctx, n, mem = self.queue.context, self.memory.padded(count), self.memory
+        candidates = self.candidates_for(count) if self.start != "naive" else 0
         vectors, pixels = 4 * n * self.max_dims, pixel_count(camera)
         unit = unit_exponent_for(self.scene.scene.emission_of.max())
         films = tuple(RecordFilm(self.queue, pixels, self.local_size, self.sources.toolkit_only(), unit_exponent=e)
@@ -237,7 +261,7 @@ class Mlt(BdptPoolTechnique):
                    dims_proposal=mem.int_buffer(count), tallies=mem.int_buffer(len(MltTally), fill=0),
                    weight=buffer(4 * n), splat_weights=buffer(16 * n),
                    b_sum=mem.int_buffer(FILM_ACCUMULATOR.dtype.itemsize // 4, fill=0), b_estimate=buffer(4),
-                   films=films, pixels=pixels)
+                   films=films, pixels=pixels, candidates=candidates)
         cl.enqueue_fill_buffer(self.queue, c.records, np.int32(0), 0, MLT_CHAIN.dtype.itemsize * n)
         cl.enqueue_fill_buffer(self.queue, c.weight, np.float32(1), 0, 4 * n)
         cl.enqueue_fill_buffer(self.queue, c.b_estimate, np.float32(0), 0, 4)
@@ -246,14 +270,14 @@ class Mlt(BdptPoolTechnique):
             self.iterate(c, count, MltMode.START)
         elif self.start == "pool":
             first = c.iteration
-            f, dims = self.memory.int_buffer(count * self.candidates), self.memory.int_buffer(count * self.candidates)
-            for k in range(self.candidates):        # each candidate's f and dims kept, entry k * count + chain
+            f, dims = self.memory.int_buffer(count * candidates), self.memory.int_buffer(count * candidates)
+            for k in range(candidates):        # each candidate's f and dims kept, entry k * count + chain
                 self.iterate(c, count, MltMode.START)
                 for src, dst in ((c.f_proposal, f), (c.dims_proposal, dims)):
                     cl.enqueue_copy(self.queue, dst, src, byte_count=4 * count, dst_offset=4 * count * k)
             self.start_from_pool(c, f, dims, first)
         else:
-            for _ in range(self.candidates):
+            for _ in range(candidates):
                 self.iterate(c, count, MltMode.CANDIDATE)
             self.kernels.launch("mlt_resample_weights", count, it=self.iteration_args(c, count, MltMode.CANDIDATE),
                                 chains=c.records, b_sum=c.b_sum, weight=c.weight)
@@ -287,7 +311,7 @@ class Mlt(BdptPoolTechnique):
         candidates are evaluated again (for their records) and accepted. Each chain's splat weight
         stays 1. The host reads the candidates' f once, for the picks."""
         count = c.count
-        f = np.empty(count * self.candidates, np.float32)
+        f = np.empty(count * c.candidates, np.float32)
         cl.enqueue_copy(self.queue, f, f_buffer)
         f = f.astype(np.float64)
         if not f.sum() > 0:
@@ -295,7 +319,7 @@ class Mlt(BdptPoolTechnique):
         pick = systematic_picks(f, count, np.random.default_rng([int(c.seed), 0x706f6f6c]))
         ctx, flags = self.queue.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR
         upload = lambda x: cl.Buffer(ctx, flags, hostbuf=np.ascontiguousarray(x, np.int32))
-        picked_dims = np.empty(count * self.candidates, np.int32)
+        picked_dims = np.empty(count * c.candidates, np.int32)
         cl.enqueue_copy(self.queue, picked_dims, dims)
         self.kernels.launch("mlt_start_from", count, it=self.iteration_args(c, count, MltMode.START),
                             proposal=c.proposal, src_chain=upload(pick % count),
@@ -377,7 +401,8 @@ class Mlt(BdptPoolTechnique):
     def extra_stats(self):
         c = self.last_chains
         return {**super().extra_stats(),
-                "mlt": {"chains": c.count, "start": self.start, "large_step": self.large_step, "combine": self.combine,
+                "mlt": {"chains": c.count, "start": self.start, "candidates": c.candidates,
+                        "large_step": self.large_step, "combine": self.combine,
                         "mutations": c.mutations, "mutations_per_chain": c.mutations / c.count,
                         "acceptance_rate": c.accepted / max(c.mutations, 1), "b": c.b, "large_steps": c.large_count,
                         "max_dims": self.max_dims, "overflow_proposals": c.overflow}}

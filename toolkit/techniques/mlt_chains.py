@@ -89,6 +89,7 @@ class Chains:
     b_estimate: cl.Buffer    # float[1]: b before this iteration
     films: tuple             # RecordFilms of the Metropolis splats (times b at the end) and the large steps' own
     pixels: int              # of the image the chains splat into
+    candidates: int = 0      # large steps per chain of the start (start = pool or resample; naive: 0)
     iteration: int = 0
     mutations: int = 0
     overflow: int = 0        # proposals that read more than max_dims dimensions (read_tallies)
