@@ -386,9 +386,13 @@ def test_a_kernel_copy_per_turn_of_swapping_buffers_sets_no_argument_again(queue
     monkeypatch.setattr(program, "_set_arg", lambda kernel, i, value: set_args.append(i) or real(kernel, i, value))
     outs = [cl.Buffer(queue.context, cl.mem_flags.READ_WRITE, 12) for _ in range(2)]
     n, pair = np.int32(3), np.zeros(1, np.dtype([("a", np.int32), ("b", np.int32)]))[0]
-    for step in range(6):
+    for step in range(2):
+        program.launch(queue, copies[step], 1, n, pair, outs[step])
+    assert set_args.count(2) == 2                       # each copy's first launch set its buffer
+    set_args.clear()
+    for step in range(2, 6):
         program.launch(queue, copies[step % 2], 1, n, pair, outs[step % 2])
-    assert sorted(set_args) == [0, 0, 1, 1, 2, 2]       # each copy set its three arguments once
+    assert set_args == []                               # then each turn finds its arguments set
     got = np.zeros(3, np.int32)
     cl.enqueue_copy(queue, got, outs[1])
     assert got.tolist() == [3, 0, 0]

@@ -2,6 +2,8 @@
 numpy dtype (with C's offsets: a float4 is 16-byte aligned), the C struct, its structure-of-arrays
 access and the sizeof/offsetof checks. The records themselves are described in toolkit/core/layout.py.
 """
+from functools import cached_property
+
 import numpy as np
 import pyopencl as cl
 
@@ -28,6 +30,7 @@ def frozen(records):
     records.flags.writeable = False
     return records[0]
 
+
 class Record:
     """A struct of named fields of the C types in _C_TYPES, described once for host and device."""
     def __init__(self, name, fields, doc=""):
@@ -43,6 +46,8 @@ class Record:
                                "formats": [(_C_TYPES[t][0], (_C_TYPES[t][1],)) if _C_TYPES[t][1] > 1
                                            else _C_TYPES[t][0] for _, t in self.fields],
                                "offsets": offsets, "itemsize": _align(offset, largest)})
+        # the fields record() sets (all but the padding), worked out once: records are made per launch
+        self.settable = frozenset(f for f, _ in self.fields if not f.startswith("pad"))
 
     def c_struct(self):
         lines = [f"/* {self.doc} */"] if self.doc else []
@@ -104,7 +109,7 @@ class Record:
         return cl.Buffer(context, cl.mem_flags.READ_WRITE, max(1, capacity) * sum(
             self.dtype[f].itemsize for f, _ in self.soa_fields))
 
-    @property
+    @cached_property
     def soa_arrays(self):
         """The arrays of the structure-of-arrays form: (array name, C type, fields it holds).
         One per field, alignment padding left out; a float3 and a float declared right after it
@@ -130,10 +135,10 @@ class Record:
     def record(self, **values):
         """One record with every field but the padding set by name (a field left out is an error),
         read-only (frozen)."""
-        missing = {f for f, _ in self.fields if not f.startswith("pad")} - set(values)
-        unknown = set(values) - set(self.dtype.names)
-        if missing or unknown:
-            raise TypeError(f"{self.name}: missing fields {sorted(missing)}, unknown fields {sorted(unknown)}")
+        if values.keys() != self.settable:    # else: a padding field given, a field left out or unknown
+            missing, unknown = self.settable - values.keys(), values.keys() - set(self.dtype.names)
+            if missing or unknown:
+                raise TypeError(f"{self.name}: missing fields {sorted(missing)}, unknown fields {sorted(unknown)}")
         out = self.zeros(1)
         for f, value in values.items():
             out[0][f] = value
