@@ -232,6 +232,7 @@ def test_repeated_pairs_report_the_median_and_exact_counts(cornell_box, monkeypa
     assert low <= row["host_cpu_ns_per_sample"] <= high
     for r in row["renders"]:    # the passes' share of the thread's time: part of it
         assert 0 < r["pass_cpu_seconds"] <= r["cpu_seconds"]
+        assert r["timing_cpu_seconds"] > 0    # the meter's reading of the events, left out of cpu_seconds
         assert r["page_faults"] >= 0 and r["system_seconds"] >= 0     # the fixed cost's check, per render
     with pytest.raises(ValueError, match="repeats"):
         host_meter(cornell_box, ("pt_naive",), repeats=0)
@@ -257,3 +258,13 @@ def test_the_meter_renders_once_unmeasured_at_n_before_its_pairs(cornell_box, mo
     seen.clear()
     report = meter.host_meter(cornell_box, ("pt_naive",), spp=2, resolution=(8, 4))
     assert [spp for spp, _, _ in seen] == [1, 2, 1, 8] and not report["warm_up_full"]
+    # at the GPU's sizes, the pairs a technique's family gets (7 for a path tracer)
+    monkeypatch.setattr(meter, "GPU_SIZES", {})
+    monkeypatch.setattr(meter, "metered_render", lambda *args, **kwargs: seen.append("pair") or
+                        {key: 1.0 for key in ("samples", "passes", "cpu_seconds", "pass_cpu_seconds", "serial_seconds",
+                                              "kernel_seconds", "seconds", "read_bytes", "write_bytes", "reads",
+                                              "blocking_reads", "blocking_writes", "drains", "launches")}
+                        | {"samples": len(seen)})
+    seen.clear()
+    report = meter.host_meter(cornell_box, ("pt_naive",), spp=2, resolution=(8, 4), gpu_sizes=True, warm_up_full=False)
+    assert seen.count("pair") == 2 * meter.GPU_REPEATS["pt"] == 14 and report["techniques"]["pt_naive"]["repeats"] == 7

@@ -167,6 +167,7 @@ def _phase_stats(tech, times):
     per_kernel = times.per_kernel()
     return {"kernel_times": {name: {"launches": n, "seconds": s} for name, (n, s) in per_kernel.items()},
             "kernel_span_seconds": times.span_seconds,
+            "kernel_times_reading_seconds": times.reading_seconds,   # the host's CPU time reading the events
             "simd_lane_steps": lane_steps(tech.recorder.simd) if tech.count_simd else {},
             "traversal_lane_steps": lane_steps(tech.recorder.traversal) if tech.count_simd else {}}
 

@@ -37,11 +37,16 @@ Three things keep the 3N more samples well above that noise:
   full render's size (seconds of wall time with an empty kernel cache), and most of the dearest
   first touches measured came in a technique's first full-size render (in a process, or after
   another technique's).
-- `repeats` (3 by default at the GPU's sizes): the pair of renders is made that many times and each
+- `repeats` (by default at the GPU's sizes 7 for a path tracer, whose pair takes seconds and whose
+  figure is near one pair's noise, and 3 for BDPT and Metropolis: GPU_REPEATS): the pair of renders is made that many times and each
   figure is the median of the pairs' figures, with the lowest and highest in `spread` (the JSON's
   `pairs` holds every pair's figures): a pair whose one render paid a dearer first touch is outvoted.
 Each render's minor page faults and the process's system CPU seconds are in its figures
 (`page_faults`, `system_seconds`), so that a dear first touch shows.
+The meter's own reading of the profiling events after a render (two queries per launch, for the
+kernels' time: about 0.25 ns per path-tracing sample) is left out of the host's CPU time; the JSON
+keeps it per render (`timing_cpu_seconds`). Its counting of the entry points stays in (a few
+microseconds per launch).
 Beside the host CPU per sample, `pass_cpu_ns_per_sample` counts only the thread's time inside the
 technique's passes (run_pass): what the extra samples cost as well, without the start's and the
 end's noise (but also without any per-sample work a technique defers to its end).
@@ -68,7 +73,10 @@ TIMED = ("host_cpu_ns_per_sample", "pass_cpu_ns_per_sample", "serial_ns_per_samp
 
 
 QUARTER = "N = spp / 4"
-GPU_REPEATS = 3   # pairs of renders at the GPU's sizes by default (module docstring: Precision)
+# Pairs of renders at the GPU's sizes by default (module docstring: Precision): a path tracer's pair
+# takes seconds, and its host figure, about 2 ns per sample, is near the noise of one pair (1.7 to 3.0
+# over three pairs, 2026-12-06); BDPT's and Metropolis's pairs take tens of seconds, their figures are larger.
+GPU_REPEATS = {"pt": 7, "bdpt": 3, "mlt": 3}
 
 
 def n_rule(technique, gpu_sizes):
@@ -115,7 +123,12 @@ def metered_render(scene, technique, options, count_simd=False, warm_up=None):
     # the memory the render faulted in (first touches) and the whole process's system time (module
     # docstring: Precision): not per sample, a check that the two renders' fixed costs were alike
     faults = {key: after[key] - before[key] for key in before}
-    return {**traffic.figures(), **faults, "pass_cpu_seconds": passes[1], "seconds": stats["seconds"],
+    figures = traffic.figures()
+    # Reading every launch's profiling event, for the kernels' time, is the meter's work, not the
+    # render's (a render without time_phases does none): its CPU time is left out of the host's.
+    reading = stats["kernel_times_reading_seconds"]
+    figures["cpu_seconds"] -= reading
+    return {**figures, **faults, "timing_cpu_seconds": reading, "pass_cpu_seconds": passes[1], "seconds": stats["seconds"],
             "kernel_seconds": sum(k["seconds"] for k in stats["kernel_times"].values()),
             "samples": round(stats["samples_per_second"] * stats["seconds"]), "passes": passes[0]}
 
@@ -206,22 +219,22 @@ def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_si
     (metered_render's warm_up), so no build and no freeing of the render before is measured; and with
     `warm_up_full` (None: at the GPU's sizes only), a render of the N render's options, unmeasured,
     before the first pair (module docstring: Precision). `count_simd`: the renders count SIMD
-    efficiency. `repeats`: the pair of renders made that many times (None: GPU_REPEATS at the GPU's
-    sizes, else 1), each figure the median of the pairs' (median_of_pairs); `renders` are the first
-    pair's."""
-    if repeats is None:
-        repeats = GPU_REPEATS if gpu_sizes else 1
+    efficiency. `repeats`: the pair of renders made that many times (None: GPU_REPEATS of the
+    technique's family at the GPU's sizes, else 1), each figure the median of the pairs'
+    (median_of_pairs); `renders` are the first pair's."""
     if warm_up_full is None:
         warm_up_full = bool(gpu_sizes)
-    if isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1:
+    if repeats is not None and (isinstance(repeats, bool) or not isinstance(repeats, int) or repeats < 1):
         raise ValueError(f"repeats must be a whole number of at least 1, got {repeats!r}")
     options = with_fields(options, **fields)
     options = with_fields(options, resolution=options.resolution or RESOLUTION)
     scene = as_scene(scene)
     report = {"scene": scene.name, "resolution": list(options.resolution), "gpu_sizes": bool(gpu_sizes),
               "sizes": GPU_SIZES if gpu_sizes else "the device's own", "count_simd": bool(count_simd),
-              "repeats": repeats, "warm_up_full": bool(warm_up_full), "techniques": {}}
+              "repeats": repeats if repeats is not None else (dict(GPU_REPEATS) if gpu_sizes else 1),
+              "warm_up_full": bool(warm_up_full), "techniques": {}}
     for technique in techniques:
+        pairs_made = repeats or (GPU_REPEATS[family(technique)] if gpu_sizes else 1)
         own = {**options.technique_options, **sized_options(technique, gpu_sizes)}
         base = with_fields(options, technique_options=own)
         n = spp_of(technique, spp, gpu_sizes)
@@ -229,14 +242,14 @@ def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_si
         renders, pairs = None, []
         if warm_up_full:
             render(scene, technique, with_fields(base, spp=n, count_simd=count_simd))
-        for _ in range(repeats):
+        for _ in range(pairs_made):
             first, second = (metered_render(scene, technique, with_fields(base, spp=k), count_simd, warm_up=warm_up)
                              for k in (n, GROWTH * n))
             renders = renders or [first, second]
             pairs.append(costs(first, second))
         report["device"] = describe(get_queue(base.device, base.lanes).device)
-        row = {"spp": [n, GROWTH * n], "n_rule": n_rule(technique, gpu_sizes), "renders": renders}
-        report["techniques"][technique] = {**row, **median_of_pairs(pairs), "pairs": pairs} if repeats > 1 else \
+        row = {"spp": [n, GROWTH * n], "n_rule": n_rule(technique, gpu_sizes), "renders": renders, "repeats": pairs_made}
+        report["techniques"][technique] = {**row, **median_of_pairs(pairs), "pairs": pairs} if pairs_made > 1 else \
             {**row, **pairs[0]}
     return report
 
@@ -246,7 +259,10 @@ def format_host_meter(report):
         if report["gpu_sizes"] else "the device's own sizes"
     counters = ", SIMD counters on" if report.get("count_simd") else ""
     repeats = report.get("repeats", 1)
-    counters += f", the median of {repeats} pairs of renders" if repeats > 1 else ""
+    if isinstance(repeats, dict):
+        counters += ", the median of " + ", ".join(f"{n} pairs of renders ({what})" for what, n in repeats.items())
+    elif repeats > 1:
+        counters += f", the median of {repeats} pairs of renders"
     lines = [f"host meter: {report['scene']} {report['resolution'][0]}x{report['resolution'][1]} at {sizes}{counters}, "
              f"on {report.get('device', '?')}; what the second render's {GROWTH - 1}N more samples cost "
              f"(N: the first render's samples per pixel)",
@@ -263,7 +279,7 @@ def format_host_meter(report):
     for name, row in report["techniques"].items():
         if "spread" in row:
             low, high = row["spread"]["host_cpu_ns_per_sample"]
-            lines.append(f"{name}: host CPU ns/sample from {low:,.1f} to {high:,.1f} over the {repeats} pairs")
+            lines.append(f"{name}: host CPU ns/sample from {low:,.1f} to {high:,.1f} over the {row['repeats']} pairs")
     for name, row in report["techniques"].items():
         if "pass_cpu_ns_per_sample" in row:
             lines.append(f"{name}: host CPU inside its passes {row['pass_cpu_ns_per_sample']:,.1f} ns/sample")

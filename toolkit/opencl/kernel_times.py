@@ -10,6 +10,8 @@ when the device started and ended each launch (CL_PROFILING_COMMAND_START / _END
 device's clock); on an in-order queue launches never overlap, so their times add up to at most
 the wall time of the render that made them.
 """
+import time
+
 import pyopencl as cl
 
 from toolkit.opencl.builds import Queue
@@ -42,6 +44,7 @@ class KernelTimes:
         self.queue = queue
         self.events = []     # (kernel name, event) per launch
         self._per_kernel = None
+        self.reading_seconds = 0.0   # the thread's CPU time spent reading the events (per_kernel): the measuring's own cost
 
     def __enter__(self):
         if self.queue.recording is not None:
@@ -57,6 +60,7 @@ class KernelTimes:
     def per_kernel(self):
         """{kernel: (launches, seconds)} and, once read, the events are let go."""
         if self._per_kernel is None:
+            reading = time.thread_time()
             out, first, last = {}, None, None
             for name, event in self.events:
                 start, end = event.profile.start, event.profile.end
@@ -67,4 +71,5 @@ class KernelTimes:
             # from the first launch's start to the last one's end, device clock: the kernels' sum fits in it
             self.span_seconds = (last - first) * 1e-9 if first is not None else 0.0
             self._per_kernel, self.events = out, []
+            self.reading_seconds = time.thread_time() - reading
         return dict(self._per_kernel)
