@@ -140,8 +140,7 @@ class Record:
             if missing or unknown:
                 raise TypeError(f"{self.name}: missing fields {sorted(missing)}, unknown fields {sorted(unknown)}")
         out = self.zeros(1)
-        for f, value in values.items():
-            out[0][f] = value
+        out[0] = tuple(values.get(name, 0) for name in self.dtype.names)   # every field at once (padding 0)
         return frozen(out)
 
     def zeros(self, n):

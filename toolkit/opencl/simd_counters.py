@@ -23,7 +23,7 @@ class StepSums:
     """One counted step, once the log has been read: `sums[SimdSum.X]` as Python ints; `histogram`
     (lanes, warps) by work, for a loop counted with one; `lanes` etc. only where the host read the
     lanes themselves (SimdRecorder's per-step mode)."""
-    sums: np.ndarray = None          # int64 per SimdSum field
+    sums: list = None                # int per SimdSum field (a Python list: a replay indexes it many times)
     histogram: np.ndarray = None     # (bins, 2): lanes, warps by work (warps: by their largest work)
     lanes: np.ndarray = None         # the host's copy of the lanes (per-step mode): LaneCounts or ints
     slots: np.ndarray = None         # per-step mode: each lane's sample slot
@@ -44,7 +44,8 @@ class StepSums:
         """The k-th int copied from the device when the step was counted."""
         if self.watch is not None:
             return int(self.watch[k])
-        return int(np.int32(np.uint32(self.sums[SimdSum.WATCH + k] & 0xffffffff)))
+        word = int(self.sums[SimdSum.WATCH + k]) & 0xffffffff    # the int32 it was, from its 64-bit row
+        return word - (1 << 32) if word >= 1 << 31 else word
 
 
 class StepLog:
@@ -118,7 +119,7 @@ class StepLog:
         words = np.empty((self.used, int(SimdSum.FIELDS), 2), np.uint32)
         cl.enqueue_copy(self.queue, words, self.rows)
         sums = words[..., 0].astype(np.int64) | (words[..., 1].astype(np.int64) << 32)
-        out = [StepSums(sums=s) for s in sums]
+        out = [StepSums(sums=s) for s in sums.tolist()]
         if self.histogram_used:
             needed = max(int(out[row][SimdSum.WORK_MAX]) for row, _ in self.histogram_used) + 1
             for row, bins in self.histogram_used:
