@@ -78,7 +78,7 @@ LIMITS = {
                                        "cost only, the image does not depend on it"),
     "mlt.chains": (1, 1 << 18, "independent Metropolis chains; each stores two vectors of max_dims floats"),
     "mlt.large_step": (1e-3, 1.0, "probability of a large step; b comes from the large steps"),
-    "mlt.candidates": (1, 1024, "large steps per chain for start = resample"),
+    "mlt.candidates": (1, 1024, "large steps per chain for start = pool or resample"),
     "mlt.time_limit": (1e-3, 1e6, "seconds after which an mlt render stops (it keeps the mutations made so far)"),
     "mlt.max_dims": (8, int(used_dims(LONGEST_SUBPATH, LONGEST_SUBPATH)),
                      f"stored primary-sample dimensions per chain (8 + 8 per vertex after the first: the most holds "
