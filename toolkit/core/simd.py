@@ -26,7 +26,7 @@ class PhaseCounter:
         the start of a stream of `length` (compacted streams). `draining`: the step runs after
         the pass's last sample has started, while the stream empties (marked on the plots)."""
         w = self.warp_width
-        if np.ndim(mask_or_count) == 0:
+        if isinstance(mask_or_count, (int, np.integer)) or np.ndim(mask_or_count) == 0:   # a count (the common case, tested first)
             active = int(mask_or_count)
             issued = -(-active // w) * w
         else:

@@ -19,6 +19,15 @@ from toolkit.opencl import program
 from toolkit.opencl.simd_counters import StepLog, StepSums
 
 
+# The step log's sums (SimdSum) that a replay reads for a field of LaneCounts (or the aux ints):
+# for a mask of lanes, its (active lanes, warps with one); for a loop in each lane, its (sum, sum of each warp's longest).
+MASK_SUMS = {"work": (SimdSum.WORK_LANES, SimdSum.WORK_WARPS), "shadow_rays": (SimdSum.SHADOW_LANES, SimdSum.SHADOW_WARPS),
+             "aux": (SimdSum.AUX_LANES, SimdSum.AUX_WARPS)}
+LOOP_SUMS = {"work": (SimdSum.WORK_SUM, SimdSum.WORK_WARP_MAX), "aux": (SimdSum.AUX_SUM, SimdSum.AUX_WARP_MAX),
+             "closest_steps": (SimdSum.CLOSEST_SUM, SimdSum.CLOSEST_WARP_MAX),
+             "shadow_steps": (SimdSum.SHADOW_STEPS_SUM, SimdSum.SHADOW_STEPS_WARP_MAX)}
+
+
 class SimdRecorder:
     def __init__(self, warp_width, on=True, queue=None, local_size=program.LOCAL_SIZE, sources=None):
         self.warp_width = warp_width
@@ -172,9 +181,7 @@ class SimdRecorder:
             values = _values(sums, field)
             counter.add_stream_step(phase, values > 0, iteration=iteration, capacity=capacity, draining=draining)
         else:
-            lanes, warps = {"work": (SimdSum.WORK_LANES, SimdSum.WORK_WARPS),
-                            "shadow_rays": (SimdSum.SHADOW_LANES, SimdSum.SHADOW_WARPS),
-                            "aux": (SimdSum.AUX_LANES, SimdSum.AUX_WARPS)}[field]
+            lanes, warps = MASK_SUMS[field]
             counter.add_step(phase, sums[lanes], sums[warps] * self.warp_width, iteration, capacity, draining)
         if numbered:
             self.iterations += 1
@@ -195,11 +202,8 @@ class SimdRecorder:
         if sums.lanes is not None:
             counter.add_warp_loops(phase, _values(sums, field), None if active is None else sums.lanes[active].sum())
             return
-        total, longest = {"work": (SimdSum.WORK_SUM, SimdSum.WORK_WARP_MAX),
-                          "aux": (SimdSum.AUX_SUM, SimdSum.AUX_WARP_MAX),
-                          "closest_steps": (SimdSum.CLOSEST_SUM, SimdSum.CLOSEST_WARP_MAX),
-                          "shadow_steps": (SimdSum.SHADOW_STEPS_SUM, SimdSum.SHADOW_STEPS_WARP_MAX)}[field]
-        active_sum = {None: total, "shadow_rays": SimdSum.SHADOW_SUM}[active]
+        total, longest = LOOP_SUMS[field]
+        active_sum = total if active is None else {"shadow_rays": SimdSum.SHADOW_SUM}[active]
         counter.add(phase, sums[active_sum], sums[longest] * self.warp_width)
 
     def loop_iterations(self, phase, sums, numbered):
