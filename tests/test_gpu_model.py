@@ -78,6 +78,20 @@ def test_the_prediction_for_todays_code_and_its_command(capsys):
     assert "a model, not a measurement" in out and json.loads(out.strip().splitlines()[-1]) == json.loads(json.dumps(prediction))
 
 
+def test_serial_time_counts_only_where_the_extra_samples_drained():
+    """The meter's serial figure is counted where the extra samples made drains; where they made none
+    it is the noise of the renders' fixed drains, and the model counts none (gpu_model assumption 2)."""
+    meter = load(METER)
+    row = meter["techniques"]["pt_inplace_regen"]
+    assert row["drains_per_million"] > 0 and row["serial_ns_per_sample"] > 0
+    drained = gpu_model.predict(meter, load(H200))["techniques"]["pt_inplace_regen"]
+    assert drained["serial_ns"] == pytest.approx(row["serial_ns_per_sample"])
+    row["drains_per_million"] = 0.0
+    quiet = gpu_model.predict(meter, load(H200))["techniques"]["pt_inplace_regen"]
+    assert quiet["serial_ns"] == 0.0 and quiet["round_trip_ns"] == 0.0
+    assert quiet["wall_ns"] == pytest.approx(max(quiet["kernel_ns"], quiet["host_ns"]) + quiet["link_ns"])
+
+
 def test_bad_reports_are_refused_with_exit_code_2(tmp_path, capsys):
     (tmp_path / "not.json").write_text("{")
     (tmp_path / "list.json").write_text("[]")

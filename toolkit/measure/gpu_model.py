@@ -14,7 +14,9 @@ the whole against the H200's):
 2. The host's CPU time overlaps the kernels except its serial part: from a drain (a blocking read or
    write, a finish, a wait on the last command queued) to its next launch the device has nothing
    to run (toolkit/opencl/traffic.py measures it). Between drains, the device runs what the host has
-   queued while the host queues more, so that stretch takes the longer of the two.
+   queued while the host queues more, so that stretch takes the longer of the two. Where the meter's
+   extra samples made no drain, their serial time is taken as none (what the meter shows there is
+   the noise of the renders' fixed drains).
 3. Each drain also costs a round trip the host's CPU time does not show: the device's completion
    reaching the host, then the next launch reaching the device (DRAIN_SECONDS, a discrete GPU's
    launch and completion latency over PCIe and its driver, ~10 us each way).
@@ -102,8 +104,12 @@ def predict(meter, gpucheck, cpu_meter=None, host_speed=1.0):
     out = {}
     for name, row in rows.items():
         kernel, source = kernel_ns_on_gpu(name, gpucheck, cpu_kernel)
-        host, serial = row["host_cpu_ns_per_sample"] * host_speed, max(row["serial_ns_per_sample"], 0.0) * host_speed
-        drains, moved = row["drains_per_million"] * 1e-6, row["read_bytes_per_sample"] + row["write_bytes_per_sample"]
+        host, drains = row["host_cpu_ns_per_sample"] * host_speed, row["drains_per_million"] * 1e-6
+        # Serial time follows a drain: where the extra samples made none, the figure is the difference
+        # of the two renders' fixed drains (their start and end), noise of either sign (pt_inplace_regen:
+        # -1.2 to 2.0 ns over 7 pairs, 2026-12-06), and none is counted.
+        serial = max(row["serial_ns_per_sample"], 0.0) * host_speed if drains > 0 else 0.0
+        moved = row["read_bytes_per_sample"] + row["write_bytes_per_sample"]
         total = model_wall(kernel, host, serial, drains, moved, unit=1e9)
         cpu_rate = 1e9 / cpu_rows[name]["wall_ns_per_sample"] if name in cpu_rows else None
         out[name] = {"kernel_ns": kernel, "kernel_source": source, "host_ns": host, "serial_ns": serial,
