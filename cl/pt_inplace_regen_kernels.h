@@ -5,6 +5,19 @@
 #ifndef PT_INPLACE_REGEN_KERNELS_H
 #define PT_INPLACE_REGEN_KERNELS_H
 
+/* Slot gid's regeneration (regenerate_slot), and with COUNT_SIMD whether it started a sample. */
+HELPER void regenerate_and_note(const Camera* cam, const PtPass* pass_args, volatile __global int* next_sample,
+                                __global void* paths, __global int* alive, __global int* any_alive,
+                                __global int* regenerated, int gid)
+{
+    int started = regenerate_slot(cam, pass_args, next_sample, paths, alive, any_alive, gid);
+#if COUNT_SIMD
+    regenerated[gid] = started;
+#else
+    (void)started; (void)regenerated;
+#endif
+}
+
 /* The regeneration alone, over `slots` slots (the assignment's checks launch it; the technique
  * regenerates inside pt_inplace_regen_trace). */
 __kernel void pt_inplace_regen_regenerate(const Camera cam, const PtPass pass_args, const int slots,
@@ -14,12 +27,7 @@ __kernel void pt_inplace_regen_regenerate(const Camera cam, const PtPass pass_ar
 {
     int gid = get_global_id(0);
     if (gid >= slots) return;
-    int started = regenerate_slot(&cam, &pass_args, next_sample, paths, alive, any_alive, gid);
-#if COUNT_SIMD
-    regenerated[gid] = started;
-#else
-    (void)started; (void)regenerated;
-#endif
+    regenerate_and_note(&cam, &pass_args, next_sample, paths, alive, any_alive, regenerated, gid);
 }
 
 /* A step's first launch: regenerate the free slots (only they are busy in that part, the
@@ -32,12 +40,7 @@ __kernel void pt_inplace_regen_trace(SCENE_PARAMS, const Camera cam, const PtPas
 {
     int gid = get_global_id(0);
     if (gid >= slots) return;
-    int started = regenerate_slot(&cam, &pass_args, next_sample, paths, alive, any_alive, gid);
-#if COUNT_SIMD
-    regenerated[gid] = started;
-#else
-    (void)started; (void)regenerated;
-#endif
+    regenerate_and_note(&cam, &pass_args, next_sample, paths, alive, any_alive, regenerated, gid);
     SceneView scene = SCENE_INIT;
     trace_in_place(&scene, &pass_args, paths, alive, hits, lane_counts, gid);
 }

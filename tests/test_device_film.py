@@ -29,6 +29,23 @@ def fp64_queue(queue):
     return queue
 
 
+def films_on_and_off_the_device(queue, scene, technique):
+    """({on_device: the film}, {on_device: bytes read back}) of `technique` rendering 16x8 pixels in
+    four passes of one sample per pixel, counters off, with its film on the device and on the host."""
+    from toolkit.opencl.traffic import Traffic
+    cls, options = get_technique(technique)
+    device_scene = DeviceScene(queue, scene)
+    films, read = {}, {}
+    for on_device in (True, False):
+        tech = cls(queue, device_scene, count_simd=False, pass_spp=1, **options)
+        tech.film_on_device = on_device
+        with Traffic() as traffic:
+            films[on_device] = tech.render(16, 8, 4, seed=5)
+        read[on_device] = traffic.figures()["read_bytes"]
+    assert films[True].device is not None and films[False].device is None
+    return films, read
+
+
 def pass_sums(rng, pixels, missing=0):
     """A FilmPixel array as a pass's film_reduce would write it: float32 sums spanning 1e-6 .. 1e6."""
     sums = FILM_PIXEL.zeros(pixels)
@@ -74,14 +91,7 @@ def test_a_sample_never_written_raises_when_the_film_is_read(fp64_queue):
 def test_a_render_on_the_device_film_has_the_host_films_bits(fp64_queue, cornell_box, technique):
     """Four passes of one sample per pixel (so the film adds passes), counters off: the device's
     film and the host's give the same image, error and sums, bit for bit."""
-    cls, options = get_technique(technique)
-    scene = DeviceScene(fp64_queue, cornell_box)
-    films = {}
-    for on_device in (True, False):
-        tech = cls(fp64_queue, scene, count_simd=False, pass_spp=1, **options)
-        tech.film_on_device = on_device
-        films[on_device] = tech.render(16, 8, 4, seed=5)
-    assert films[True].device is not None and films[False].device is None
+    films, _ = films_on_and_off_the_device(fp64_queue, cornell_box, technique)
     for what in ("sum", "sum_sq", "count"):
         assert getattr(films[True], what).tobytes() == getattr(films[False], what).tobytes(), what
     assert films[True].stderr().tobytes() == films[False].stderr().tobytes()
@@ -115,14 +125,11 @@ def test_bdpt_passes_added_on_the_device_give_the_host_film_bits_from_1e_minus_6
 def test_a_bdpt_render_on_the_device_film_has_the_host_films_bits(fp64_queue, cornell_box, technique):
     """Four passes of one sample per pixel: the film on the device and the host's give the same
     image, error and sums, bit for bit, and the device's reads no pass's image back."""
-    cls, options = get_technique(technique)
-    scene = DeviceScene(fp64_queue, cornell_box)
-    films = {}
-    for on_device in (True, False):
-        tech = cls(fp64_queue, scene, count_simd=False, pass_spp=1, **options)
-        tech.film_on_device = on_device
-        films[on_device] = tech.render(16, 8, 4, seed=5)
-    assert films[True].device is not None and films[False].device is None
+    films, read = films_on_and_off_the_device(fp64_queue, cornell_box, technique)
+    pass_image = 16 * 8 * 16                    # a pass's float4 image, read back by the host's film
+    film_end = sum(getattr(films[True], what).nbytes for what in ("pass_sum", "pass_sum_sq", "count"))
+    # on the device: the film's sums once, at the end, and the listings' few ints; on the host: every pass's image
+    assert read[False] >= 4 * pass_image and read[True] - film_end < pass_image, (read, film_end)
     assert films[True].passes == films[False].passes == 4
     for what in ("pass_sum", "pass_sum_sq", "count"):
         assert getattr(films[True], what).tobytes() == getattr(films[False], what).tobytes(), what
