@@ -364,9 +364,9 @@ class BdptEvaluator:
         p.pool.light.length = min(p.pool.light.length, int(lengths[1]))
 
     def waits_for_all(self, p):
-        """Whether the next listing lists only once every sample in flight has terminated: the
-        budget is spent (nothing will be regenerated) and the threshold is all of them."""
-        return p.next_id == p.budget and self.threshold(p) >= p.in_flight
+        """Whether the next listing lists only once every sample in flight has terminated: once the
+        budget is spent (nothing will be regenerated), the threshold is all of them."""
+        return p.next_id >= p.budget
 
     def every_subpath_ended(self, p):
         """The walk step by which every subpath has ended: one has at most MAX_VERTICES vertices,
