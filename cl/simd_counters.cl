@@ -31,8 +31,8 @@ HELPER void add_wide(volatile __global uint* row, int field, uint x) {
  *     histogram_row of `histogram` ([bin][lanes, warps][histogram_rows]; bins - 1 >= any work);
  *   stamp: lane i's sample slot is slot_of[slot_offset + i]; a pool warp (slot / warp_width) not yet stamped with
  *     `stamp` gets it and counts once in SLOT_WARPS (warp_stamps only grow);
- *   aux_bound: a second buffer of one int per lane (a step's other kernel: regeneration, the shadow
- *     queue), its first aux_bound (or length_at[aux_length_index]) summed into the AUX_ fields. */
+ *   aux_bound: a second buffer of one int per lane (a step's other kernel: pt_inplace_regen's
+ *     regeneration), its first aux_bound summed into the AUX_ fields. */
 __kernel void simd_count_lanes(__global const int* lanes, __global const int* length_at,
                                volatile __global uint* rows, __global const int* watch,
                                volatile __global uint* histogram, __global const int* slot_of,
@@ -43,7 +43,7 @@ __kernel void simd_count_lanes(__global const int* lanes, __global const int* le
     int stamp = step.stamp, slot_offset = step.slot_offset;
     volatile __global uint* row = rows + step.row * 2 * SIMD_FIELDS;
     int n = step.length_index >= 0 ? min(step.bound, length_at[step.length_index]) : step.bound;
-    int n_aux = step.aux_length_index >= 0 ? min(step.aux_bound, length_at[step.aux_length_index]) : step.aux_bound;
+    int n_aux = step.aux_bound;
     if (warp == 0) {
         row[2 * SIMD_LANES] = (uint)max(n, 0);
         row[2 * SIMD_AUX_COUNT] = (uint)max(n_aux, 0);

@@ -184,7 +184,6 @@ SIMD_STEP = Record("SimdStep", [
     ("slot_offset", "int"),     # where lane 0's slot is in slot_of (ints)
     ("stamp", "int"),           # > 0: count SLOT_WARPS with this stamp
     ("aux_bound", "int"),       # ints of `aux` (one per lane) summed into the AUX_ fields; 0: none
-    ("aux_length_index", "int"),   # >= 0: fewer, length_at[aux_length_index] on the device
 ], "One counting step for cl/simd_counters.cl simd_count_lanes (toolkit/opencl/simd_counters.py).")
 
 BDPT_SLOT = Record("BdptSlot", [

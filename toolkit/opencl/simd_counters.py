@@ -68,14 +68,14 @@ class StepLog:
         return self.used == ROWS or len(self.histogram_used) == HISTOGRAM_ROWS
 
     def count(self, lanes, stride, bound, length_at=None, length_index=-1, watch=None, watch_count=0,
-              bins=0, slot_of=None, slot_offset=0, pool=0, packed=False, aux=None, aux_bound=0, aux_length_index=-1):
+              bins=0, slot_of=None, slot_offset=0, pool=0, packed=False, aux=None, aux_bound=0):
         """Queue the sums of one step's lanes (cl/simd_counters.cl simd_count_lanes): the first `bound`
         lanes of `lanes` (`stride` ints each), fewer if length_at[length_index] on the device says so.
         `watch`: a buffer whose first `watch_count` ints the row keeps. `bins`: a per-iteration
         histogram of the lanes' work (0 .. bins - 1). `slot_of`, `slot_offset`, `pool`: lane i's
         slot (int slot_offset + i of slot_of) in a pool of `pool` samples (SLOT_WARPS). `packed`: also
         PACKED_WARP_MAX (its lanes are all `bound`, none past a device length). `aux`: a second
-        buffer of one int per lane, its first `aux_bound` (or length_at[aux_length_index]) into AUX_. Returns the row."""
+        buffer of one int per lane, its first `aux_bound` into AUX_. Returns the row."""
         if self.full:
             raise RuntimeError("the step log is full: read it first")
         if self.rows is None:
@@ -92,16 +92,16 @@ class StepLog:
             self.stamp += 1
             stamp = self.stamp
         self._launch(row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins,
-                     histogram_row, slot_of, slot_offset, stamp, pool, packed, aux, aux_bound, aux_length_index)
+                     histogram_row, slot_of, slot_offset, stamp, pool, packed, aux, aux_bound)
         return row
 
     def _launch(self, row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins, histogram_row,
-                slot_of, slot_offset, stamp, pool, packed, aux, aux_bound, aux_length_index):
+                slot_of, slot_offset, stamp, pool, packed, aux, aux_bound):
         w, none = self.warp_width, self.none
         step = SIMD_STEP.record(stride=stride, bound=bound, length_index=length_index, warp_width=w, row=row,
                                 watch_count=watch_count, bins=max(self.bins, 1), histogram_row=histogram_row,
                                 histogram_rows=HISTOGRAM_ROWS, slot_offset=slot_offset, stamp=stamp,
-                                aux_bound=aux_bound if aux is not None else 0, aux_length_index=aux_length_index)
+                                aux_bound=aux_bound if aux is not None else 0)
         program.launch(self.queue, self.lanes_kernel, max(1, -(-max(bound, aux_bound) // w)), lanes,
                        none if length_at is None else length_at, self.rows, none if watch is None else watch,
                        self.histogram if bins else none, none if slot_of is None else slot_of,

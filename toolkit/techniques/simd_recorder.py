@@ -98,23 +98,23 @@ class SimdRecorder:
             self.flush()
 
     def lanes(self, replay, lanes, stride, bound, length_at=None, length_index=-1, watch=None, watch_count=0,
-              bins=0, slot_of=None, slot_offset=0, pool=0, packed=False, aux=None, aux_bound=0, aux_length_index=-1):
+              bins=0, slot_of=None, slot_offset=0, pool=0, packed=False, aux=None, aux_bound=0):
         """A step over the first `bound` lanes of `lanes` (a LaneCounts buffer, stride 4, or ints,
         stride 1), fewer if the device's int length_at[length_index] says so; `replay(sums)` gets its
         StepSums (toolkit/opencl/simd_counters.py StepLog.count says what each option adds)."""
         if self.reference is not None:
             self.reference.lanes(replay, lanes, stride, bound, length_at, length_index, watch, watch_count, bins,
-                                 slot_of, slot_offset, pool, packed, aux, aux_bound, aux_length_index)
+                                 slot_of, slot_offset, pool, packed, aux, aux_bound)
         if self.per_step:
             self._pending.append((self._read_now(lanes, stride, bound, length_at, length_index, watch, watch_count,
-                                                 slot_of, slot_offset, aux, aux_bound, aux_length_index), replay))
+                                                 slot_of, slot_offset, aux, aux_bound), replay))
             self.flush()
             return
         log = self._step_log()
         if log.full:
             self.flush()
         row = log.count(lanes, stride, bound, length_at, length_index, watch, watch_count, bins, slot_of,
-                        slot_offset, pool, packed, aux, aux_bound, aux_length_index)
+                        slot_offset, pool, packed, aux, aux_bound)
         self._pending.append((row, replay))
 
     def flush(self):
@@ -242,14 +242,13 @@ class SimdRecorder:
     # --- per-step mode and the log ------------------------------------------------------------
 
     def _read_now(self, lanes, stride, bound, length_at, length_index, watch, watch_count, slot_of, slot_offset,
-                  aux, aux_bound, aux_length_index):
+                  aux, aux_bound):
         """The step's lanes (and watched ints, slots, aux) read back at once: a StepSums for the host's sums."""
-        def length(bound, index):
-            if length_at is not None and index >= 0:
-                bound = min(bound, int(_read(self.queue, length_at, np.int32, index + 1)[index]))
-            return max(bound, 0)
-        n = length(bound, length_index)
-        aux_values = _read(self.queue, aux, np.int32, length(aux_bound, aux_length_index)) if aux is not None else None
+        n = bound
+        if length_at is not None and length_index >= 0:
+            n = min(n, int(_read(self.queue, length_at, np.int32, length_index + 1)[length_index]))
+        n = max(n, 0)
+        aux_values = _read(self.queue, aux, np.int32, max(aux_bound, 0)) if aux is not None else None
         values = _read(self.queue, lanes, np.int32 if stride == 1 else LANE_COUNTS.dtype, n)
         watched = _read(self.queue, watch, np.int32, watch_count) if watch_count else None
         slots = _read(self.queue, slot_of, np.int32, n, 4 * slot_offset) if slot_of is not None else None
