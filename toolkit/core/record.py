@@ -22,7 +22,6 @@ def _align(offset, alignment):
     return (offset + alignment - 1) // alignment * alignment
 
 
-
 def frozen(records):
     """The first of `records` (a numpy structured array), read-only: a kernel argument that cannot
     change in place, so program.launch knows it by the object, without comparing its bytes at
