@@ -39,11 +39,14 @@ HELPER void store_vertex(__global BdptVertex* memory, int index, const BdptVerte
 
 /* The sampler of sample `id` of the pass (cl/bdpt_sampler.h; the dimension table:
  * toolkit/core/sample_dims.py). Under MLT the sample is chain `id`'s proposal and
- * pass.sample_base the iteration (toolkit/techniques/mlt.py). */
+ * pass.sample_base the iteration (toolkit/techniques/mlt.py). A batch of more samples than
+ * chains (start = pool's candidates, large steps all) counts on by iteration: sample
+ * k * chains + c is chain c's proposal of iteration sample_base + k. */
 #if MLT
 HELPER BdptSampler bdpt_sampler_mlt(const BdptPass* pass, int id, __global const float* primary) {
-    BdptSampler sampler = {mlt_mutation_sampler(pass->seed, id, pass->sample_base), primary,
-                           (uint)pass->chains, (uint)id};
+    int chain = id % pass->chains;
+    BdptSampler sampler = {mlt_mutation_sampler(pass->seed, chain, pass->sample_base + id / pass->chains), primary,
+                           (uint)pass->chains, (uint)chain};
     return sampler;
 }
 #define bdpt_sampler(cam, pass, id) bdpt_sampler_mlt(pass, id, mlt_primary)

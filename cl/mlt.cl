@@ -14,8 +14,9 @@
  *   mlt_weigh_records, record_film_add (x3)                  the splats into the films (cl/record_film.cl)
  *   mlt_keep_records             cl/mlt_splat.h              the next current states' records; b for the next
  *                                                            iteration's weights (work-item 0)
- * and once, for start = pool, after the candidates:
- *   mlt_start_from               cl/mlt.h                    each chain's first state, picked by the host
+ * and once, for start = pool, after the candidates (one batch of BDPT samples, each one's records kept):
+ *   mlt_candidates_into_b        cl/mlt_start.h              every candidate's f into b
+ *   mlt_start_from               cl/mlt_start.h              each chain's first state, picked by the host
  * or for start = resample:
  *   mlt_resample_weights         cl/mlt_splat.h              each chain's weight
  * The splats are added by the record film's own program (cl/record_film.cl, toolkit/opencl/record_film.py). */
@@ -23,3 +24,4 @@
 #include "mlt.h"
 #include "mlt_contribution.h"
 #include "mlt_splat.h"
+#include "mlt_start.h"

@@ -51,7 +51,7 @@ HELPER void mlt_accept_chain(const MltIteration it, int c, __global float* curre
     MltChain chain = chains[c];
     float fy = f_proposal[c];
     float a;
-    if (it.mode == MLT_START || it.mode == MLT_PICKED) {
+    if (it.mode == MLT_START) {
         a = 1.0f;
     } else if (it.mode == MLT_CANDIDATE) {
         chain.candidates += fy;
@@ -73,22 +73,6 @@ HELPER void mlt_accept_chain(const MltIteration it, int c, __global float* curre
     chain.f_proposal = fy;            /* the proposal as this acceptance saw it */
     chain.dims_proposal = dims_proposal[c];
     chains[c] = chain;
-}
-
-/* start = pool: chain c starts at a large step that chain src_chain[c] evaluated in iteration
- * src_iteration[c] (the host picked it from all chains' candidates in proportion to f). A large
- * step's dimensions were all fresh, so its vector is the mutation's random numbers of that
- * (chain, iteration), drawn again here for the dimensions its path used; they become chain c's
- * proposal, which an iteration in the mode MLT_PICKED evaluates again (its records) and accepts. */
-__kernel void mlt_start_from(const MltIteration it, __global float* proposal, __global const int* src_chain,
-                             __global const int* src_iteration, __global const int* dims)
-{
-    int c = get_global_id(0);
-    if (c >= it.active) return;
-    Sampler m = mlt_mutation_sampler(it.seed, src_chain[c], src_iteration[c]);
-    int used = min(dims[c], MLT_MAX_DIMS);
-    for (int d = 0; d < MLT_MAX_DIMS; ++d)
-        proposal[mlt_index((uint)d, (uint)c, (uint)it.chains)] = d < used ? mlt_fresh(&m, (uint)d) : MLT_FRESH;
 }
 
 #endif

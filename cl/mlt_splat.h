@@ -27,6 +27,20 @@
 #include "fixed_point_128.h"
 #include "mlt.h"
 
+/* A large step's f into b's exact sum, in fixed point (units of 2^unit_exponent), and its count
+ * into tallies[MLT_TALLY_LARGE_STEPS]. */
+HELPER void mlt_add_to_b(float fy, const int unit_exponent, __global FilmAccumulator* b_sum, __global int* tallies)
+{
+    float units = fy * ldexp(1.0f, -unit_exponent);
+    if (units > FILM_RECORD_LIMIT) {          /* far brighter than any light: a bug, reported */
+        atomic_inc(&tallies[MLT_TALLY_NONFINITE]);
+        units = 0.0f;
+    }
+    uint4 x = fixed_point(units);
+    if (!is_zero_128(x)) atomic_add_128(channel_words(b_sum, 0, 0), x);
+    atomic_inc(&tallies[MLT_TALLY_LARGE_STEPS]);
+}
+
 /* Chain c's splat weights (.x proposal, .y current state, .z a large step's own; zero outside
  * MLT_MUTATE) and its large step's f into b's sum; before its acceptance changes the current state. */
 HELPER void mlt_chain_splat_weights(const MltIteration it, int c, MltChain chain, float fy,
@@ -46,16 +60,7 @@ HELPER void mlt_chain_splat_weights(const MltIteration it, int c, MltChain chain
         w.z = combine && large && d_proposal > 0.0f ? b / d_proposal : 0.0f;
     }
     splat_weights[c] = w;
-    if (large && it.mode != MLT_PICKED) {        /* a picked start is evaluated again, not a new sample */
-        float units = fy * ldexp(1.0f, -unit_exponent);
-        if (units > FILM_RECORD_LIMIT) {          /* far brighter than any light: a bug, reported */
-            atomic_inc(&tallies[MLT_TALLY_NONFINITE]);
-            units = 0.0f;
-        }
-        uint4 x = fixed_point(units);
-        if (!is_zero_128(x)) atomic_add_128(channel_words(b_sum, 0, 0), x);
-        atomic_inc(&tallies[MLT_TALLY_LARGE_STEPS]);
-    }
+    if (large) mlt_add_to_b(fy, unit_exponent, b_sum, tallies);
 }
 
 /* Every active chain: its splat weights from a (mlt_chain_splat_weights, while its current state
@@ -118,6 +123,30 @@ __kernel void mlt_weigh_records(const int capacity, __global const int* total, c
     record_value[i].w = component == 0 ? w.x : component == 1 ? w.y : w.z;
 }
 
+/* Chain c's records, `span` (first entry, count) of value and pixel, into the next current store
+ * at entries taken with the atomic counter next_total. Past `capacity` nothing is written: the
+ * records are counted in tallies[MLT_TALLY_STORE_OVERFLOW] (the host's bound was wrong: reported). */
+HELPER void mlt_store_records(int c, int2 span, __global const float4* value, __global const int* pixel,
+                              int capacity, __global int2* next_span, __global float4* next_value,
+                              __global int* next_pixel, __global int* next_chain, __global int* next_total,
+                              __global int* tallies)
+{
+    int first = span.y > 0 ? atomic_add(next_total, span.y) : 0;
+    if (first + span.y > capacity) {
+        atomic_add(&tallies[MLT_TALLY_STORE_OVERFLOW], span.y);
+        for (int k = first; k < capacity; ++k)   /* reserved below the end: no pixel, no splat */
+            next_pixel[k] = -1;
+        next_span[c] = (int2)(0, 0);
+        return;
+    }
+    for (int k = 0; k < span.y; ++k) {
+        next_value[first + k] = value[span.x + k];
+        next_pixel[first + k] = pixel[span.x + k];
+        next_chain[first + k] = c;
+    }
+    next_span[c] = (int2)(first, span.y);
+}
+
 /* The next current store: chain c keeps its accepted proposal's records, or its current ones
  * (chains past it.active did not mutate). Entries are taken with an atomic counter, next_total:
  * their order changes from run to run, the film's integer sums do not. Counts the accepted
@@ -137,23 +166,12 @@ __kernel void mlt_keep_records(const MltIteration it, __global const MltChain* c
     if (c >= it.chains) return;
     bool accepted = c < it.active && chains[c].accepted;
     if (accepted && it.mode == MLT_MUTATE) atomic_inc(&tallies[MLT_TALLY_ACCEPTED]);
-    int2 span = accepted ? proposal_span[c] : current_span[c];    /* (first record, count) */
-    __global const float4* value = accepted ? proposal_value : current_value;
-    __global const int* pixel = accepted ? proposal_pixel : current_pixel;
-    int first = span.y > 0 ? atomic_add(next_total, span.y) : 0;
-    if (first + span.y > capacity) {       /* the host's bound was wrong: never written past, reported */
-        atomic_add(&tallies[MLT_TALLY_STORE_OVERFLOW], span.y);
-        for (int k = first; k < capacity; ++k)   /* reserved below the end: no pixel, no splat */
-            next_pixel[k] = -1;
-        next_span[c] = (int2)(0, 0);
-        return;
-    }
-    for (int k = 0; k < span.y; ++k) {
-        next_value[first + k] = value[span.x + k];
-        next_pixel[first + k] = pixel[span.x + k];
-        next_chain[first + k] = c;
-    }
-    next_span[c] = (int2)(first, span.y);
+    if (accepted)
+        mlt_store_records(c, proposal_span[c], proposal_value, proposal_pixel, capacity, next_span, next_value,
+                          next_pixel, next_chain, next_total, tallies);
+    else
+        mlt_store_records(c, current_span[c], current_value, current_pixel, capacity, next_span, next_value,
+                          next_pixel, next_chain, next_total, tallies);
 }
 
 #endif

@@ -265,7 +265,7 @@ def test_each_proposals_f_and_dims_are_summed_on_the_device_from_its_records(cor
 
     def add_noting_dims(sink, connections):   # the test reads the records back; the render does not
         if connections.count:
-            memory = sink.chains.memory
+            memory = sink.batch.memory
             counts = memory.read_ints(connections.count_buffer, sink.pool)
             slots = memory.read_structs(BDPT_SLOT, connections.slot_buffer, sink.pool)
             done = counts > 0
@@ -280,8 +280,8 @@ def test_each_proposals_f_and_dims_are_summed_on_the_device_from_its_records(cor
         accept(tech, c, it)
         active = int(it["active"])
         f = np.empty(active, np.float32)
-        cl.enqueue_copy(tech.queue, f, c.f_proposal)
-        dims_proposal = c.memory.read_ints(c.dims_proposal, active)
+        cl.enqueue_copy(tech.queue, f, c.proposed.f)
+        dims_proposal = c.memory.read_ints(c.proposed.dims, active)
         chain = np.concatenate([x for x, _ in pending] + [np.zeros(0, np.int64)])
         values = np.concatenate([v for _, v in pending] + [np.zeros((0, 3))])
         pending.clear()
@@ -293,9 +293,9 @@ def test_each_proposals_f_and_dims_are_summed_on_the_device_from_its_records(cor
         expected_dims.clear()
     monkeypatch.setattr(mlt_chains.ProposalSink, "add", add_noting_dims)
     monkeypatch.setattr(Mlt, "accept", accept_checked)
-    render(cornell_box, 4, 0, 8, chains=128, start="pool", candidates=2)
+    render(cornell_box, 4, 0, 8, chains=128, start="naive")
     f, host, n = (np.concatenate(x) for x in zip(*seen))
-    assert len(seen) == 2 + 1 + 2 and (f > 0).mean() > 0.3   # two candidates, the picked ones again, two iterations
+    assert len(seen) == 1 + 2 and (f > 0).mean() > 0.3   # the start's large steps, two iterations
     assert np.all(np.abs(f - host) <= np.maximum(n, 1) * 2.0 ** -23 * host + 1e-30)
 
 
@@ -365,27 +365,35 @@ def test_one_seed_gives_the_same_image_bits(cornell_box):
 def test_b_summed_on_the_device_equals_the_hosts_float64_sum_of_the_large_steps(cornell_box, monkeypatch):
     """b's sum is exact fixed point on the device (units of 2^-48 of a power of two near the
     brightest light: each f rounded by at most 2^-49 of it), read once at the end: it equals the
-    float64 sum of the same large steps' f (read here, after each iteration) within float rounding.
-    The large steps: every proposal of the start's iterations (a picked start is not one) and
-    those mutations whose MltChain.large_step is set."""
+    float64 sum of the same large steps' f (read here, after each iteration and after the start's
+    batch) within float rounding. The large steps: every candidate of start = pool (one batch,
+    Mlt.evaluate_candidates) and those mutations whose MltChain.large_step is set."""
     import pyopencl as cl
-    from toolkit.core.layout import MLT_CHAIN, MltMode
+    from toolkit.core.layout import MLT_CHAIN
     from toolkit.techniques.mlt import Mlt
-    large, accept = [], Mlt.accept
+    large, accept, evaluate_candidates = [], Mlt.accept, Mlt.evaluate_candidates
+
+    def read_f(tech, buffer, n):
+        f = np.empty(n, np.float32)
+        cl.enqueue_copy(tech.queue, f, buffer)
+        return f.astype(np.float64)
+
+    def candidates_noted(tech, c, per_chain):
+        batch = evaluate_candidates(tech, c, per_chain)
+        large.append(read_f(tech, batch.f, c.count * per_chain))
+        return batch
 
     def accept_noting_large_steps(tech, c, it):
         active = int(it["active"])
-        f = np.empty(active, np.float32)
-        cl.enqueue_copy(tech.queue, f, c.f_proposal)
         chains = tech.memory.read_structs(MLT_CHAIN, c.records, active)
-        if it["mode"] != MltMode.PICKED:
-            large.append(f[chains["large_step"] != 0].astype(np.float64))
+        large.append(read_f(tech, c.proposed.f, active)[chains["large_step"] != 0])
         accept(tech, c, it)
+    monkeypatch.setattr(Mlt, "evaluate_candidates", candidates_noted)
     monkeypatch.setattr(Mlt, "accept", accept_noting_large_steps)
     r = render(cornell_box, 4, 3, 8, chains=64, start="pool", candidates=4)
     steps = np.concatenate(large)
     mlt = r.stats["mlt"]
-    assert mlt["large_steps"] == len(steps) > 64 * 4
+    assert len(large[0]) == 64 * 4 and mlt["large_steps"] == len(steps) > 64 * 4
     assert mlt["b"] == pytest.approx(steps.mean(), rel=1e-6)
 
 

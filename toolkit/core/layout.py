@@ -338,7 +338,6 @@ class MltMode(IntEnum):
     MUTATE = 0          # the Metropolis step: large step with probability large_step, else a small step
     START = 1           # start = naive: one large step, always accepted
     CANDIDATE = 2       # start = resample: a large step, kept with probability f / (sum of f so far)
-    PICKED = 3          # start = pool: the picked candidate evaluated again (its records), always accepted, not in b
 
 
 class MltTally(IntEnum):

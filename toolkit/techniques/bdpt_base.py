@@ -18,7 +18,7 @@ import numpy as np
 from toolkit.opencl.device_film import DevicePassFilm, has_fp64
 from toolkit.opencl.record_film import RecordFilm, unit_exponent_for
 from toolkit.techniques.base import pixel_count
-from toolkit.techniques.bdpt_evaluator import BdptEvaluator, BdptPoolTechnique
+from toolkit.techniques.bdpt_evaluator import REGENERATE_FRACTION, BdptEvaluator, BdptPoolTechnique
 from toolkit.techniques.strategy_images import StrategyImages, strategy_count
 
 
@@ -41,7 +41,7 @@ class ImageSink:
 class BdptTechnique(BdptPoolTechnique):
     family = "bdpt"
 
-    def __init__(self, queue, device_scene, regenerate_fraction=0.6, coalesced_scatter=True, pool_size=None,
+    def __init__(self, queue, device_scene, regenerate_fraction=REGENERATE_FRACTION, coalesced_scatter=True, pool_size=None,
                  strategy_max_edges=None, **kwargs):
         """`strategy_max_edges`: build the kernels that keep each connection strategy apart
         (toolkit.render(..., strategy_images=...)), with images for paths up to that many edges."""

@@ -195,6 +195,11 @@ class BdptContext:
     recorder: SimdRecorder    # the technique's SIMD counters: the walk's steps count as its iterations
 
 
+# BDPT's default regeneration threshold (the talk's postponed regeneration): connect the
+# terminated samples and start new ones once this share of the samples in flight has terminated.
+REGENERATE_FRACTION = 0.6
+
+
 class BdptPoolTechnique(Technique):
     """A technique whose samples are BDPT samples of a pool (BdptEvaluator): the BDPT techniques,
     which add them into an image, and mlt, whose chains propose them. It builds the walk's kernels

@@ -104,6 +104,7 @@ spp means mutations: a render of spp samples per pixel makes spp x pixels mutati
 on top. The image has no standard error of its own (one pass; MLT samples are correlated):
 compare independent runs (seeds), as tests/test_mlt.py and toolkit/measure/mlt_bias.py do.
 """
+import dataclasses
 import time
 
 import numpy as np
@@ -115,9 +116,9 @@ from toolkit.core.validate import InputError, finite_number, whole_number
 from toolkit.opencl.work_sizes import device_work_sizes
 from toolkit.techniques.base import pixel_count
 from toolkit.opencl.record_film import RecordFilm, film_word_bits, unit_exponent_for
-from toolkit.techniques.bdpt_evaluator import BdptEvaluator, BdptPoolTechnique
+from toolkit.techniques.bdpt_evaluator import REGENERATE_FRACTION, BdptEvaluator, BdptPoolTechnique
 from toolkit.techniques.bdpt_parallel_connect import ParallelConnect
-from toolkit.techniques.mlt_chains import Chains, ProposalSink, systematic_picks
+from toolkit.techniques.mlt_chains import Chains, ProposalSink, SampleBatch, systematic_picks
 
 STARTS = ("naive", "resample", "pool")
 
@@ -178,7 +179,7 @@ class Mlt(BdptPoolTechnique):
             # so connecting the early finishers sooner frees nothing and only adds connect phases
             # (8 per iteration instead of 1 on covered_lamp 64x64; 1.65 -> 1.43 BDPT samples per mutation).
             # Else BDPT's 0.6.
-            regenerate_fraction = 1.0 if self.chain_count <= self.pool_size else 0.6
+            regenerate_fraction = 1.0 if self.chain_count <= self.pool_size else REGENERATE_FRACTION
         self.bdpt = BdptEvaluator(self.bdpt_context, ParallelConnect(self.bdpt_context),
                                   self.pool_size, regenerate_fraction, self.max_vertices)
         self.last_chains = None   # the chains of the last render, for its stats
@@ -257,8 +258,7 @@ class Mlt(BdptPoolTechnique):
                       for e in (0, unit))   # the Metropolis splats are h / f, about 1; the large steps' in f's units
         buffer = lambda size: cl.Buffer(ctx, cl.mem_flags.READ_WRITE, size)
         c = Chains(count, seed, camera, mem, current=buffer(vectors), proposal=buffer(vectors),
-                   records=buffer(MLT_CHAIN.dtype.itemsize * n), f_proposal=buffer(4 * n),
-                   dims_proposal=mem.int_buffer(count), tallies=mem.int_buffer(len(MltTally), fill=0),
+                   records=buffer(MLT_CHAIN.dtype.itemsize * n), tallies=mem.int_buffer(len(MltTally), fill=0),
                    weight=buffer(4 * n), splat_weights=buffer(16 * n),
                    b_sum=mem.int_buffer(FILM_ACCUMULATOR.dtype.itemsize // 4, fill=0), b_estimate=buffer(4),
                    films=films, pixels=pixels, candidates=candidates)
@@ -270,12 +270,7 @@ class Mlt(BdptPoolTechnique):
             self.iterate(c, count, MltMode.START)
         elif self.start == "pool":
             first = c.iteration
-            f, dims = self.memory.int_buffer(count * candidates), self.memory.int_buffer(count * candidates)
-            for k in range(candidates):        # each candidate's f and dims kept, entry k * count + chain
-                self.iterate(c, count, MltMode.START)
-                for src, dst in ((c.f_proposal, f), (c.dims_proposal, dims)):
-                    cl.enqueue_copy(self.queue, dst, src, byte_count=4 * count, dst_offset=4 * count * k)
-            self.start_from_pool(c, f, dims, first)
+            self.start_from_pool(c, self.evaluate_candidates(c, candidates), first)
         else:
             for _ in range(candidates):
                 self.iterate(c, count, MltMode.CANDIDATE)
@@ -294,37 +289,63 @@ class Mlt(BdptPoolTechnique):
     def iterate(self, c, active, mode):
         """One iteration of the first `active` chains, as on the slide, all of it on the device."""
         it = self.iteration_args(c, active, mode)
-        if mode != MltMode.PICKED:
-            self.mutate(c, it)                           # every chain proposes (large or small step)
+        self.mutate(c, it)                               # every chain proposes (large or small step)
         proposed = self.evaluate_proposals(c, active)    # all proposals as one batch of BDPT samples
         self.accept(c, it)                               # accept or reject per chain
         self.splat(c, it, proposed)                      # proposal with weight a, current state with 1 - a
-        if mode != MltMode.PICKED:                       # a picked start's evaluation draws no new numbers
-            c.iteration += 1
+        c.iteration += 1
         if mode == MltMode.MUTATE:
             c.mutations += active
 
-    def start_from_pool(self, c, f_buffer, dims, first):
-        """start = pool: every chain's first state drawn from all the chains' candidates (large
-        steps: `candidates` iterations from iteration `first`, their f and dims in `f_buffer` and
-        `dims`, entry k * count + chain) in proportion to f, by systematic resampling; the picked
-        candidates are evaluated again (for their records) and accepted. Each chain's splat weight
-        stays 1. The host reads the candidates' f once, for the picks."""
-        count = c.count
-        f = np.empty(count * c.candidates, np.float32)
-        cl.enqueue_copy(self.queue, f, f_buffer)
+    def evaluate_candidates(self, c, per_chain):
+        """start = pool: the chains' `per_chain` candidates each, large steps, as one batch of BDPT
+        samples (candidate k is chain k % count's large step of iteration c.iteration + k // count:
+        cl/bdpt_walk.h bdpt_sampler_mlt), not `per_chain` iterations of the chains: the pool
+        regenerates like a BDPT pass and the iterations' own kernels are not run. Returns the
+        SampleBatch of their f, dimensions and records; their f goes into b on the device."""
+        n = c.count * per_chain
+        self.mutate(c, self.iteration_args(c, c.count, MltMode.START))   # every dimension of every proposal fresh
+        batch = SampleBatch(self.memory, n)
+        evaluator = dataclasses.replace(self.bdpt, regenerate_fraction=REGENERATE_FRACTION)
+        p = evaluator.start_pass(c.camera, c.seed, c.iteration, n, sampler_args={"mlt_primary": c.proposal},
+                                 vector_stride=c.count)
+        sink = ProposalSink(self.kernels, batch, c.tallies, n, p.pool.size)
+        evaluator.evaluate(p, sink)
+        sink.records()
+        self.kernels.launch("mlt_candidates_into_b", n, candidates=np.int32(n),
+                            unit_exponent=np.int32(c.films[1].unit_exponent), f_candidate=batch.f,
+                            b_sum=c.b_sum, tallies=c.tallies)
+        c.iteration += per_chain
+        return batch
+
+    def start_from_pool(self, c, candidates, first):
+        """start = pool: every chain's first state drawn from all the chains' candidates (their
+        SampleBatch, from iteration `first`) in proportion to f, by systematic resampling; each
+        starts there with the candidate's f, dimensions and records (mlt_start_from), not evaluated
+        again. Each chain's splat weight stays 1. The host reads the candidates' f and their
+        records' spans once: f for the picks, the spans for the current store's exact size."""
+        count, n = c.count, candidates.samples
+        f = np.empty(n, np.float32)
+        cl.enqueue_copy(self.queue, f, candidates.f)
         f = f.astype(np.float64)
-        if not f.sum() > 0:
-            return                                               # no light found: keep the naive start
+        if not f.sum() > 0:                                      # no light found: a naive start
+            self.iterate(c, count, MltMode.START)
+            return
         pick = systematic_picks(f, count, np.random.default_rng([int(c.seed), 0x706f6f6c]))
-        ctx, flags = self.queue.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR
-        upload = lambda x: cl.Buffer(ctx, flags, hostbuf=np.ascontiguousarray(x, np.int32))
-        picked_dims = np.empty(count * c.candidates, np.int32)
-        cl.enqueue_copy(self.queue, picked_dims, dims)
-        self.kernels.launch("mlt_start_from", count, it=self.iteration_args(c, count, MltMode.START),
-                            proposal=c.proposal, src_chain=upload(pick % count),
-                            src_iteration=upload(first + pick // count), dims=upload(picked_dims[pick]))
-        self.iterate(c, count, MltMode.PICKED)
+        spans = self.memory.read_ints(candidates.store.span, 2 * n).reshape(n, 2)
+        store = c.next_store(int(spans[pick, 1].sum()))
+        it = self.iteration_args(c, count, MltMode.START)
+        it["store_capacity"] = store.capacity
+        upload = cl.Buffer(self.queue.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
+                           hostbuf=np.ascontiguousarray(pick, np.int32))
+        s = candidates.store
+        self.kernels.launch("mlt_start_from", count, it=it, first=np.int32(first), pick=upload,
+                            f_candidate=candidates.f, dims_candidate=candidates.dims, candidate_span=s.span,
+                            candidate_value=s.value, candidate_pixel=s.pixel, current=c.current, chains=c.records,
+                            next_span=store.span, next_value=store.value, next_pixel=store.pixel,
+                            next_chain=store.chain, next_total=store.total, tallies=c.tallies,
+                            b_sum=c.b_sum, b_estimate=c.b_estimate)
+        c.kept(store)
 
     # --- the stages of an iteration, one kernel (or one BDPT evaluation) each ------------------
 
@@ -341,7 +362,7 @@ class Mlt(BdptPoolTechnique):
         with their chains (ProposalSink). Returns how many records they have."""
         p = self.bdpt.start_pass(c.camera, c.seed, c.iteration, active, sampler_args={"mlt_primary": c.proposal},
                                  vector_stride=c.count)
-        sink = ProposalSink(self.kernels, c, active, p.pool.size)
+        sink = ProposalSink(self.kernels, c.proposed, c.tallies, active, p.pool.size)
         self.bdpt.evaluate(p, sink)
         return sink.records()
 
@@ -351,7 +372,7 @@ class Mlt(BdptPoolTechnique):
         with the proposals' f and dimensions (on the device since the connect phases). One launch."""
         active = int(it["active"])
         self.kernels.launch("mlt_accept_and_weigh", active, it=it, current=c.current, proposal=c.proposal,
-                            chains=c.records, f_proposal=c.f_proposal, dims_proposal=c.dims_proposal,
+                            chains=c.records, f_proposal=c.proposed.f, dims_proposal=c.proposed.dims,
                             weight=c.weight, b_estimate=c.b_estimate, combine=np.int32(self.combine),
                             splat_weights=c.splat_weights,
                             b_sum=c.b_sum, tallies=c.tallies)
@@ -364,11 +385,11 @@ class Mlt(BdptPoolTechnique):
         the accepted proposals' records become the current states' (mlt_keep_records, which also
         estimates b for the next iteration). All on the device (cl/mlt_splat.h)."""
         active, (metropolis, large) = int(it["active"]), c.films
-        current = c.stores[0]
+        current, proposals = c.stores[0], c.proposed.store
         if it["mode"] == MltMode.MUTATE:
-            for store, count, component, film in ((c.proposals, proposed, 0, metropolis),
+            for store, count, component, film in ((proposals, proposed, 0, metropolis),
                                                   (current, min(c.bound, current.capacity), 1, metropolis),
-                                                  (c.proposals, proposed if self.combine else 0, 2, large)):
+                                                  (proposals, proposed if self.combine else 0, 2, large)):
                 if count:
                     self.kernels.launch("mlt_weigh_records", count, capacity=np.int32(count), total=store.total,
                                         active=np.int32(active), component=np.int32(component),
@@ -377,8 +398,8 @@ class Mlt(BdptPoolTechnique):
                     film.add(store.value, store.pixel, count, weighted=True)
         nxt = c.next_store(proposed)
         it["store_capacity"] = nxt.capacity
-        self.kernels.launch("mlt_keep_records", c.count, it=it, chains=c.records, proposal_span=c.proposals.span,
-                            proposal_value=c.proposals.value, proposal_pixel=c.proposals.pixel,
+        self.kernels.launch("mlt_keep_records", c.count, it=it, chains=c.records, proposal_span=proposals.span,
+                            proposal_value=proposals.value, proposal_pixel=proposals.pixel,
                             current_span=current.span, current_value=current.value, current_pixel=current.pixel,
                             next_span=nxt.span, next_value=nxt.value, next_pixel=nxt.pixel, next_chain=nxt.chain,
                             next_total=nxt.total, tallies=c.tallies, b_sum=c.b_sum, b_estimate=c.b_estimate)

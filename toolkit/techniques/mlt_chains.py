@@ -32,40 +32,63 @@ def store_capacity(n):
     return 1 << max(12, (int(n) - 1).bit_length())
 
 
-class ProposalSink:
-    """Where BDPT's connect phases put the proposals' records (sample id = chain). On the device,
-    mlt_proposal_sums (cl/mlt_contribution.h) sums each proposal's contribution f and used
-    dimensions into the chains' f_proposal and dims_proposal, and copies its records to the
-    proposal store, one connect phase after another: nothing is read back."""
+class SampleBatch:
+    """Samples evaluated on the device, sample id = entry: each one's f (float), used dimensions
+    (int) and records (a RecordStore with a span per sample). The chains' proposals are one (sample
+    = chain); start = pool's candidates another (sample = candidate)."""
 
-    def __init__(self, kernels, chains, active, pool):
-        self.kernels, self.chains, self.active, self.pool = kernels, chains, active, pool
+    def __init__(self, memory, samples):
+        self.memory, self.samples = memory, samples
+        self.f = cl.Buffer(memory.queue.context, cl.mem_flags.READ_WRITE, 4 * memory.padded(samples))
+        self.dims = memory.int_buffer(samples)
+        self.store = RecordStore(memory, samples, store_capacity(1))
+
+    def store_for(self, n, kept):
+        """The store, grown to hold n records if needed (its first `kept` copied over)."""
+        if n > self.store.capacity:
+            old, self.store = self.store, RecordStore(self.memory, self.samples, store_capacity(n))
+            q = self.memory.queue
+            for name, size in (("value", 16), ("pixel", 4), ("chain", 4)):
+                if kept:
+                    cl.enqueue_copy(q, getattr(self.store, name), getattr(old, name), byte_count=size * kept)
+            cl.enqueue_copy(q, self.store.span, old.span, byte_count=8 * self.samples)
+        return self.store
+
+
+class ProposalSink:
+    """Where BDPT's connect phases put the records of a batch of samples (SampleBatch: the chains'
+    proposals, or the start's candidates). On the device, mlt_proposal_sums (cl/mlt_contribution.h)
+    sums each sample's contribution f and used dimensions into the batch's f and dims, and copies
+    its records to the batch's store, one connect phase after another: nothing is read back."""
+
+    def __init__(self, kernels, batch, tallies, samples, pool):
+        self.kernels, self.batch, self.tallies, self.pool = kernels, batch, tallies, pool
         self.total = 0                                     # records stored: the connect phases' so far
         queue = kernels.queue
-        # a proposal that never connects has f = 0, used the start's dimensions and has no records
-        cl.enqueue_fill_buffer(queue, chains.f_proposal, np.float32(0), 0, 4 * active)
-        cl.enqueue_fill_buffer(queue, chains.dims_proposal, np.int32(BDPT_FIRST_SCATTER_DIM), 0, 4 * active)
-        cl.enqueue_fill_buffer(queue, chains.proposals.span, np.int32(0), 0, 8 * active)
+        # a sample that never connects has f = 0, used the start's dimensions and has no records
+        cl.enqueue_fill_buffer(queue, batch.f, np.float32(0), 0, 4 * samples)
+        cl.enqueue_fill_buffer(queue, batch.dims, np.int32(BDPT_FIRST_SCATTER_DIM), 0, 4 * samples)
+        cl.enqueue_fill_buffer(queue, batch.store.span, np.int32(0), 0, 8 * samples)
 
     def add(self, connections):
         """The records of one connect phase (on the device: Connections' buffers)."""
         if connections.count == 0:
             return
-        c, pool = self.chains, self.pool
-        store = c.proposal_store_for(self.total + connections.count, self.total)
+        b = self.batch
+        store = b.store_for(self.total + connections.count, self.total)
         # a record the phase did not write (none today: count is exact) splats nothing
         cl.enqueue_fill_buffer(self.kernels.queue, store.pixel, np.int32(-1), 4 * self.total, 4 * connections.count)
-        self.kernels.launch("mlt_proposal_sums", pool, pool=np.int32(pool), slots=connections.slot_buffer,
+        self.kernels.launch("mlt_proposal_sums", self.pool, pool=np.int32(self.pool), slots=connections.slot_buffer,
                             counts=connections.count_buffer, firsts=connections.first_buffer,
                             record_value=connections.value_buffer, record_pixel=connections.pixel_buffer,
-                            f_proposal=c.f_proposal, dims_proposal=c.dims_proposal, tallies=c.tallies,
+                            f_proposal=b.f, dims_proposal=b.dims, tallies=self.tallies,
                             store_base=np.int32(self.total), store_value=store.value, store_pixel=store.pixel,
                             store_chain=store.chain, proposal_span=store.span)
         self.total += connections.count
 
     def records(self):
         """The records stored (their total, also on the device for the kernels that read it)."""
-        cl.enqueue_fill_buffer(self.kernels.queue, self.chains.proposals.total, np.int32(self.total), 0, 4)
+        cl.enqueue_fill_buffer(self.kernels.queue, self.batch.store.total, np.int32(self.total), 0, 4)
         return self.total
 
 
@@ -80,8 +103,6 @@ class Chains:
     current: cl.Buffer       # float[max_dims][count]: the current states' primary-sample vectors
     proposal: cl.Buffer      # float[max_dims][count]: this iteration's proposals
     records: cl.Buffer       # MltChain[count]
-    f_proposal: cl.Buffer    # float[count]: each proposal's f, summed on the device (ProposalSink)
-    dims_proposal: cl.Buffer  # int[count]: the dimensions each proposal used, likewise
     tallies: cl.Buffer       # int[len(MltTally)]: the render's counts kept on the device, read at its end
     weight: cl.Buffer        # float[count]: each chain's splat weight, 1 or w_c / mean(w) (start = resample)
     splat_weights: cl.Buffer  # float4[count]: this iteration's weights (cl/mlt_splat.h mlt_chain_splat_weights)
@@ -98,7 +119,7 @@ class Chains:
     large_count: int = 0     # large steps in b (read_tallies)
     b_total: float = 0.0     # their sum of f (read_tallies)
     film_dropped: int = 0    # splats the films left out (not finite, or beyond FILM_RECORD_LIMIT): a bug
-    proposals: RecordStore = field(init=False)  # this iteration's proposals' records
+    proposed: SampleBatch = field(init=False)   # this iteration's proposals: f, dimensions, records (ProposalSink)
     stores: list = field(init=False)            # the current states' records, and the next ones' (swapped)
     bound: int = 0           # at least the records of the current store (next_store)
     rebuilds: int = 0        # current stores made so far (a picked start's iteration makes one too)
@@ -108,21 +129,10 @@ class Chains:
     large_splats: np.ndarray = field(init=False)  # (pixels, 3) float64: the large steps' own, likewise
 
     def __post_init__(self):
-        self.proposals = RecordStore(self.memory, self.count, store_capacity(1))
+        self.proposed = SampleBatch(self.memory, self.count)
         self.stores = [RecordStore(self.memory, self.count, store_capacity(1)) for _ in range(2)]
         self.added, self.pending = [], []
         self.splats, self.large_splats = np.zeros((self.pixels, 3)), np.zeros((self.pixels, 3))
-
-    def proposal_store_for(self, n, kept):
-        """The proposal store, grown to hold n records if needed (its first `kept` copied over)."""
-        if n > self.proposals.capacity:
-            old, self.proposals = self.proposals, RecordStore(self.memory, self.count, store_capacity(n))
-            q = self.memory.queue
-            for name, size in (("value", 16), ("pixel", 4), ("chain", 4)):
-                if kept:
-                    cl.enqueue_copy(q, getattr(self.proposals, name), getattr(old, name), byte_count=size * kept)
-            cl.enqueue_copy(q, self.proposals.span, old.span, byte_count=8 * self.count)
-        return self.proposals
 
     def next_store(self, proposed):
         """The store the next current states go to: room for the current ones and this iteration's
