@@ -16,6 +16,7 @@
  *                                                            iteration's weights (work-item 0)
  * and once, for start = pool, after the candidates (one batch of BDPT samples, each one's records kept):
  *   mlt_candidates_into_b        cl/mlt_start.h              every candidate's f into b
+ *   mlt_estimate_first_b         cl/mlt_start.h              b for the first iteration's weights
  *   mlt_start_from               cl/mlt_start.h              each chain's first state, picked by the host
  * or for start = resample:
  *   mlt_resample_weights         cl/mlt_splat.h              each chain's weight

@@ -15,7 +15,7 @@ One iteration, read like the slide, every step of it on the device:
 While the chains iterate the host waits for nothing: it reads one count per iteration, behind the
 kernels and looked at iterations later (how many records the current states keep: mlt_chains.py
 Chains.next_store), and the films, b and the tallies once at the end (for start = pool, also the
-candidates' f once, to pick the starts).
+candidates' f and their records' counts once, to pick the starts and size their store).
 
 The estimator. A sample x (a point of primary sample space [0, 1)^D: the image position, the
 light sample, every scattering decision) has the contribution h_j(x) to pixel j, the sum of
@@ -67,8 +67,10 @@ like f / b up to the resampling of a finite pool: a bias of O(1 / (chains x N)),
 above, with no weights to add variance. A bright candidate may start several chains; they part
 with their first mutations. N is `candidates`, by default such that the pool holds POOL_CANDIDATES
 (default_candidates: a larger pool removes no bias the tests can see, and every candidate costs a
-BDPT sample). The candidates' records are not kept: the picked ones are evaluated
-once more from their vectors (MltMode.PICKED: the same path, so the same records; not counted in b).
+BDPT sample). The candidates are one batch of BDPT samples, not `candidates` iterations of the
+chains (evaluate_candidates: the pool regenerates like a BDPT pass, and no iteration's own kernels
+run), and each keeps its f, dimensions and records on the device, so a chain starts at its
+picked candidate without evaluating it again (start_from_pool).
 
 Splats are summed on the device, into two record films (toolkit/opencl/record_film.py: exact
 128-bit fixed point per pixel and channel, so the order of the additions changes no bit; no float
@@ -315,6 +317,8 @@ class Mlt(BdptPoolTechnique):
         self.kernels.launch("mlt_candidates_into_b", n, candidates=np.int32(n),
                             unit_exponent=np.int32(c.films[1].unit_exponent), f_candidate=batch.f,
                             b_sum=c.b_sum, tallies=c.tallies)
+        self.kernels.launch("mlt_estimate_first_b", 1, b_sum=c.b_sum, unit_exponent=np.int32(c.films[1].unit_exponent),
+                            tallies=c.tallies, b_estimate=c.b_estimate)
         c.iteration += per_chain
         return batch
 
@@ -335,16 +339,15 @@ class Mlt(BdptPoolTechnique):
         spans = self.memory.read_ints(candidates.store.span, 2 * n).reshape(n, 2)
         store = c.next_store(int(spans[pick, 1].sum()))
         it = self.iteration_args(c, count, MltMode.START)
-        it["store_capacity"] = store.capacity
+        it["iteration"], it["store_capacity"] = first, store.capacity
         upload = cl.Buffer(self.queue.context, cl.mem_flags.READ_ONLY | cl.mem_flags.COPY_HOST_PTR,
                            hostbuf=np.ascontiguousarray(pick, np.int32))
         s = candidates.store
-        self.kernels.launch("mlt_start_from", count, it=it, first=np.int32(first), pick=upload,
+        self.kernels.launch("mlt_start_from", count, it=it, pick=upload,
                             f_candidate=candidates.f, dims_candidate=candidates.dims, candidate_span=s.span,
                             candidate_value=s.value, candidate_pixel=s.pixel, current=c.current, chains=c.records,
                             next_span=store.span, next_value=store.value, next_pixel=store.pixel,
-                            next_chain=store.chain, next_total=store.total, tallies=c.tallies,
-                            b_sum=c.b_sum, b_estimate=c.b_estimate)
+                            next_chain=store.chain, next_total=store.total, tallies=c.tallies)
         c.kept(store)
 
     # --- the stages of an iteration, one kernel (or one BDPT evaluation) each ------------------
