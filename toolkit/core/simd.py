@@ -63,26 +63,25 @@ class PhaseCounter:
         # lanes (warps) with more than k iterations, for every k at once: counts of each length, summed from the top
         lanes_past = _more_than(x, longest)
         warps_past = _more_than(_into_warps(x, w).max(1), longest)
-        for k in range(longest):
-            active = int(lanes_past[k])
-            issued = int(warps_past[k]) * w
-            self.per_iteration.append({"phase": phase, "iteration": first_iteration + k,
-                                       "efficiency": active / issued if issued else 1.0,
-                                       "active": active, "capacity": len(x), "draining": False})
+        self._add_iterations(phase, lanes_past, warps_past, len(x), first_iteration)
 
     def add_loop_histogram(self, phase, histogram, lanes, first_iteration=0):
         """add_loop_iterations from a histogram instead of the lanes: histogram[v] = (lanes whose loop
         ran v times, warps whose longest lane ran v times), over `lanes` lanes."""
         lanes_past = _from_the_top(histogram[:, 0])
         warps_past = _from_the_top(histogram[:, 1])
-        for k in range(len(lanes_past)):
-            if warps_past[k] == 0:
-                break
-            active = int(lanes_past[k])
-            issued = int(warps_past[k]) * self.warp_width
-            self.per_iteration.append({"phase": phase, "iteration": first_iteration + k,
-                                       "efficiency": active / issued if issued else 1.0,
-                                       "active": active, "capacity": lanes, "draining": False})
+        # sums from the top never grow: the loop ran while any warp had iterations left
+        running = int(np.count_nonzero(warps_past))
+        self._add_iterations(phase, lanes_past[:running], warps_past[:running], lanes, first_iteration)
+
+    def _add_iterations(self, phase, lanes_past, warps_past, capacity, first_iteration):
+        """One per_iteration entry per iteration k of a loop: lanes_past[k] lanes and warps_past[k]
+        warps still running it. Python ints (tolist): a render counts tens of thousands of them."""
+        w = self.warp_width
+        self.per_iteration.extend(
+            {"phase": phase, "iteration": first_iteration + k, "efficiency": active / (warps * w) if warps else 1.0,
+             "active": active, "capacity": capacity, "draining": False}
+            for k, (active, warps) in enumerate(zip(lanes_past.tolist(), warps_past.tolist())))
 
     def efficiency(self):
         out = {p: (self.active[p] / self.issued[p] if self.issued[p] else 1.0) for p in self.active}
