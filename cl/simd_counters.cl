@@ -33,12 +33,12 @@ HELPER void add_wide(volatile __global uint* row, int field, uint x) {
  *     `stamp` gets it and counts once in SLOT_WARPS (warp_stamps only grow);
  *   aux_bound: a second buffer of one int per lane (a step's other kernel: pt_inplace_regen's
  *     regeneration), its first aux_bound summed into the AUX_ fields. */
-__kernel void simd_count_lanes(__global const int* lanes, __global const int* length_at,
-                               volatile __global uint* rows, __global const int* watch,
-                               volatile __global uint* histogram, __global const int* slot_of,
-                               volatile __global int* warp_stamps, __global const int* aux, const SimdStep step)
+HELPER void simd_count_warp(int warp, __global const int* lanes, __global const int* length_at,
+                            volatile __global uint* rows, __global const int* watch,
+                            volatile __global uint* histogram, __global const int* slot_of,
+                            volatile __global int* warp_stamps, __global const int* aux, const SimdStep step)
 {
-    int warp = get_global_id(0), stride = step.stride, warp_width = step.warp_width;
+    int stride = step.stride, warp_width = step.warp_width;
     int bins = step.bins, histogram_row = step.histogram_row, histogram_rows = step.histogram_rows;
     int stamp = step.stamp, slot_offset = step.slot_offset;
     volatile __global uint* row = rows + step.row * 2 * SIMD_FIELDS;
@@ -103,6 +103,32 @@ __kernel void simd_count_lanes(__global const int* lanes, __global const int* le
     add_wide(row, SIMD_SHADOW_STEPS_SUM, steps_sum);
     add_wide(row, SIMD_SHADOW_STEPS_WARP_MAX, steps_max);
     add_wide(row, SIMD_SLOT_WARPS, slot_warps);
+}
+
+__kernel void simd_count_lanes(__global const int* lanes, __global const int* length_at,
+                               volatile __global uint* rows, __global const int* watch,
+                               volatile __global uint* histogram, __global const int* slot_of,
+                               volatile __global int* warp_stamps, __global const int* aux, const SimdStep step)
+{
+    simd_count_warp(get_global_id(0), lanes, length_at, rows, watch, histogram, slot_of, warp_stamps, aux, step);
+}
+
+/* Two steps in one launch (the BDPT walk's eye and light streams, whose steps share a launch's
+ * worth of host time otherwise): warps below `warps` count `step` over `lanes`, the others
+ * `step_b` over `lanes_b`, each from its own warp 0. Only what the walk counts: lengths on the
+ * device, and slots, each stream with its own stamps (warp_stamps_b), since the two run at once
+ * and a stamp must find the warps it has not seen. */
+__kernel void simd_count_two_streams(__global const int* lanes, __global const int* lanes_b,
+                                     __global const int* length_at, volatile __global uint* rows,
+                                     __global const int* slot_of, __global const int* slot_of_b,
+                                     volatile __global int* warp_stamps, volatile __global int* warp_stamps_b,
+                                     const int warps, const SimdStep step, const SimdStep step_b)
+{
+    int warp = get_global_id(0);
+    if (warp < warps)
+        simd_count_warp(warp, lanes, length_at, rows, 0, 0, slot_of, warp_stamps, 0, step);
+    else
+        simd_count_warp(warp - warps, lanes_b, length_at, rows, 0, 0, slot_of_b, warp_stamps_b, 0, step_b);
 }
 
 /* The same loops with only the lanes that have work, packed side by side in lane order (the naive

@@ -57,6 +57,7 @@ class StepLog:
         built = program.build(queue, "simd_counters.cl", {"LOCAL_SIZE": local_size}, directory=sources)
         self.lanes_kernel = program.kernel(built, "simd_count_lanes")
         self.packed_kernel = program.kernel(built, "simd_count_packed")
+        self.two_streams_kernel = program.kernel(built, "simd_count_two_streams")
         self.row_bytes = 8 * int(SimdSum.FIELDS)
         self.rows = self.none = None           # the log, and an argument no work-item reads: at the first step
         self.used = 0                          # rows queued since the last read
@@ -66,6 +67,10 @@ class StepLog:
     @property
     def full(self):
         return self.used == ROWS or len(self.histogram_used) == HISTOGRAM_ROWS
+
+    def has_room(self, rows):
+        """Whether `rows` more steps fit before the log must be read."""
+        return self.used + rows <= ROWS and len(self.histogram_used) < HISTOGRAM_ROWS
 
     def count(self, lanes, stride, bound, length_at=None, length_index=-1, watch=None, watch_count=0,
               bins=0, slot_of=None, slot_offset=0, pool=0, packed=False, aux=None, aux_bound=0):
@@ -78,10 +83,7 @@ class StepLog:
         buffer of one int per lane, its first `aux_bound` into AUX_. Returns the row."""
         if self.full:
             raise RuntimeError("the step log is full: read it first")
-        if self.rows is None:
-            ctx, rw = self.queue.context, cl.mem_flags.READ_WRITE
-            self.rows, self.none = cl.Buffer(ctx, rw, self.row_bytes * ROWS), cl.Buffer(ctx, rw, 4)
-            cl.enqueue_fill_buffer(self.queue, self.rows, np.uint32(0), 0, self.row_bytes * ROWS)
+        self._rows()
         row = self.used
         self.used += 1
         histogram_row = -1
@@ -94,6 +96,37 @@ class StepLog:
         self._launch(row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins,
                      histogram_row, slot_of, slot_offset, stamp, pool, packed, aux, aux_bound)
         return row
+
+    def count_two_streams(self, first, second, pool):
+        """Queue two steps that count lanes on the device's lengths and their slots (`first`,
+        `second`: (lanes, bound, length_at, length_index, slot_of, slot_offset), stride 4) with one
+        launch (cl/simd_counters.cl simd_count_two_streams): the BDPT walk's eye and light streams.
+        The same rows as two calls of count; returns them."""
+        if not self.has_room(2):
+            raise RuntimeError("the step log is full: read it first")
+        self._rows()
+        w, args, records = self.warp_width, [], []
+        for k, (lanes, bound, length_at, length_index, slot_of, slot_offset) in enumerate((first, second)):
+            self.stamp += 1
+            records.append(SIMD_STEP.record(stride=4, bound=bound, length_index=length_index, warp_width=w,
+                                            row=self.used, watch_count=0, bins=max(self.bins, 1), histogram_row=-1,
+                                            histogram_rows=HISTOGRAM_ROWS, slot_offset=slot_offset,
+                                            stamp=self.stamp, aux_bound=0))
+            args.append((lanes, slot_of, self._stamps(pool, second=k == 1)))
+            self.used += 1
+        warps = max(1, -(-first[1] // w))
+        (lanes_a, slots_a, stamps_a), (lanes_b, slots_b, stamps_b) = args
+        program.launch(self.queue, self.two_streams_kernel, warps + max(1, -(-second[1] // w)), lanes_a, lanes_b,
+                       first[2], self.rows, slots_a, slots_b, stamps_a, stamps_b, np.int32(warps), *records,
+                       local_size=self.local_size)
+        return self.used - 2, self.used - 1
+
+    def _rows(self):
+        """The log's buffers, made at the first step."""
+        if self.rows is None:
+            ctx, rw = self.queue.context, cl.mem_flags.READ_WRITE
+            self.rows, self.none = cl.Buffer(ctx, rw, self.row_bytes * ROWS), cl.Buffer(ctx, rw, 4)
+            cl.enqueue_fill_buffer(self.queue, self.rows, np.uint32(0), 0, self.row_bytes * ROWS)
 
     def _launch(self, row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins, histogram_row,
                 slot_of, slot_offset, stamp, pool, packed, aux, aux_bound):
@@ -149,11 +182,14 @@ class StepLog:
         self.histogram_used.append((row, bins))
         return len(self.histogram_used) - 1
 
-    def _stamps(self, pool):
+    def _stamps(self, pool, second=False):
+        """The pool warps' stamps; `second`: another set, for the second of two steps counted at once
+        (stamps only grow, so a step may use either set, but two steps at once must not share one)."""
         warps = max(1, -(-pool // self.warp_width))
-        if ("stamps", warps) not in self.made:
-            self.made["stamps", warps] = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * warps)
-            cl.enqueue_fill_buffer(self.queue, self.made["stamps", warps], np.int32(0), 0, 4 * warps)
-        return self.made["stamps", warps]
+        key = ("stamps", warps, second)
+        if key not in self.made:
+            self.made[key] = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4 * warps)
+            cl.enqueue_fill_buffer(self.queue, self.made[key], np.int32(0), 0, 4 * warps)
+        return self.made[key]
 
 

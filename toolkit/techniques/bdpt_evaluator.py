@@ -426,9 +426,10 @@ class BdptEvaluator:
     # --- measuring and inspecting ------------------------------------------------------------
 
     def count_walk_step(self, p):
-        """SIMD counters of one walk step (a no-op unless count_simd), summed on the device, one
-        stream at a time: its lanes are the first of the length the step extended (counters), its
-        slots those of the subpaths it extended (for the walk as it would be without compaction)."""
+        """SIMD counters of one walk step (a no-op unless count_simd), summed on the device, both
+        streams with one launch (a launch per step is most of a counted step's host time): a
+        stream's lanes are the first of the length the step extended (counters), its slots those
+        of the subpaths it extended (for the walk as it would be without compaction)."""
         ctx = self.ctx
         if not ctx.recorder.on:
             return
@@ -443,11 +444,16 @@ class BdptEvaluator:
             recorder.warp_loops(recorder.traversal_counter(), "closest", sums, "closest_steps")
             # without compaction each path keeps its slot's lane
             recorder.slot_warps(recorder.counter(WITHOUT_COMPACTION), "walk", sums, pool)
-        for stream, length in ((p.pool.eye, WalkCounter.STEP_EYE_LENGTH), (p.pool.light, WalkCounter.STEP_LIGHT_LENGTH)):
-            if stream.length:
-                ctx.recorder.lanes(replay, stream.lane_counts, 4, stream.length, length_at=p.pool.counters,
-                                   length_index=int(length), slot_of=stream.current,
-                                   slot_offset=SUBPATH.soa_offset("slot", p.pool.capacity) // 4, pool=pool)
+        slot_offset = SUBPATH.soa_offset("slot", p.pool.capacity) // 4
+        steps = [(stream.lane_counts, stream.length, p.pool.counters, int(length), stream.current, slot_offset)
+                 for stream, length in ((p.pool.eye, WalkCounter.STEP_EYE_LENGTH),
+                                        (p.pool.light, WalkCounter.STEP_LIGHT_LENGTH)) if stream.length]
+        if len(steps) == 2:     # both streams with one launch
+            ctx.recorder.lanes_of_two_streams(replay, *steps, pool=pool)
+        elif steps:
+            lanes, bound, length_at, length_index, slot_of, offset = steps[0]
+            ctx.recorder.lanes(replay, lanes, 4, bound, length_at=length_at, length_index=length_index,
+                               slot_of=slot_of, slot_offset=offset, pool=pool)
 
     def stats(self):
         """The walk's figures for the render stats."""

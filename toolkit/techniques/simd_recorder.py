@@ -117,6 +117,24 @@ class SimdRecorder:
                         slot_offset, pool, packed, aux, aux_bound)
         self._pending.append((row, replay))
 
+    def lanes_of_two_streams(self, replay, first, second, pool):
+        """Two steps like lanes(replay, lanes, 4, bound, length_at=..., length_index=..., slot_of=...,
+        slot_offset=..., pool=pool) each, `first` and `second` those arguments as (lanes, bound,
+        length_at, length_index, slot_of, slot_offset), counted on the device by one launch (the BDPT
+        walk's eye and light streams); replay runs for each, in order."""
+        if self.reference is not None or self.per_step:
+            for lanes, bound, length_at, length_index, slot_of, slot_offset in (first, second):
+                (self if self.per_step else self.reference).lanes(
+                    replay, lanes, 4, bound, length_at=length_at, length_index=length_index, slot_of=slot_of,
+                    slot_offset=slot_offset, pool=pool)
+            if self.per_step:
+                return
+        log = self._step_log()
+        if not log.has_room(2):
+            self.flush()
+        for row in log.count_two_streams(first, second, pool):
+            self._pending.append((row, replay))
+
     def flush(self):
         """Read the step log and run the steps' replays, in order: replay(self[, the step's StepSums])."""
         if not self._pending:
