@@ -250,8 +250,8 @@ def test_storage_layout_and_connect_schedule_do_not_change_the_image(queue, corn
 # -- each proposal's f on the device ------------------------------------------------------------------
 
 def test_each_proposals_f_and_dims_are_summed_on_the_device_from_its_records(cornell_box, monkeypatch):
-    """mlt_proposal_sums (cl/mlt_contribution.h) adds each proposal's records in float32 on the
-    device: f agrees with the float64 sum of the same records read back, within float32 rounding
+    """mlt_proposal_sums (cl/mlt_contribution.h) adds each proposal's records (and each of start =
+    pool's candidates', evaluated as one batch) in float32 on the device: f agrees with the float64 sum of the same records read back, within float32 rounding
     of a sum of n non-negative terms (n * 2^-23 of the sum, n the proposal's records: far below a
     record's share); its dims are used_dims of the slot's subpaths, at most max_dims."""
     from toolkit.core.layout import LUMINANCE_WEIGHTS
@@ -261,7 +261,7 @@ def test_each_proposals_f_and_dims_are_summed_on_the_device_from_its_records(cor
     import pyopencl as cl
     from toolkit.core.layout import BDPT_SLOT
     seen, pending, expected_dims = [], [], {}
-    add, accept = mlt_chains.ProposalSink.add, Mlt.accept
+    add, accept, evaluate_candidates = mlt_chains.ProposalSink.add, Mlt.accept, Mlt.evaluate_candidates
 
     def add_noting_dims(sink, connections):   # the test reads the records back; the render does not
         if connections.count:
@@ -276,26 +276,35 @@ def test_each_proposals_f_and_dims_are_summed_on_the_device_from_its_records(cor
                                      used_dims(slots["eye_vertices"][done], slots["light_vertices"][done]).tolist()))
         add(sink, connections)
 
-    def accept_checked(tech, c, it):
-        accept(tech, c, it)
-        active = int(it["active"])
-        f = np.empty(active, np.float32)
-        cl.enqueue_copy(tech.queue, f, c.proposed.f)
-        dims_proposal = c.memory.read_ints(c.proposed.dims, active)
+    def check(tech, batch, samples):   # the batch's f and dims against the records noted since the last check
+        f = np.empty(samples, np.float32)
+        cl.enqueue_copy(tech.queue, f, batch.f)
+        dims_proposal = tech.memory.read_ints(batch.dims, samples)
         chain = np.concatenate([x for x, _ in pending] + [np.zeros(0, np.int64)])
         values = np.concatenate([v for _, v in pending] + [np.zeros((0, 3))])
         pending.clear()
-        host = np.bincount(chain, values @ np.asarray(LUMINANCE_WEIGHTS), minlength=active)
-        seen.append((f, host, np.bincount(chain, minlength=active)))
-        dims = np.full(active, 8)
+        host = np.bincount(chain, values @ np.asarray(LUMINANCE_WEIGHTS), minlength=samples)
+        seen.append((f, host, np.bincount(chain, minlength=samples)))
+        dims = np.full(samples, 8)
         dims[list(expected_dims)] = np.minimum(list(expected_dims.values()), 128)
         assert np.array_equal(dims_proposal, dims)
         expected_dims.clear()
+
+    def accept_checked(tech, c, it):
+        accept(tech, c, it)
+        check(tech, c.proposed, int(it["active"]))
+
+    def candidates_checked(tech, c, per_chain):   # start = pool's batch: sample id = candidate
+        batch = evaluate_candidates(tech, c, per_chain)
+        check(tech, batch, c.count * per_chain)
+        return batch
     monkeypatch.setattr(mlt_chains.ProposalSink, "add", add_noting_dims)
     monkeypatch.setattr(Mlt, "accept", accept_checked)
-    render(cornell_box, 4, 0, 8, chains=128, start="naive")
+    monkeypatch.setattr(Mlt, "evaluate_candidates", candidates_checked)
+    render(cornell_box, 4, 0, 8, chains=128, start="pool", candidates=3)
     f, host, n = (np.concatenate(x) for x in zip(*seen))
-    assert len(seen) == 1 + 2 and (f > 0).mean() > 0.3   # the start's large steps, two iterations
+    assert [len(x[0]) for x in seen] == [128 * 3, 128, 128]   # the candidates' batch, two iterations
+    assert (f > 0).mean() > 0.3
     assert np.all(np.abs(f - host) <= np.maximum(n, 1) * 2.0 ** -23 * host + 1e-30)
 
 

@@ -108,10 +108,7 @@ class StepLog:
         w, args, records = self.warp_width, [], []
         for k, (lanes, bound, length_at, length_index, slot_of, slot_offset) in enumerate((first, second)):
             self.stamp += 1
-            records.append(SIMD_STEP.record(stride=4, bound=bound, length_index=length_index, warp_width=w,
-                                            row=self.used, watch_count=0, bins=max(self.bins, 1), histogram_row=-1,
-                                            histogram_rows=HISTOGRAM_ROWS, slot_offset=slot_offset,
-                                            stamp=self.stamp, aux_bound=0))
+            records.append(self._step(self.used, 4, bound, length_index, slot_offset=slot_offset, stamp=self.stamp))
             args.append((lanes, slot_of, self._stamps(pool, second=k == 1)))
             self.used += 1
         warps = max(1, -(-first[1] // w))
@@ -131,10 +128,8 @@ class StepLog:
     def _launch(self, row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins, histogram_row,
                 slot_of, slot_offset, stamp, pool, packed, aux, aux_bound):
         w, none = self.warp_width, self.none
-        step = SIMD_STEP.record(stride=stride, bound=bound, length_index=length_index, warp_width=w, row=row,
-                                watch_count=watch_count, bins=max(self.bins, 1), histogram_row=histogram_row,
-                                histogram_rows=HISTOGRAM_ROWS, slot_offset=slot_offset, stamp=stamp,
-                                aux_bound=aux_bound if aux is not None else 0)
+        step = self._step(row, stride, bound, length_index, watch_count, histogram_row, slot_offset, stamp,
+                          aux_bound if aux is not None else 0)
         program.launch(self.queue, self.lanes_kernel, max(1, -(-max(bound, aux_bound) // w)), lanes,
                        none if length_at is None else length_at, self.rows, none if watch is None else watch,
                        self.histogram if bins else none, none if slot_of is None else slot_of,
@@ -143,6 +138,14 @@ class StepLog:
         if packed:   # one work-group (cl/simd_counters.cl simd_count_packed)
             program.launch(self.queue, self.packed_kernel, 1, lanes, np.int32(stride), np.int32(bound), np.int32(w),
                            self.rows, np.int32(row), local_size=self.local_size)
+
+    def _step(self, row, stride, bound, length_index, watch_count=0, histogram_row=-1, slot_offset=0, stamp=0,
+              aux_bound=0):
+        """The SimdStep record of one counted step (its fields: layout.py SIMD_STEP)."""
+        return SIMD_STEP.record(stride=stride, bound=bound, length_index=length_index, warp_width=self.warp_width,
+                                row=row, watch_count=watch_count, bins=max(self.bins, 1), histogram_row=histogram_row,
+                                histogram_rows=HISTOGRAM_ROWS, slot_offset=slot_offset, stamp=stamp,
+                                aux_bound=aux_bound)
 
     def read(self):
         """The rows queued since the last read, as StepSums in order (one blocking read, two with
