@@ -21,7 +21,10 @@ ADD_ONE = "__kernel void add_one(__global int *x, int n) { int i = get_global_id
 
 
 def test_a_known_sequence_of_commands_is_counted_exactly(queue):
-    kernel = cl.Kernel(cl.Program(queue.context, ADD_ONE).build(), "add_one")
+    # The program kept alive beside its kernel: Intel's CPU runtime refuses a kernel's program
+    # (clRetainProgram: INVALID_PROGRAM) once the host has released it, and launch asks for it.
+    built = cl.Program(queue.context, ADD_ONE).build()
+    kernel = cl.Kernel(built, "add_one")
     n = 1000
     host = np.zeros(n, np.int32)
     buffer = cl.Buffer(queue.context, cl.mem_flags.READ_WRITE, 4 * n)
@@ -41,14 +44,39 @@ def test_a_known_sequence_of_commands_is_counted_exactly(queue):
         cl.enqueue_copy(queue, other, buffer)                                 # on the device: no host bytes
         queue.finish()                                                        # a drain
     assert np.all(host == 5)
-    assert traffic.figures() | {"serial_seconds": 0, "cpu_seconds": 0} == {
+    times = {"serial_seconds": 0, "cpu_seconds": 0, "wait_cpu_seconds": 0}
+    assert traffic.figures() | times == {
         "launches": 5, "fills": 1, "reads": 3, "blocking_reads": 1, "read_bytes": 4 * n + 40 + 4 * n,
         "writes": 1, "blocking_writes": 1, "write_bytes": 4 * n, "device_copies": 1,
-        "drains": 4, "serial_seconds": 0, "cpu_seconds": 0}   # blocking write, blocking read, late.wait, finish
+        "drains": 4, **times}   # blocking write, blocking read, late.wait, finish
     assert 0 < traffic.serial_seconds <= traffic.cpu_seconds
+    assert 0 <= traffic.wait_cpu_seconds <= traffic.cpu_seconds
     # Restored after: nothing counts outside the recording.
     cl.enqueue_copy(queue, host, buffer)
     assert traffic.reads == 3 and cl.enqueue_copy.__module__ == "pyopencl"
+
+
+def test_the_threads_time_inside_waits_is_kept_apart(queue, monkeypatch):
+    """A wait whose thread works (as Intel's CPU runtime's waiter runs the kernels) counts in
+    wait_cpu_seconds, a blocking read, Event.wait and finish alike; the work between them does not."""
+    import time
+
+    def burn(seconds):
+        start = time.thread_time()
+        while time.thread_time() - start < seconds:
+            pass
+    real_wait, real_finish, real_copy = cl.Event.wait, cl.CommandQueue.finish, cl.enqueue_copy
+    monkeypatch.setattr(cl.Event, "wait", lambda event: (burn(0.02), real_wait(event))[1])
+    monkeypatch.setattr(cl.CommandQueue, "finish", lambda q: (burn(0.02), real_finish(q))[1])
+    monkeypatch.setattr(cl, "enqueue_copy", lambda *a, **k: (burn(0.02), real_copy(*a, **k))[1])
+    host, buffer = np.zeros(4, np.int32), cl.Buffer(queue.context, cl.mem_flags.READ_WRITE, 16)
+    with Traffic() as traffic:
+        cl.enqueue_copy(queue, host, buffer)                          # blocking: 0.02 s inside
+        cl.enqueue_copy(queue, host, buffer, is_blocking=False).wait()  # 0.02 s not waiting, 0.02 s waiting
+        queue.finish()                                                # 0.02 s
+        burn(0.03)                                                    # the host's own work
+    assert 0.06 <= traffic.wait_cpu_seconds < 0.08
+    assert 0.05 <= traffic.cpu_seconds - traffic.wait_cpu_seconds < 0.07
 
 
 def test_only_the_recording_thread_is_counted(queue):
@@ -262,7 +290,7 @@ def test_the_meter_renders_once_unmeasured_at_n_before_its_pairs(cornell_box, mo
     monkeypatch.setattr(meter, "GPU_SIZES", {})
     monkeypatch.setattr(meter, "metered_render", lambda *args, **kwargs: seen.append("pair") or
                         {key: 1.0 for key in ("samples", "passes", "cpu_seconds", "pass_cpu_seconds", "serial_seconds",
-                                              "kernel_seconds", "seconds", "read_bytes", "write_bytes", "reads",
+                                              "kernel_seconds", "seconds", "read_bytes", "write_bytes", "reads", "wait_cpu_seconds",
                                               "blocking_reads", "blocking_writes", "drains", "launches")}
                         | {"samples": len(seen)})
     seen.clear()

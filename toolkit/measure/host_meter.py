@@ -5,8 +5,10 @@ Each technique renders twice, at N and at 4N samples per pixel (path tracers 16 
 BDPT and Metropolis a quarter of that, but 16 and 64 at the GPU's sizes), and the meter reports what
 the 3N more samples cost: the fixed costs of a render (buffers made, kernels found built, the scene's
 upload) drop out.
-Per sample: the CPU time of the thread that drives the queue (time.thread_time), the part of it
-during which the device's queue was empty (`serial`: toolkit/opencl/traffic.py), the bytes read
+Per sample: the CPU time of the thread that drives the queue (time.thread_time) outside the calls
+that wait for the device (kept apart as `wait_cpu_ns_per_sample`: where the waiting thread runs the
+kernels itself, Intel's CPU runtime, it is the kernels' time, not the host's; PoCL's waits sleep),
+the part of it during which the device's queue was empty (`serial`: toolkit/opencl/traffic.py), the bytes read
 back and written, the kernels' device time (OpenCL's profiling events). Per million samples: the
 reads, the blocking transfers and the launches. Per pass, from the 4N render: blocking transfers
 and launches. And the kernels' share of the 4N render's wall time.
@@ -69,7 +71,7 @@ GPU_SIZES = {"stream_size": 270_336, "pool_size": 270_336, "chains": 262_144}
 GROWTH = 4   # the second render has GROWTH times the first one's samples
 # The figures that are times (noisy), for `spread`; the rest are counts, the same in every pair.
 TIMED = ("host_cpu_ns_per_sample", "pass_cpu_ns_per_sample", "serial_ns_per_sample", "kernel_ns_per_sample",
-         "wall_ns_per_sample", "kernel_share")
+         "wall_ns_per_sample", "kernel_share", "wait_cpu_ns_per_sample")
 
 
 QUARTER = "N = spp / 4"
@@ -128,6 +130,8 @@ def metered_render(scene, technique, options, count_simd=False, warm_up=None):
     # render's (a render without time_phases does none): its CPU time is left out of the host's.
     reading = stats["kernel_times_reading_seconds"]
     figures["cpu_seconds"] -= reading
+    # Nor is its time inside waits for the device (traffic.py: the kernels' own, on some CPU runtimes).
+    figures["cpu_seconds"] -= figures["wait_cpu_seconds"]
     return {**figures, **faults, "timing_cpu_seconds": reading, "pass_cpu_seconds": passes[1], "seconds": stats["seconds"],
             "kernel_seconds": sum(k["seconds"] for k in stats["kernel_times"].values()),
             "samples": round(stats["samples_per_second"] * stats["seconds"]), "passes": passes[0]}
@@ -147,17 +151,21 @@ def _usage():
 @contextmanager
 def counted_passes(cls):
     """Counts the calls of `cls.run_pass` (a technique's passes) while the block runs, and the thread
-    CPU time spent in them; yields [count, seconds]."""
+    CPU time spent in them, less its time inside waits for the device when a Traffic records (as the
+    meter's host CPU); yields [count, seconds]."""
     count, real = [0, 0.0], cls.__dict__.get("run_pass")
     inherited = cls.run_pass
 
+    def waits():
+        return Traffic._active.wait_cpu_seconds if Traffic._active is not None else 0.0
+
     def run_pass(self, *args, **kwargs):
         count[0] += 1
-        start = time.thread_time()
+        start, waited = time.thread_time(), waits()
         try:
             return inherited(self, *args, **kwargs)
         finally:
-            count[1] += time.thread_time() - start
+            count[1] += time.thread_time() - start - (waits() - waited)
     cls.run_pass = run_pass
     try:
         yield count
@@ -186,6 +194,8 @@ def costs(first, second):
         # host cost is the same in both renders but not its noise (Metropolis's start is 17 iterations)
         "pass_cpu_ns_per_sample": per_sample("pass_cpu_seconds") * 1e9,
         "serial_ns_per_sample": per_sample("serial_seconds") * 1e9,
+        # the thread's CPU time inside waits for the device, left out of the host's (traffic.py)
+        "wait_cpu_ns_per_sample": per_sample("wait_cpu_seconds") * 1e9,
         "kernel_ns_per_sample": per_sample("kernel_seconds") * 1e9,
         "wall_ns_per_sample": per_sample("seconds") * 1e9,
         "read_bytes_per_sample": per_sample("read_bytes"),
@@ -283,7 +293,13 @@ def format_host_meter(report):
     for name, row in report["techniques"].items():
         if "pass_cpu_ns_per_sample" in row:
             lines.append(f"{name}: host CPU inside its passes {row['pass_cpu_ns_per_sample']:,.1f} ns/sample")
-    lines.append("host CPU: the CPU time of the thread that drives the queue; serial: the part of it while the "
+    waits = [row.get("wait_cpu_ns_per_sample", 0.0) for row in report["techniques"].values()]
+    if waits and max(waits) >= 1.0:
+        lines.append("left out of host CPU, the thread's time inside waits for the device (ns/sample; where the "
+                     "waiting thread runs the kernels, as Intel's CPU runtime does, the kernels' own time): "
+                     + ", ".join(f"{name} {row.get('wait_cpu_ns_per_sample', 0.0):,.1f}"
+                                 for name, row in report["techniques"].items()))
+    lines.append("host CPU: the CPU time of the thread that drives the queue, outside its waits for the device; serial: the part of it while the "
                  "device's queue was empty (from a blocking read, finish or wait to the next launch); blocking: "
                  "blocking reads and writes; per pass: in the 4N render. Kernels: OpenCL profiling events.")
     return "\n".join(lines)
