@@ -20,7 +20,7 @@ HELPER void add_wide(volatile __global uint* row, int field, uint x) {
     if (old + x < old) atomic_inc(&row[2 * field + 1]);
 }
 
-/* One work-item per warp: the warp's `warp_width` consecutive lanes of the first n, where n is
+/* One work-item per warp, its sums into row `row_index` of the log: the warp's `warp_width` consecutive lanes of the first n, where n is
  * `bound` or, when length_index >= 0, length_at[length_index] (a count the device holds: the
  * step's stream length), whichever is smaller (`step`'s fields: SimdStep, layout.h). Lane i's ints are lanes[i * stride ..]: the
  * LaneCounts fields in order (work, closest_steps, shadow_rays, shadow_steps; stride 4), or one
@@ -34,14 +34,14 @@ HELPER void add_wide(volatile __global uint* row, int field, uint x) {
  *   aux_bound: a second buffer of one int per lane (a step's other kernel: pt_inplace_regen's
  *     regeneration), its first aux_bound summed into the AUX_ fields. */
 HELPER void simd_count_warp(int warp, __global const int* lanes, __global const int* length_at,
-                            volatile __global uint* rows, __global const int* watch,
+                            volatile __global uint* rows, int row_index, __global const int* watch,
                             volatile __global uint* histogram, __global const int* slot_of,
                             volatile __global int* warp_stamps, __global const int* aux, const SimdStep step)
 {
     int stride = step.stride, warp_width = step.warp_width;
     int bins = step.bins, histogram_row = step.histogram_row, histogram_rows = step.histogram_rows;
     int stamp = step.stamp, slot_offset = step.slot_offset;
-    volatile __global uint* row = rows + step.row * 2 * SIMD_FIELDS;
+    volatile __global uint* row = rows + row_index * 2 * SIMD_FIELDS;
     int n = step.length_index >= 0 ? min(step.bound, length_at[step.length_index]) : step.bound;
     int n_aux = step.aux_bound;
     if (warp == 0) {
@@ -108,27 +108,34 @@ HELPER void simd_count_warp(int warp, __global const int* lanes, __global const 
 __kernel void simd_count_lanes(__global const int* lanes, __global const int* length_at,
                                volatile __global uint* rows, __global const int* watch,
                                volatile __global uint* histogram, __global const int* slot_of,
-                               volatile __global int* warp_stamps, __global const int* aux, const SimdStep step)
+                               volatile __global int* warp_stamps, __global const int* aux, const SimdStep step,
+                               const int row)
 {
-    simd_count_warp(get_global_id(0), lanes, length_at, rows, watch, histogram, slot_of, warp_stamps, aux, step);
+    simd_count_warp(get_global_id(0), lanes, length_at, rows, row, watch, histogram, slot_of, warp_stamps, aux, step);
 }
 
-/* Two steps in one launch (the BDPT walk's eye and light streams, whose steps share a launch's
- * worth of host time otherwise): warps below `warps` count `step` over `lanes`, the others
- * `step_b` over `lanes_b`, each from its own warp 0. Only what the walk counts: lengths on the
- * device, and slots, each stream with its own stamps (warp_stamps_b), since the two run at once
- * and a stamp must find the warps it has not seen. */
-__kernel void simd_count_two_streams(__global const int* lanes, __global const int* lanes_b,
-                                     __global const int* length_at, volatile __global uint* rows,
-                                     __global const int* slot_of, __global const int* slot_of_b,
-                                     volatile __global int* warp_stamps, volatile __global int* warp_stamps_b,
-                                     const int warps, const SimdStep step, const SimdStep step_b)
+/* Two steps in one launch, each what simd_count_lanes counts but a histogram: warps below `warps`
+ * count `step` over its buffers into `row`, the others `step_b` over theirs into row + 1, each from
+ * its own warp 0. The
+ * BDPT walk's eye and light streams, and a path tracer's two consecutive steps (whose lanes the
+ * step kernels wrote to two buffers in turn): a launch is most of a counted step's host time.
+ * Each step has its own stamps (warp_stamps_b): the two run at once, and a stamp must find the
+ * warps it has not seen. */
+__kernel void simd_count_two_steps(__global const int* lanes, __global const int* length_at,
+                                   __global const int* watch, __global const int* slot_of,
+                                   volatile __global int* warp_stamps, __global const int* aux,
+                                   __global const int* lanes_b, __global const int* length_at_b,
+                                   __global const int* watch_b, __global const int* slot_of_b,
+                                   volatile __global int* warp_stamps_b, __global const int* aux_b,
+                                   volatile __global uint* rows, const int row, const int warps,
+                                   const SimdStep step, const SimdStep step_b)
 {
     int warp = get_global_id(0);
     if (warp < warps)
-        simd_count_warp(warp, lanes, length_at, rows, 0, 0, slot_of, warp_stamps, 0, step);
+        simd_count_warp(warp, lanes, length_at, rows, row, watch, 0, slot_of, warp_stamps, aux, step);
     else
-        simd_count_warp(warp - warps, lanes_b, length_at, rows, 0, 0, slot_of_b, warp_stamps_b, 0, step_b);
+        simd_count_warp(warp - warps, lanes_b, length_at_b, rows, row + 1, watch_b, 0, slot_of_b, warp_stamps_b,
+                        aux_b, step_b);
 }
 
 /* The same loops with only the lanes that have work, packed side by side in lane order (the naive

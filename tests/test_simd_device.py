@@ -76,6 +76,32 @@ def test_counting_on_the_device_changes_nothing_else(queue, cornell_box, techniq
                                                              uncounted_traffic["blocking_reads"])
 
 
+def test_pt_inplace_regen_drains_when_its_sample_counter_says_so(queue, cornell_box, monkeypatch):
+    """The counters mark a step as the final drain from the samples its regenerations started, added
+    up (PassCount.step); checked here against the sample counter itself, read by the host after each
+    counted step's regeneration (a blocking read of next_sample: the steps' pairs are counted later,
+    so the device's counter has moved on by then). One pass of 2,048 samples on 512 slots."""
+    import pyopencl as cl
+    from toolkit.techniques import pt_inplace_regen as module
+    at_budget, passes = [], []
+    real_count, real_pass = module.PtInplaceRegen.count_extend, module.PtInplaceRegen.run_pass
+
+    def count_extend(self, counting, mem, slots):
+        value = np.zeros(1, np.int32)
+        cl.enqueue_copy(self.queue, value, mem.next_sample)
+        at_budget.append(int(value[0]) >= counting.budget)
+        real_count(self, counting, mem, slots)
+    monkeypatch.setattr(module.PtInplaceRegen, "count_extend", count_extend)
+    monkeypatch.setattr(module.PtInplaceRegen, "run_pass", lambda self, *a: (passes.append(a), real_pass(self, *a))[1])
+    tech, _, _ = counted(queue, cornell_box, "pt_inplace_regen", size=32, check=False)
+    assert len(passes) == 1
+    # one "generate" entry per counted step, its regeneration; the steps queued after the pass's end
+    # (before the host learned of it) are not counted
+    steps = [entry["draining"] for entry in tech.recorder.simd.per_iteration if entry["phase"] == "generate"]
+    assert len(steps) < len(at_budget) and any(steps) and not all(steps)
+    assert steps == at_budget[:len(steps)]
+
+
 def test_a_wide_sum_carries_into_its_high_word(queue):
     """The step log's sums are 64-bit integers of two 32-bit words: a loop of 2^31 + 2^31 lane-steps
     (two lanes past what one word holds) comes out exact."""

@@ -176,7 +176,6 @@ SIMD_STEP = Record("SimdStep", [
     ("bound", "int"),           # lanes the host knows the step may have
     ("length_index", "int"),    # >= 0: the step's length is length_at[length_index] on the device (at most bound)
     ("warp_width", "int"),      # W of the counters
-    ("row", "int"),             # the step log's row this step's sums go to
     ("watch_count", "int"),     # ints of `watch` the row keeps (at most SIMD_WATCH_INTS)
     ("bins", "int"),            # the per-iteration histogram's bins (its last holds any larger work)
     ("histogram_row", "int"),   # >= 0: the histogram column of this step
@@ -184,7 +183,8 @@ SIMD_STEP = Record("SimdStep", [
     ("slot_offset", "int"),     # where lane 0's slot is in slot_of (ints)
     ("stamp", "int"),           # > 0: count SLOT_WARPS with this stamp
     ("aux_bound", "int"),       # ints of `aux` (one per lane) summed into the AUX_ fields; 0: none
-], "One counting step for cl/simd_counters.cl simd_count_lanes (toolkit/opencl/simd_counters.py).")
+], "One counting step for cl/simd_counters.cl simd_count_lanes (toolkit/opencl/simd_counters.py); its row of the "
+   "step log is an argument of its own, so that the steps of a loop share one record.")
 
 BDPT_SLOT = Record("BdptSlot", [
     ("live", "int"),            # SLOT_IDLE, or how many of its subpaths still walk (SlotState below)

@@ -40,6 +40,12 @@ class StepSums:
             return int(np.count_nonzero(work > 0))
         return self[SimdSum.WORK_LANES]
 
+    def aux_sum(self):
+        """The sum of the second buffer's ints (AUX_SUM)."""
+        if self.aux is not None:
+            return int(self.aux.sum())
+        return self[SimdSum.AUX_SUM]
+
     def watched(self, k=0):
         """The k-th int copied from the device when the step was counted."""
         if self.watch is not None:
@@ -57,12 +63,13 @@ class StepLog:
         built = program.build(queue, "simd_counters.cl", {"LOCAL_SIZE": local_size}, directory=sources)
         self.lanes_kernel = program.kernel(built, "simd_count_lanes")
         self.packed_kernel = program.kernel(built, "simd_count_packed")
-        self.two_streams_kernel = program.kernel(built, "simd_count_two_streams")
+        self.two_steps_kernel = program.kernel(built, "simd_count_two_steps")
         self.row_bytes = 8 * int(SimdSum.FIELDS)
         self.rows = self.none = None           # the log, and an argument no work-item reads: at the first step
         self.used = 0                          # rows queued since the last read
         self.histogram, self.bins, self.histogram_used = None, 0, []   # [(row, bins)] queued with a histogram
         self.made, self.stamp = {}, 0          # buffers made once (pool warps' stamps, scratch) and the last stamp given
+        self.records = {}                      # SimdStep records made (_step)
 
     @property
     def full(self):
@@ -86,37 +93,54 @@ class StepLog:
         self._rows()
         row = self.used
         self.used += 1
-        histogram_row = -1
-        if bins:
-            histogram_row = self._histogram_column(row, bins)
+        histogram_row = self._histogram_column(row, bins) if bins else -1
+        (lanes, length_at, watch, slot_of, stamps, aux), step, warps = self._queued(
+            lanes, stride, bound, length_at, length_index, watch, watch_count, slot_of, slot_offset, pool,
+            aux, aux_bound, histogram_row)
+        program.launch(self.queue, self.lanes_kernel, warps, lanes, length_at, self.rows, watch,
+                       self.histogram if bins else self.none, slot_of, stamps, aux, step, np.int32(row),
+                       local_size=self.local_size)
+        if packed:   # one work-group (cl/simd_counters.cl simd_count_packed)
+            program.launch(self.queue, self.packed_kernel, 1, lanes, np.int32(stride), np.int32(bound),
+                           np.int32(self.warp_width), self.rows, np.int32(row), local_size=self.local_size)
+        return row
+
+    def count_two(self, first, second):
+        """Queue two steps with one launch (cl/simd_counters.cl simd_count_two_steps): `first` and
+        `second` each count's keyword arguments (lanes, stride, bound, ...) but bins and packed. The
+        BDPT walk's eye and light streams, or a path tracer's two consecutive steps. The same rows
+        as two calls of count; returns them."""
+        if not self.has_room(2):
+            raise RuntimeError("the step log is full: read it first")
+        self._rows()
+        buffers, steps, warps = [], [], []
+        for k, step in enumerate((first, second)):
+            b, record, n = self._queued(second=k == 1, **step)
+            buffers += b
+            steps.append(record)
+            warps.append(n)
+        row = self.used
+        self.used += 2
+        program.launch(self.queue, self.two_steps_kernel, warps[0] + warps[1], *buffers, self.rows, np.int32(row),
+                       np.int32(warps[0]), *steps, local_size=self.local_size)
+        return row, row + 1
+
+    def _queued(self, lanes, stride, bound, length_at=None, length_index=-1, watch=None, watch_count=0,
+                slot_of=None, slot_offset=0, pool=0, aux=None, aux_bound=0, histogram_row=-1, second=False):
+        """One step's buffers as its kernel takes them (lanes, length_at, watch, slot_of, warp
+        stamps, aux: an argument no work-item reads where there is none), its SimdStep record and
+        its warps (the work-items it needs). `second`: the second step of a launch (its own stamps)."""
         stamp = 0
         if slot_of is not None:
             self.stamp += 1
             stamp = self.stamp
-        self._launch(row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins,
-                     histogram_row, slot_of, slot_offset, stamp, pool, packed, aux, aux_bound)
-        return row
-
-    def count_two_streams(self, first, second, pool):
-        """Queue two steps that count lanes on the device's lengths and their slots (`first`,
-        `second`: (lanes, bound, length_at, length_index, slot_of, slot_offset), stride 4) with one
-        launch (cl/simd_counters.cl simd_count_two_streams): the BDPT walk's eye and light streams.
-        The same rows as two calls of count; returns them."""
-        if not self.has_room(2):
-            raise RuntimeError("the step log is full: read it first")
-        self._rows()
-        w, args, records = self.warp_width, [], []
-        for k, (lanes, bound, length_at, length_index, slot_of, slot_offset) in enumerate((first, second)):
-            self.stamp += 1
-            records.append(self._step(self.used, 4, bound, length_index, slot_offset=slot_offset, stamp=self.stamp))
-            args.append((lanes, slot_of, self._stamps(pool, second=k == 1)))
-            self.used += 1
-        warps = max(1, -(-first[1] // w))
-        (lanes_a, slots_a, stamps_a), (lanes_b, slots_b, stamps_b) = args
-        program.launch(self.queue, self.two_streams_kernel, warps + max(1, -(-second[1] // w)), lanes_a, lanes_b,
-                       first[2], self.rows, slots_a, slots_b, stamps_a, stamps_b, np.int32(warps), *records,
-                       local_size=self.local_size)
-        return self.used - 2, self.used - 1
+        none = self.none
+        step = self._step(stride, bound, length_index, watch_count, histogram_row, slot_offset, stamp,
+                          aux_bound if aux is not None else 0)
+        buffers = (lanes, none if length_at is None else length_at, none if watch is None else watch,
+                   none if slot_of is None else slot_of, self._stamps(pool, second) if slot_of is not None else none,
+                   none if aux is None else aux)
+        return buffers, step, max(1, -(-max(bound, aux_bound) // self.warp_width))
 
     def _rows(self):
         """The log's buffers, made at the first step."""
@@ -125,27 +149,21 @@ class StepLog:
             self.rows, self.none = cl.Buffer(ctx, rw, self.row_bytes * ROWS), cl.Buffer(ctx, rw, 4)
             cl.enqueue_fill_buffer(self.queue, self.rows, np.uint32(0), 0, self.row_bytes * ROWS)
 
-    def _launch(self, row, lanes, stride, bound, length_at, length_index, watch, watch_count, bins, histogram_row,
-                slot_of, slot_offset, stamp, pool, packed, aux, aux_bound):
-        w, none = self.warp_width, self.none
-        step = self._step(row, stride, bound, length_index, watch_count, histogram_row, slot_offset, stamp,
-                          aux_bound if aux is not None else 0)
-        program.launch(self.queue, self.lanes_kernel, max(1, -(-max(bound, aux_bound) // w)), lanes,
-                       none if length_at is None else length_at, self.rows, none if watch is None else watch,
-                       self.histogram if bins else none, none if slot_of is None else slot_of,
-                       self._stamps(pool) if slot_of is not None else none, none if aux is None else aux, step,
-                       local_size=self.local_size)
-        if packed:   # one work-group (cl/simd_counters.cl simd_count_packed)
-            program.launch(self.queue, self.packed_kernel, 1, lanes, np.int32(stride), np.int32(bound), np.int32(w),
-                           self.rows, np.int32(row), local_size=self.local_size)
-
-    def _step(self, row, stride, bound, length_index, watch_count=0, histogram_row=-1, slot_offset=0, stamp=0,
+    def _step(self, stride, bound, length_index, watch_count=0, histogram_row=-1, slot_offset=0, stamp=0,
               aux_bound=0):
-        """The SimdStep record of one counted step (its fields: layout.py SIMD_STEP)."""
-        return SIMD_STEP.record(stride=stride, bound=bound, length_index=length_index, warp_width=self.warp_width,
-                                row=row, watch_count=watch_count, bins=max(self.bins, 1), histogram_row=histogram_row,
-                                histogram_rows=HISTOGRAM_ROWS, slot_offset=slot_offset, stamp=stamp,
-                                aux_bound=aux_bound)
+        """The SimdStep record of a counted step (its fields: layout.py SIMD_STEP), made once for the
+        steps that share it (a loop's steps differ in their row only, an argument of its own): the
+        same read-only object, which a launch knows without setting it again (program.launch)."""
+        key = (stride, bound, length_index, watch_count, histogram_row, slot_offset, stamp, aux_bound, self.bins)
+        record = self.records.get(key)
+        if record is None:
+            if len(self.records) >= 256:    # a BDPT walk's steps each have a stamp of their own
+                self.records.clear()
+            record = self.records[key] = SIMD_STEP.record(
+                stride=stride, bound=bound, length_index=length_index, warp_width=self.warp_width,
+                watch_count=watch_count, bins=max(self.bins, 1), histogram_row=histogram_row,
+                histogram_rows=HISTOGRAM_ROWS, slot_offset=slot_offset, stamp=stamp, aux_bound=aux_bound)
+        return record
 
     def read(self):
         """The rows queued since the last read, as StepSums in order (one blocking read, two with

@@ -445,15 +445,14 @@ class BdptEvaluator:
             # without compaction each path keeps its slot's lane
             recorder.slot_warps(recorder.counter(WITHOUT_COMPACTION), "walk", sums, pool)
         slot_offset = SUBPATH.soa_offset("slot", p.pool.capacity) // 4
-        steps = [(stream.lane_counts, stream.length, p.pool.counters, int(length), stream.current, slot_offset)
+        steps = [dict(lanes=stream.lane_counts, stride=4, bound=stream.length, length_at=p.pool.counters,
+                      length_index=int(length), slot_of=stream.current, slot_offset=slot_offset, pool=pool)
                  for stream, length in ((p.pool.eye, WalkCounter.STEP_EYE_LENGTH),
                                         (p.pool.light, WalkCounter.STEP_LIGHT_LENGTH)) if stream.length]
         if len(steps) == 2:     # both streams with one launch
-            ctx.recorder.lanes_of_two_streams(replay, *steps, pool=pool)
+            ctx.recorder.lanes_two((replay, steps[0]), (replay, steps[1]))
         elif steps:
-            lanes, bound, length_at, length_index, slot_of, offset = steps[0]
-            ctx.recorder.lanes(replay, lanes, 4, bound, length_at=length_at, length_index=length_index,
-                               slot_of=slot_of, slot_offset=offset, pool=pool)
+            ctx.recorder.lanes(replay, **steps[0])
 
     def stats(self):
         """The walk's figures for the render stats."""

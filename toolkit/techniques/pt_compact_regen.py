@@ -32,6 +32,7 @@ from toolkit.core.layout import HIT_RECORD, PATH_STATE, PT_PASS, PT_STEP, SHADOW
 from toolkit.opencl.work_sizes import checked_size
 from toolkit.techniques.base import Technique, pixel_count
 from toolkit.techniques.pass_end import PassEnd
+from toolkit.techniques.simd_recorder import StepPairs
 
 
 @dataclass
@@ -41,13 +42,19 @@ class StreamBuffers:
     next_stream: cl.Buffer   # the same: each step writes its survivors here, packed; then the two swap
     hits: cl.Buffer          # HitRecord x capacity: each path's closest hit, from trace to shade
     shadow_rays: cl.Buffer   # ShadowRay x capacity: the shadow rays a step queued, packed (immediate compaction)
-    lane_counts: cl.Buffer   # LaneCounts per path: what it did in an extension step (COUNT_SIMD)
+    lane_counts_by_turn: tuple   # LaneCounts per path, one buffer per turn: what it did in an extension step (COUNT_SIMD)
     alive: cl.Buffer         # int per path: 1 where the stream holds a live path (multi-pass compaction's flags)
     counts: cl.Buffer        # PtStep: this step's counts (its length, survivors, shadow rays, next sample)
     last_counts: cl.Buffer   # PtStep: the last step's, from which regeneration starts this step's
     indices: cl.Buffer       # int per path: the survivors' indices from the scan (multi-pass; None: immediate)
     radiance: cl.Buffer = None   # float4 per sample of the pass (DeviceMemory.output_buffer): set by each pass
     turn: int = 0            # which of the two buffers of each pair is the stream (flips with swap)
+
+    @property
+    def lane_counts(self):
+        """This step's LaneCounts: the two steps before the SIMD counters sum them (StepPairs) write
+        to different buffers (one buffer for both turns when nothing counts)."""
+        return self.lane_counts_by_turn[self.turn]
 
     def swap(self):
         """After a step: the survivors, packed into next_stream, are the stream, and its counts the last step's."""
@@ -81,9 +88,15 @@ class PtCompactRegen(Technique):
         return StreamBuffers(
             stream=m.soa_buffer(PATH_STATE, size), next_stream=m.soa_buffer(PATH_STATE, size),
             hits=m.soa_buffer(HIT_RECORD, size),
-            shadow_rays=m.soa_buffer(SHADOW_RAY, size), lane_counts=m.lane_counts_buffer(size),
+            shadow_rays=m.soa_buffer(SHADOW_RAY, size), lane_counts_by_turn=self.lane_counts_by_turn(size),
             alive=m.int_buffer(size),
             counts=m.record_buffer(PT_STEP), last_counts=m.record_buffer(PT_STEP), indices=self.compacted_indices(size))
+
+    def lane_counts_by_turn(self, size):
+        """The LaneCounts buffers of the two turns: two when counting (a step's lanes are summed with
+        the next step's, StepPairs), else one for both."""
+        first = self.memory.lane_counts_buffer(size)
+        return (first, self.memory.lane_counts_buffer(size) if self.count_simd else first)
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         budget = pixel_count(camera) * spp
@@ -97,7 +110,7 @@ class PtCompactRegen(Technique):
         end = PassEnd(self.memory, PT_STEP.dtype, lambda counts: counts["survivors"] == 0
                       and counts["next_sample"] == budget, every=self.reads_every, at_least=-(-budget // size))
         paths = size    # stream entries each launch covers: the whole stream, until a read bounds its length
-        counting = PassCount(size, budget, self.shadow_queue) if self.count_simd else None
+        counting = PassCount(size, budget, self.shadow_queue, StepPairs(self.recorder)) if self.count_simd else None
         while True:
             # Regenerate the end of the stream with the next samples of the budget, extend every path by
             # one vertex (trace, then shade), and compact the survivors into next_stream.
@@ -113,6 +126,8 @@ class PtCompactRegen(Technique):
                 # step after it, which traced them, was queued).
                 break
             paths = self.paths_at_most(end.latest, size, budget)   # from a step's counts, some steps old
+        if counting:
+            counting.pairs.close()
         self.collect(film, mem.radiance, budget)
 
     @staticmethod
@@ -163,12 +178,13 @@ class PtCompactRegen(Technique):
     # --- SIMD counting, summed on the device (simd_recorder.py); no-op unless count_simd ----------
 
     def count_step(self, counting, mem, paths, size, budget):
-        """The SIMD counters of the step just queued, summed on the device: the `paths` lanes its
+        """The SIMD counters of the step just queued, summed on the device with the next step's
+        (StepPairs: this step's lanes and counts are in this turn's buffers): the `paths` lanes its
         launches covered (past the stream's length a lane has no work, but its .shadow_steps counts
         a ray of the last step's shadow queue: cl/pt_compact_regen.cl) and its counts (PtStep,
         copied into the row)."""
-        self.recorder.lanes(counting.extended, mem.lane_counts, 4, paths,
-                            watch=mem.counts, watch_count=len(PT_STEP.dtype.names))
+        counting.pairs.lanes(counting.extended, lanes=mem.lane_counts, stride=4, bound=paths,
+                             watch=mem.counts, watch_count=len(PT_STEP.dtype.names))
 
 
 class PassCount:
@@ -179,8 +195,9 @@ class PassCount:
     rays): nothing after it is counted (the host went on queueing steps until it learned so:
     pass_end.py)."""
 
-    def __init__(self, size, budget, shadow_queue):
+    def __init__(self, size, budget, shadow_queue, pairs):
         self.size, self.budget, self.shadow_queue = size, budget, shadow_queue
+        self.pairs = pairs          # the pass's steps, counted two to a launch
         self.ended = set()          # the recorders that have counted the pass's end
         self.queued = {}            # by recorder: the shadow rays the last step it counted queued
 

@@ -18,6 +18,7 @@ from toolkit.core.layout import HIT_RECORD, PATH_STATE, PT_PASS
 from toolkit.opencl.work_sizes import checked_size
 from toolkit.techniques.base import Technique, pixel_count
 from toolkit.techniques.pass_end import PassEnd
+from toolkit.techniques.simd_recorder import StepPairs
 
 
 @dataclass
@@ -25,12 +26,21 @@ class SlotBuffers:
     """pt_inplace_regen's device memory: made once per stream size, reused by every pass."""
     paths: cl.Buffer         # PathState per slot, a structure of arrays of `capacity` records: the slot's path
     hits: cl.Buffer          # HitRecord per slot (the same layout): what its path's ray hit in this step
-    lane_counts: cl.Buffer   # LaneCounts per slot: what it did in an extension step (COUNT_SIMD)
-    regenerated: cl.Buffer   # int per slot: 1 where a regeneration started a sample (COUNT_SIMD)
+    lane_counts_by_turn: tuple   # LaneCounts per slot, a buffer per turn: what it did in an extension step (COUNT_SIMD)
+    regenerated_by_turn: tuple   # int per slot, a buffer per turn: 1 where a regeneration started a sample (COUNT_SIMD)
     alive: cl.Buffer         # int per slot: 1 while it holds a live path, 0 while it is free
     next_sample: cl.Buffer   # one int: the next sample id of the pass to start (the slots' atomic counter)
     any_alive: cl.Buffer     # one int: set by every slot that holds a live path after a regeneration, cleared by shade
     radiance: cl.Buffer = None   # float4 per sample of the pass (DeviceMemory.output_buffer): set by each pass
+    turn: int = 0            # which buffer of each pair this step writes (flips each step while counting)
+
+    @property
+    def lane_counts(self):
+        return self.lane_counts_by_turn[self.turn]
+
+    @property
+    def regenerated(self):
+        return self.regenerated_by_turn[self.turn]
 
 
 class PtInplaceRegen(Technique):
@@ -49,8 +59,13 @@ class PtInplaceRegen(Technique):
     def slot_buffers(self, slots):
         """The device memory of `slots` slots (run_pass makes it once per stream size)."""
         m = self.memory
+        # Two of what a step's counters sum when counting: a step's are summed with the next step's (StepPairs).
+        turns = 2 if self.count_simd else 1
+        lane_counts = [m.lane_counts_buffer(slots) for _ in range(turns)]
+        regenerated = [m.int_buffer(slots) for _ in range(turns)]
         return SlotBuffers(paths=m.soa_buffer(PATH_STATE, slots), hits=m.soa_buffer(HIT_RECORD, slots),
-                           lane_counts=m.lane_counts_buffer(slots), regenerated=m.int_buffer(slots),
+                           lane_counts_by_turn=(lane_counts[0], lane_counts[-1]),
+                           regenerated_by_turn=(regenerated[0], regenerated[-1]),
                            alive=m.int_buffer(slots), next_sample=m.int_buffer(1), any_alive=m.int_buffer(1))
 
     def run_pass(self, film, camera, seed, sample_base, spp):
@@ -67,51 +82,63 @@ class PtInplaceRegen(Technique):
         # from a read behind the device (pass_end.py), so it never waits for the flag at a step.
         end = PassEnd(self.memory, np.int32, lambda any_alive: any_alive == 0, every=self.reads_every,
                       at_least=-(-budget // slots))
-        counting = PassCount() if self.count_simd else None
+        counting = PassCount(budget, StepPairs(self.recorder)) if self.count_simd else None
         k = self.kernels
         while True:
             # Regenerate: every free slot starts the next sample of the budget, if one is left;
             # then extend's first half, trace: every slot with a live path finds its ray's hit.
             # One launch for both: inside a render each launch costs the host tens of us.
-            k.launch("pt_inplace_regen_trace", slots, **k.scene_args(), cam=camera, pass_args=pass_args,
+            # (A kernel object per turn: each keeps its buffers set, program.kernel.)
+            trace, shade = (k.kernel(name, copy=mem.turn) for name in ("pt_inplace_regen_trace", "pt_inplace_regen_shade"))
+            k.launch(trace, slots, **k.scene_args(), cam=camera, pass_args=pass_args,
                      slots=k.int32(slots), next_sample=mem.next_sample, paths=mem.paths, alive=mem.alive,
                      hits=mem.hits, any_alive=mem.any_alive, regenerated=mem.regenerated, lane_counts=mem.lane_counts)
             # Looked at here, before shade clears it for the next step (the flag needs no host fill).
             if end.reached(mem.any_alive):
                 break   # a regeneration some time ago left no live path: the steps since did nothing
             # Extend's second half, shade: each live path adds a vertex's light and goes on or ends.
-            k.launch("pt_inplace_regen_shade", slots, **k.scene_args(), pass_args=pass_args, slots=k.int32(slots),
+            k.launch(shade, slots, **k.scene_args(), pass_args=pass_args, slots=k.int32(slots),
                      paths=mem.paths, alive=mem.alive, hits=mem.hits, radiance=mem.radiance,
                      any_alive=mem.any_alive, lane_counts=mem.lane_counts)
             if counting:
-                self.count_extend(counting, mem, slots, budget)
+                self.count_extend(counting, mem, slots)
+                mem.turn ^= 1   # the next step's counters go to the other buffers
+        if counting:
+            counting.pairs.close()
         self.collect(film, mem.radiance, budget)
 
     # --- SIMD counting, summed on the device (simd_recorder.py); no-op unless count_simd ----------
 
-    def count_extend(self, counting, mem, slots, budget):
-        """The extension step and the regeneration before it, summed in one launch: the extension's
-        LaneCounts, and as the second buffer (aux) the slots that started a sample (PassCount.step)."""
-        self.recorder.lanes(lambda recorder, sums: counting.step(recorder, sums, slots, budget), mem.lane_counts, 4,
-                            slots, watch=mem.next_sample, watch_count=1, aux=mem.regenerated, aux_bound=slots)
+    def count_extend(self, counting, mem, slots):
+        """The extension step and the regeneration before it, summed on the device (with the next
+        step's: StepPairs): the extension's LaneCounts, and as the second buffer (aux) the slots
+        that started a sample (PassCount.step)."""
+        counting.pairs.lanes(lambda recorder, sums: counting.step(recorder, sums, slots), lanes=mem.lane_counts,
+                             stride=4, bound=slots, aux=mem.regenerated, aux_bound=slots)
 
 
 class PassCount:
     """The counters of one pass's steps, replayed in order (by each recorder that counts them): a
     regeneration, then the extension it feeds. Regeneration is numbered as the extension step that
-    follows it; once the sample counter has passed the budget (the watched next_sample), it started
-    the last samples or none and the steps belong to the final drain. The first regeneration that
-    leaves no live path (its extension step has no lane with work) ends the pass: it is counted,
-    nothing after it (the host went on queueing steps until it learned so: pass_end.py)."""
+    follows it; once the samples started so far (the regenerations' aux sums, added up) are the
+    budget, it started the last samples or none and the steps belong to the final drain. (The same
+    as the sample counter at the budget: a free slot raises the counter once, and starts a sample
+    unless the budget is spent.) The first regeneration that leaves no live path (its extension
+    step has no lane with work) ends the pass: it is counted, nothing after it (the host went on
+    queueing steps until it learned so: pass_end.py)."""
 
-    def __init__(self):
+    def __init__(self, budget, pairs):
+        self.budget = budget
+        self.pairs = pairs          # the pass's steps, counted two to a launch
         self.ended = set()          # the recorders that have counted the pass's end
+        self.started = {}           # by recorder: the samples the steps it counted started
 
-    def step(self, recorder, sums, slots, budget):
+    def step(self, recorder, sums, slots):
         """A regeneration (the aux ints: 1 where a slot started a sample) and the extension step after it."""
         if recorder in self.ended:
             return
-        draining = sums.watched() >= budget
+        self.started[recorder] = started = self.started.get(recorder, 0) + sums.aux_sum()
+        draining = started >= self.budget
         recorder.mask_step("generate", sums, "aux", before=True, capacity=slots, draining=draining)
         if sums.work_lanes() == 0:
             self.ended.add(recorder)    # no slot holds a live path: budget spent and every path has ended

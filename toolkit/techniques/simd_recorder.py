@@ -117,23 +117,20 @@ class SimdRecorder:
                         slot_offset, pool, packed, aux, aux_bound)
         self._pending.append((row, replay))
 
-    def lanes_of_two_streams(self, replay, first, second, pool):
-        """Two steps like lanes(replay, lanes, 4, bound, length_at=..., length_index=..., slot_of=...,
-        slot_offset=..., pool=pool) each, `first` and `second` those arguments as (lanes, bound,
-        length_at, length_index, slot_of, slot_offset), counted on the device by one launch (the BDPT
-        walk's eye and light streams); replay runs for each, in order."""
+    def lanes_two(self, first, second):
+        """Two steps counted on the device by one launch (StepLog.count_two): `first` and `second`
+        each (replay, lanes' keyword arguments: lanes=, stride=, bound=, ...; no bins, no packed),
+        replayed in order. The BDPT walk's eye and light streams; a path tracer's steps (StepPairs)."""
         if self.reference is not None or self.per_step:
-            for lanes, bound, length_at, length_index, slot_of, slot_offset in (first, second):
-                (self if self.per_step else self.reference).lanes(
-                    replay, lanes, 4, bound, length_at=length_at, length_index=length_index, slot_of=slot_of,
-                    slot_offset=slot_offset, pool=pool)
+            for replay, step in (first, second):
+                (self if self.per_step else self.reference).lanes(replay, **step)
             if self.per_step:
                 return
         log = self._step_log()
         if not log.has_room(2):
             self.flush()
-        for row in log.count_two_streams(first, second, pool):
-            self._pending.append((row, replay))
+        rows = log.count_two(first[1], second[1])
+        self._pending += [(rows[0], first[0]), (rows[1], second[0])]
 
     def flush(self):
         """Read the step log and run the steps' replays, in order: replay(self[, the step's StepSums])."""
@@ -300,3 +297,27 @@ def _values(sums, field):
     if field == "aux":
         return sums.aux
     return sums.lanes if sums.lanes.dtype.names is None else sums.lanes[field]
+
+
+class StepPairs:
+    """A pass's steps counted two to a launch: `lanes(replay, **step)` holds a step until the next
+    one comes, then queues both (SimdRecorder.lanes_two); `close()`, at the pass's end, queues a
+    step still held, alone. For a technique whose step kernels write each step's lanes (and what
+    the step watches) to the other of two buffers than the step before: a held step's are then
+    intact until the step after next is queued. A counted step of a path tracer is one launch of
+    its own otherwise, about as much host time as the step's two kernels."""
+
+    def __init__(self, recorder):
+        self.recorder, self.held = recorder, None
+
+    def lanes(self, replay, **step):
+        if self.held is None:
+            self.held = (replay, step)
+            return
+        first, self.held = self.held, None
+        self.recorder.lanes_two(first, (replay, step))
+
+    def close(self):
+        if self.held is not None:
+            (replay, step), self.held = self.held, None
+            self.recorder.lanes(replay, **step)
