@@ -29,18 +29,19 @@ HELPER void add_wide(volatile __global uint* row, int field, uint x) {
  *   watch_count: work-item 0 copies that many ints of `watch` into the row (the step's counts);
  *   histogram_row: lanes and warps counted by work (and by warp's largest work) into column
  *     histogram_row of `histogram` ([bin][lanes, warps][histogram_rows]; bins - 1 >= any work);
- *   stamp: lane i's sample slot is slot_of[slot_offset + i]; a pool warp (slot / warp_width) not yet stamped with
- *     `stamp` gets it and counts once in SLOT_WARPS (warp_stamps only grow);
+ *   stamp (an argument): lane i's sample slot is slot_of[slot_offset + i]; a pool warp (slot / warp_width) not yet
+ *     stamped with `stamp` gets it and counts once in SLOT_WARPS (warp_stamps only grow);
  *   aux_bound: a second buffer of one int per lane (a step's other kernel: pt_inplace_regen's
  *     regeneration), its first aux_bound summed into the AUX_ fields. */
 HELPER void simd_count_warp(int warp, __global const int* lanes, __global const int* length_at,
                             volatile __global uint* rows, int row_index, __global const int* watch,
                             volatile __global uint* histogram, __global const int* slot_of,
-                            volatile __global int* warp_stamps, __global const int* aux, const SimdStep step)
+                            volatile __global int* warp_stamps, int stamp, __global const int* aux,
+                            const SimdStep step)
 {
     int stride = step.stride, warp_width = step.warp_width;
     int bins = step.bins, histogram_row = step.histogram_row, histogram_rows = step.histogram_rows;
-    int stamp = step.stamp, slot_offset = step.slot_offset;
+    int slot_offset = step.slot_offset;
     volatile __global uint* row = rows + row_index * 2 * SIMD_FIELDS;
     int n = step.length_index >= 0 ? min(step.bound, length_at[step.length_index]) : step.bound;
     int n_aux = step.aux_bound;
@@ -109,14 +110,15 @@ __kernel void simd_count_lanes(__global const int* lanes, __global const int* le
                                volatile __global uint* rows, __global const int* watch,
                                volatile __global uint* histogram, __global const int* slot_of,
                                volatile __global int* warp_stamps, __global const int* aux, const SimdStep step,
-                               const int row)
+                               const int row, const int stamp)
 {
-    simd_count_warp(get_global_id(0), lanes, length_at, rows, row, watch, histogram, slot_of, warp_stamps, aux, step);
+    simd_count_warp(get_global_id(0), lanes, length_at, rows, row, watch, histogram, slot_of, warp_stamps, stamp, aux,
+                    step);
 }
 
 /* Two steps in one launch, each what simd_count_lanes counts but a histogram: warps below `warps`
- * count `step` over its buffers into `row`, the others `step_b` over theirs into row + 1, each from
- * its own warp 0. The
+ * count `step` over its buffers into `row` (stamp `stamp`), the others `step_b` over theirs into
+ * row + 1 (stamp_b), each from its own warp 0. The
  * BDPT walk's eye and light streams, and a path tracer's two consecutive steps (whose lanes the
  * step kernels wrote to two buffers in turn): a launch is most of a counted step's host time.
  * Each step has its own stamps (warp_stamps_b): the two run at once, and a stamp must find the
@@ -127,15 +129,15 @@ __kernel void simd_count_two_steps(__global const int* lanes, __global const int
                                    __global const int* lanes_b, __global const int* length_at_b,
                                    __global const int* watch_b, __global const int* slot_of_b,
                                    volatile __global int* warp_stamps_b, __global const int* aux_b,
-                                   volatile __global uint* rows, const int row, const int warps,
-                                   const SimdStep step, const SimdStep step_b)
+                                   volatile __global uint* rows, const int row, const int stamp,
+                                   const int stamp_b, const int warps, const SimdStep step, const SimdStep step_b)
 {
     int warp = get_global_id(0);
     if (warp < warps)
-        simd_count_warp(warp, lanes, length_at, rows, row, watch, 0, slot_of, warp_stamps, aux, step);
+        simd_count_warp(warp, lanes, length_at, rows, row, watch, 0, slot_of, warp_stamps, stamp, aux, step);
     else
         simd_count_warp(warp - warps, lanes_b, length_at_b, rows, row + 1, watch_b, 0, slot_of_b, warp_stamps_b,
-                        aux_b, step_b);
+                        stamp_b, aux_b, step_b);
 }
 
 /* The same loops with only the lanes that have work, packed side by side in lane order (the naive

@@ -181,10 +181,9 @@ SIMD_STEP = Record("SimdStep", [
     ("histogram_row", "int"),   # >= 0: the histogram column of this step
     ("histogram_rows", "int"),  # columns of the histogram
     ("slot_offset", "int"),     # where lane 0's slot is in slot_of (ints)
-    ("stamp", "int"),           # > 0: count SLOT_WARPS with this stamp
     ("aux_bound", "int"),       # ints of `aux` (one per lane) summed into the AUX_ fields; 0: none
 ], "One counting step for cl/simd_counters.cl simd_count_lanes (toolkit/opencl/simd_counters.py); its row of the "
-   "step log is an argument of its own, so that the steps of a loop share one record.")
+   "step log and its stamp are arguments of their own, so that the steps of a loop share one record.")
 
 BDPT_SLOT = Record("BdptSlot", [
     ("live", "int"),            # SLOT_IDLE, or how many of its subpaths still walk (SlotState below)

@@ -16,6 +16,7 @@ from toolkit.opencl import program
 
 ROWS = 1024            # steps the log holds before the host reads it (a pass rarely takes more)
 HISTOGRAM_ROWS = 64    # loops with a per-iteration histogram the log holds (one per pt_naive pass, naive connect phase)
+COPIES = 4             # kernel objects per counting kernel, one per set of buffers that take turns (StepLog._kernel)
 
 
 @dataclass
@@ -60,10 +61,9 @@ class StepLog:
 
     def __init__(self, queue, warp_width, local_size=program.LOCAL_SIZE, sources=None):
         self.queue, self.warp_width, self.local_size = queue, int(warp_width), local_size
-        built = program.build(queue, "simd_counters.cl", {"LOCAL_SIZE": local_size}, directory=sources)
-        self.lanes_kernel = program.kernel(built, "simd_count_lanes")
-        self.packed_kernel = program.kernel(built, "simd_count_packed")
-        self.two_steps_kernel = program.kernel(built, "simd_count_two_steps")
+        self.built = program.build(queue, "simd_counters.cl", {"LOCAL_SIZE": local_size}, directory=sources)
+        self.packed_kernel = program.kernel(self.built, "simd_count_packed")
+        self.copy_of = {}                      # (kernel name, its buffers' ids) -> the kernel object's copy (_kernel)
         self.row_bytes = 8 * int(SimdSum.FIELDS)
         self.rows = self.none = None           # the log, and an argument no work-item reads: at the first step
         self.used = 0                          # rows queued since the last read
@@ -94,12 +94,12 @@ class StepLog:
         row = self.used
         self.used += 1
         histogram_row = self._histogram_column(row, bins) if bins else -1
-        (lanes, length_at, watch, slot_of, stamps, aux), step, warps = self._queued(
+        (lanes, length_at, watch, slot_of, stamps, aux), step, warps, stamp = self._queued(
             lanes, stride, bound, length_at, length_index, watch, watch_count, slot_of, slot_offset, pool,
             aux, aux_bound, histogram_row)
-        program.launch(self.queue, self.lanes_kernel, warps, lanes, length_at, self.rows, watch,
-                       self.histogram if bins else self.none, slot_of, stamps, aux, step, np.int32(row),
-                       local_size=self.local_size)
+        buffers = (lanes, length_at, self.rows, watch, self.histogram if bins else self.none, slot_of, stamps, aux)
+        program.launch(self.queue, self._kernel("simd_count_lanes", buffers), warps, *buffers, step, np.int32(row),
+                       np.int32(stamp), local_size=self.local_size)
         if packed:   # one work-group (cl/simd_counters.cl simd_count_packed)
             program.launch(self.queue, self.packed_kernel, 1, lanes, np.int32(stride), np.int32(bound),
                            np.int32(self.warp_width), self.rows, np.int32(row), local_size=self.local_size)
@@ -113,34 +113,47 @@ class StepLog:
         if not self.has_room(2):
             raise RuntimeError("the step log is full: read it first")
         self._rows()
-        buffers, steps, warps = [], [], []
+        buffers, steps, warps, stamps = [self.rows], [], [], []
         for k, step in enumerate((first, second)):
-            b, record, n = self._queued(second=k == 1, **step)
-            buffers += b
+            b, record, n, stamp = self._queued(second=k == 1, **step)
+            buffers[-1:-1] = b       # each step's buffers, then the log's rows
             steps.append(record)
             warps.append(n)
+            stamps.append(np.int32(stamp))
         row = self.used
         self.used += 2
-        program.launch(self.queue, self.two_steps_kernel, warps[0] + warps[1], *buffers, self.rows, np.int32(row),
-                       np.int32(warps[0]), *steps, local_size=self.local_size)
+        program.launch(self.queue, self._kernel("simd_count_two_steps", buffers), warps[0] + warps[1], *buffers,
+                       np.int32(row), *stamps, np.int32(warps[0]), *steps, local_size=self.local_size)
         return row, row + 1
 
     def _queued(self, lanes, stride, bound, length_at=None, length_index=-1, watch=None, watch_count=0,
                 slot_of=None, slot_offset=0, pool=0, aux=None, aux_bound=0, histogram_row=-1, second=False):
         """One step's buffers as its kernel takes them (lanes, length_at, watch, slot_of, warp
-        stamps, aux: an argument no work-item reads where there is none), its SimdStep record and
-        its warps (the work-items it needs). `second`: the second step of a launch (its own stamps)."""
+        stamps, aux: an argument no work-item reads where there is none), its SimdStep record, its
+        warps (the work-items it needs) and its stamp (0: none). `second`: the second step of a
+        launch (its own stamps)."""
         stamp = 0
         if slot_of is not None:
             self.stamp += 1
             stamp = self.stamp
         none = self.none
-        step = self._step(stride, bound, length_index, watch_count, histogram_row, slot_offset, stamp,
+        step = self._step(stride, bound, length_index, watch_count, histogram_row, slot_offset,
                           aux_bound if aux is not None else 0)
         buffers = (lanes, none if length_at is None else length_at, none if watch is None else watch,
                    none if slot_of is None else slot_of, self._stamps(pool, second) if slot_of is not None else none,
                    none if aux is None else aux)
-        return buffers, step, max(1, -(-max(bound, aux_bound) // self.warp_width))
+        return buffers, step, max(1, -(-max(bound, aux_bound) // self.warp_width)), stamp
+
+    def _kernel(self, name, buffers):
+        """The kernel `name`, one object per set of buffers a loop takes turns with (program.kernel's
+        copies; at most COPIES of each): a launch of a stream's step, whose buffers swap every step,
+        then sets only the step's row and stamp, not its buffers (program.launch)."""
+        key = (name, *map(id, buffers))
+        if key not in self.copy_of:
+            if len(self.copy_of) >= 64:    # ids of buffers long freed
+                self.copy_of.clear()
+            self.copy_of[key] = sum(k[0] == name for k in self.copy_of) % COPIES
+        return program.kernel(self.built, name, copy=self.copy_of[key])
 
     def _rows(self):
         """The log's buffers, made at the first step."""
@@ -149,20 +162,19 @@ class StepLog:
             self.rows, self.none = cl.Buffer(ctx, rw, self.row_bytes * ROWS), cl.Buffer(ctx, rw, 4)
             cl.enqueue_fill_buffer(self.queue, self.rows, np.uint32(0), 0, self.row_bytes * ROWS)
 
-    def _step(self, stride, bound, length_index, watch_count=0, histogram_row=-1, slot_offset=0, stamp=0,
-              aux_bound=0):
+    def _step(self, stride, bound, length_index, watch_count=0, histogram_row=-1, slot_offset=0, aux_bound=0):
         """The SimdStep record of a counted step (its fields: layout.py SIMD_STEP), made once for the
-        steps that share it (a loop's steps differ in their row only, an argument of its own): the
-        same read-only object, which a launch knows without setting it again (program.launch)."""
-        key = (stride, bound, length_index, watch_count, histogram_row, slot_offset, stamp, aux_bound, self.bins)
+        steps that share it (a loop's steps differ in their row and stamp only, arguments of their
+        own): the same read-only object, which a launch knows without setting it again (program.launch)."""
+        key = (stride, bound, length_index, watch_count, histogram_row, slot_offset, aux_bound, self.bins)
         record = self.records.get(key)
         if record is None:
-            if len(self.records) >= 256:    # a BDPT walk's steps each have a stamp of their own
+            if len(self.records) >= 256:    # bounds that change from pass to pass
                 self.records.clear()
             record = self.records[key] = SIMD_STEP.record(
                 stride=stride, bound=bound, length_index=length_index, warp_width=self.warp_width,
                 watch_count=watch_count, bins=max(self.bins, 1), histogram_row=histogram_row,
-                histogram_rows=HISTOGRAM_ROWS, slot_offset=slot_offset, stamp=stamp, aux_bound=aux_bound)
+                histogram_rows=HISTOGRAM_ROWS, slot_offset=slot_offset, aux_bound=aux_bound)
         return record
 
     def read(self):
