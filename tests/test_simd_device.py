@@ -76,6 +76,37 @@ def test_counting_on_the_device_changes_nothing_else(queue, cornell_box, techniq
                                                              uncounted_traffic["blocking_reads"])
 
 
+@pytest.mark.parametrize("technique", ["pt_inplace_regen", "pt_compact_regen", "pt_compact_regen/multipass"])
+def test_steps_counted_in_pairs_across_passes(queue, cornell_box, technique, monkeypatch):
+    """A path tracer's steps are counted two to a launch (StepPairs), its step kernels writing to two
+    buffers in turn: five passes of one sample per pixel, each ending after an odd or even number of
+    steps (a step held at a pass's end is counted alone), the turn going on from pass to pass. Every
+    step handed over is replayed once, with the host's figures, and the image is the uncounted one."""
+    from toolkit.techniques.simd_recorder import StepPairs
+    handed, replayed = [0], [0]
+    real = StepPairs.lanes
+
+    def lanes(self, replay, **step):
+        handed[0] += 1
+
+        def counted_replay(recorder, sums):
+            replayed[0] += recorder is self.recorder    # the device's recorder (its reference replays too)
+            return replay(recorder, sums)
+        return real(self, counted_replay, **step)
+    monkeypatch.setattr(StepPairs, "lanes", lanes)
+    cls, options = get_technique(technique)
+    counted_tech = cls(queue, DeviceScene(queue, cornell_box), count_simd=True, pass_spp=1, **options,
+                       **SIZES[technique])
+    counted_tech.recorder.check_against_host()
+    image = counted_tech.render(16, 16, 5, seed=3).image()
+    plain = cls(queue, DeviceScene(queue, cornell_box), count_simd=False, pass_spp=1, **options, **SIZES[technique])
+    np.testing.assert_array_equal(image, plain.render(16, 16, 5, seed=3).image())
+    on_device = figures(counted_tech.recorder)
+    assert on_device == figures(counted_tech.recorder.reference)
+    assert len(on_device["per_iteration"]) > 5 * 5
+    assert replayed[0] == handed[0] > 5 * 5
+
+
 def test_pt_inplace_regen_drains_when_its_sample_counter_says_so(queue, cornell_box, monkeypatch):
     """The counters mark a step as the final drain from the samples its regenerations started, added
     up (PassCount.step); checked here against the sample counter itself, read by the host after each
