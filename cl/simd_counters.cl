@@ -20,9 +20,10 @@ HELPER void add_wide(volatile __global uint* row, int field, uint x) {
     if (old + x < old) atomic_inc(&row[2 * field + 1]);
 }
 
-/* One work-item per warp, its sums into row `row_index` of the log: the warp's `warp_width` consecutive lanes of the first n, where n is
- * `bound` or, when length_index >= 0, length_at[length_index] (a count the device holds: the
- * step's stream length), whichever is smaller (`step`'s fields: SimdStep, layout.h). Lane i's ints are lanes[i * stride ..]: the
+/* One work-item per warp, its sums into row `row_index` of the log: the warp's `warp_width`
+ * consecutive lanes of the first n, where n is `bound` or, when length_index >= 0,
+ * length_at[length_index] (a count the device holds: the step's stream length), whichever is
+ * smaller (`step`'s fields: SimdStep, layout.h). Lane i's ints are lanes[i * stride ..]: the
  * LaneCounts fields in order (work, closest_steps, shadow_rays, shadow_steps; stride 4), or one
  * int (stride 1: work only).
  * Optional, each off when its int argument is negative or zero:

@@ -299,9 +299,10 @@ def format_host_meter(report):
                      "waiting thread runs the kernels, as Intel's CPU runtime does, the kernels' own time): "
                      + ", ".join(f"{name} {row.get('wait_cpu_ns_per_sample', 0.0):,.1f}"
                                  for name, row in report["techniques"].items()))
-    lines.append("host CPU: the CPU time of the thread that drives the queue, outside its waits for the device; serial: the part of it while the "
-                 "device's queue was empty (from a blocking read, finish or wait to the next launch); blocking: "
-                 "blocking reads and writes; per pass: in the 4N render. Kernels: OpenCL profiling events.")
+    lines.append("host CPU: the CPU time of the thread that drives the queue, outside its waits for the device; "
+                 "serial: the part of it while the device's queue was empty (from a blocking read, finish or wait "
+                 "to the next launch); blocking: blocking reads and writes; per pass: in the 4N render. Kernels: "
+                 "OpenCL profiling events.")
     return "\n".join(lines)
 
 

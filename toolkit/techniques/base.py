@@ -97,6 +97,13 @@ class Technique:
         self.work_sizes = {option: size, "work_sizes_source": why}
         return size
 
+    def by_turn(self, make):
+        """What a step's SIMD counters read, one per turn: two buffers from make() when counting,
+        so that a step's are summed with the next step's (simd_recorder.py StepPairs), else one
+        buffer for both turns."""
+        first = make()
+        return (first, make() if self.count_simd else first)
+
     def extend_in_place(self, pass_args, length, paths, alive, hits, radiance, lane_counts):
         """The in-place extension step (cl/extend_in_place.h) over the first `length` slots of
         `paths`: trace into `hits`, then shade (multi-pass compaction's; pt_inplace_regen has kernels of

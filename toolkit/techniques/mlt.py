@@ -314,10 +314,10 @@ class Mlt(BdptPoolTechnique):
         sink = ProposalSink(self.kernels, batch, c.tallies, n, p.pool.size)
         evaluator.evaluate(p, sink)
         sink.records()
-        self.kernels.launch("mlt_candidates_into_b", n, candidates=np.int32(n),
-                            unit_exponent=np.int32(c.films[1].unit_exponent), f_candidate=batch.f,
-                            b_sum=c.b_sum, tallies=c.tallies)
-        self.kernels.launch("mlt_estimate_first_b", 1, b_sum=c.b_sum, unit_exponent=np.int32(c.films[1].unit_exponent),
+        unit_exponent = np.int32(c.films[1].unit_exponent)   # b's units: the large steps' film's
+        self.kernels.launch("mlt_candidates_into_b", n, candidates=np.int32(n), unit_exponent=unit_exponent,
+                            f_candidate=batch.f, b_sum=c.b_sum, tallies=c.tallies)
+        self.kernels.launch("mlt_estimate_first_b", 1, b_sum=c.b_sum, unit_exponent=unit_exponent,
                             tallies=c.tallies, b_estimate=c.b_estimate)
         c.iteration += per_chain
         return batch

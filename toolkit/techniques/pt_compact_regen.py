@@ -88,15 +88,9 @@ class PtCompactRegen(Technique):
         return StreamBuffers(
             stream=m.soa_buffer(PATH_STATE, size), next_stream=m.soa_buffer(PATH_STATE, size),
             hits=m.soa_buffer(HIT_RECORD, size),
-            shadow_rays=m.soa_buffer(SHADOW_RAY, size), lane_counts_by_turn=self.lane_counts_by_turn(size),
-            alive=m.int_buffer(size),
+            shadow_rays=m.soa_buffer(SHADOW_RAY, size),
+            lane_counts_by_turn=self.by_turn(lambda: m.lane_counts_buffer(size)), alive=m.int_buffer(size),
             counts=m.record_buffer(PT_STEP), last_counts=m.record_buffer(PT_STEP), indices=self.compacted_indices(size))
-
-    def lane_counts_by_turn(self, size):
-        """The LaneCounts buffers of the two turns: two when counting (a step's lanes are summed with
-        the next step's, StepPairs), else one for both."""
-        first = self.memory.lane_counts_buffer(size)
-        return (first, self.memory.lane_counts_buffer(size) if self.count_simd else first)
 
     def run_pass(self, film, camera, seed, sample_base, spp):
         budget = pixel_count(camera) * spp

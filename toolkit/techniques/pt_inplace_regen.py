@@ -59,13 +59,9 @@ class PtInplaceRegen(Technique):
     def slot_buffers(self, slots):
         """The device memory of `slots` slots (run_pass makes it once per stream size)."""
         m = self.memory
-        # Two of what a step's counters sum when counting: a step's are summed with the next step's (StepPairs).
-        turns = 2 if self.count_simd else 1
-        lane_counts = [m.lane_counts_buffer(slots) for _ in range(turns)]
-        regenerated = [m.int_buffer(slots) for _ in range(turns)]
         return SlotBuffers(paths=m.soa_buffer(PATH_STATE, slots), hits=m.soa_buffer(HIT_RECORD, slots),
-                           lane_counts_by_turn=(lane_counts[0], lane_counts[-1]),
-                           regenerated_by_turn=(regenerated[0], regenerated[-1]),
+                           lane_counts_by_turn=self.by_turn(lambda: m.lane_counts_buffer(slots)),
+                           regenerated_by_turn=self.by_turn(lambda: m.int_buffer(slots)),
                            alive=m.int_buffer(slots), next_sample=m.int_buffer(1), any_alive=m.int_buffer(1))
 
     def run_pass(self, film, camera, seed, sample_base, spp):
