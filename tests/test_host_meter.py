@@ -232,6 +232,26 @@ def test_median_of_pairs_takes_each_figure_s_middle_value_and_its_spread():
     assert figures["host_cpu_ns_per_sample"] == 2.0 and figures["launches_per_pass"] == 7
     assert figures["spread"]["host_cpu_ns_per_sample"] == [-1.0, 5.0]
     assert median_of_pairs(pairs[:2])["kernel_share"] == 2.0           # even: the mean of the middle two
+    assert figures["interval"]["host_cpu_ns_per_sample"] == [-1.0, 5.0] and figures["interval_confidence"] == 0.75
+
+
+def test_the_median_s_interval_comes_from_the_order_statistics_a_binomial_gives():
+    """median_interval: [x_(k), x_(n+1-k)] with k the largest whose confidence, 1 - 2 P(B <= k - 1) for
+    B ~ Binomial(n, 1/2), is at least 95%; its confidence checked against the binomial's probabilities
+    summed by hand, and by drawing: the true median of a skewed distribution falls outside in about
+    1 - confidence of the samples (fixed seed; the tolerance is 4 binomial standard errors of that rate)."""
+    from toolkit.measure.host_meter import median_interval
+    values = [float(v) for v in range(15, 0, -1)]                  # 15 values, unsorted
+    assert median_interval(values) == (4.0, 12.0, 1 - 2 * (1 + 15 + 105 + 455) / 2 ** 15)   # k = 4: 96.5%
+    assert median_interval(values, confidence=0.8)[:2] == (5.0, 11.0)   # k = 5: 1 - 2 * 1941 / 2^15 = 88.2%
+    assert median_interval([3.0, 1.0, 2.0, 7.0, 5.0, 4.0, 6.0]) == (1.0, 7.0, 1 - 2 / 2 ** 7)   # k = 2 gives 87.5%
+    assert median_interval([2.0, -1.0, 5.0]) == (-1.0, 5.0, 0.75)
+    rng = np.random.default_rng(48)
+    samples = rng.lognormal(0.0, 1.0, size=(4000, 15))             # the median of lognormal(0, 1) is 1
+    outside = np.mean([not (low <= 1.0 <= high) for low, high, _ in map(median_interval, samples)])
+    confidence = median_interval(samples[0])[2]
+    rate = 1 - confidence
+    assert abs(outside - rate) <= 4 * np.sqrt(rate * (1 - rate) / len(samples))
 
 
 def test_every_technique_at_the_gpu_s_sizes_takes_n_equal_to_spp():

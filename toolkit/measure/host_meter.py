@@ -43,6 +43,9 @@ Three things keep the 3N more samples well above that noise:
   figure is near one pair's noise, and 3 for BDPT and Metropolis: GPU_REPEATS): the pair of renders is made that many times and each
   figure is the median of the pairs' figures, with the lowest and highest in `spread` (the JSON's
   `pairs` holds every pair's figures): a pair whose one render paid a dearer first touch is outvoted.
+  `interval` says how far that median can be trusted: the order statistics that hold the true median
+  with at least 95% confidence (median_interval; 7 pairs: the lowest and highest, 98.4%; 15 pairs: the
+  4th and 12th, 96.5%). A limit inside it is neither met nor missed by the measurement.
 Each render's minor page faults and the process's system CPU seconds are in its figures
 (`page_faults`, `system_seconds`), so that a dear first touch shows.
 The meter's own reading of the profiling events after a render (two queries per launch, for the
@@ -53,6 +56,7 @@ Beside the host CPU per sample, `pass_cpu_ns_per_sample` counts only the thread'
 technique's passes (run_pass): what the extra samples cost as well, without the start's and the
 end's noise (but also without any per-sample work a technique defers to its end).
 """
+import math
 import time
 from contextlib import contextmanager
 
@@ -70,6 +74,7 @@ RESOLUTION = (256, 256)
 GPU_SIZES = {"stream_size": 270_336, "pool_size": 270_336, "chains": 262_144}
 GROWTH = 4   # the second render has GROWTH times the first one's samples
 # The figures that are times (noisy), for `spread`; the rest are counts, the same in every pair.
+MEDIAN_CONFIDENCE = 0.95    # of the interval each timed figure's median is given with (median_interval)
 TIMED = ("host_cpu_ns_per_sample", "pass_cpu_ns_per_sample", "serial_ns_per_sample", "kernel_ns_per_sample",
          "wall_ns_per_sample", "kernel_share", "wait_cpu_ns_per_sample")
 
@@ -212,13 +217,34 @@ def costs(first, second):
 
 def median_of_pairs(pairs):
     """The figures of several pairs' `costs`: each the median of the pairs' (the middle one; for an
-    even count the mean of the two middle ones), and `spread`: the lowest and highest of each timed one."""
+    even count the mean of the two middle ones), `spread`: the lowest and highest of each timed one,
+    and `interval`: where each timed one's true median lies, with `interval_confidence` (median_interval)."""
     def median(values):
         v, k = sorted(values), len(values) // 2
         return v[k] if len(v) % 2 else (v[k - 1] + v[k]) / 2
     figures = {key: median([p[key] for p in pairs]) for key in pairs[0]}
     figures["spread"] = {key: [min(p[key] for p in pairs), max(p[key] for p in pairs)] for key in TIMED}
+    intervals = {key: median_interval([p[key] for p in pairs]) for key in TIMED}
+    figures["interval"] = {key: [low, high] for key, (low, high, _) in intervals.items()}
+    figures["interval_confidence"] = intervals["host_cpu_ns_per_sample"][2]
     return figures
+
+
+def median_interval(values, confidence=MEDIAN_CONFIDENCE):
+    """(low, high, its confidence): the distribution-free interval for the median of what `values`
+    sample, from their order statistics (e.g. Conover, Practical Nonparametric Statistics, sec. 3.2):
+    the k-th smallest value lies below the median unless k or more of n values fall above it, which has
+    the binomial probability P(B <= k - 1) with B ~ Binomial(n, 1/2); so [x_(k), x_(n+1-k)] holds the
+    median with confidence 1 - 2 P(B <= k - 1). k is the largest that keeps `confidence` (15 values:
+    the 4th and 12th, 96.5%); with too few values for it, the whole range and what it gives (3 values:
+    75%). A pair's figure is no normal variable (a pair that paid a dear first touch is far out), so no
+    standard error of a mean: the pairs' own order says how far the median can be trusted."""
+    v, n = sorted(values), len(values)
+    below = lambda k: sum(math.comb(n, i) for i in range(k)) / 2 ** n     # P(B <= k - 1)
+    k = 1
+    while k + 1 <= (n + 1) // 2 and 1 - 2 * below(k + 1) >= confidence:
+        k += 1
+    return v[k - 1], v[n - k], 1 - 2 * below(k)
 
 
 def host_meter(scene=None, techniques=HOST_DEFAULT, options=None, spp=16, gpu_sizes=False, count_simd=False,
@@ -289,7 +315,11 @@ def format_host_meter(report):
     for name, row in report["techniques"].items():
         if "spread" in row:
             low, high = row["spread"]["host_cpu_ns_per_sample"]
-            lines.append(f"{name}: host CPU ns/sample from {low:,.1f} to {high:,.1f} over the {row['repeats']} pairs")
+            line = f"{name}: host CPU ns/sample from {low:,.1f} to {high:,.1f} over the {row['repeats']} pairs"
+            if "interval" in row:
+                a, b = row["interval"]["host_cpu_ns_per_sample"]
+                line += f"; their median within {a:,.1f} to {b:,.1f} ({row['interval_confidence']:.1%} confidence)"
+            lines.append(line)
     for name, row in report["techniques"].items():
         if "pass_cpu_ns_per_sample" in row:
             lines.append(f"{name}: host CPU inside its passes {row['pass_cpu_ns_per_sample']:,.1f} ns/sample")
