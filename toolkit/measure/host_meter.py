@@ -73,8 +73,8 @@ RESOLUTION = (256, 256)
 # chains are capped at 2^18 (toolkit/techniques/mlt.py).
 GPU_SIZES = {"stream_size": 270_336, "pool_size": 270_336, "chains": 262_144}
 GROWTH = 4   # the second render has GROWTH times the first one's samples
-# The figures that are times (noisy), for `spread`; the rest are counts, the same in every pair.
 MEDIAN_CONFIDENCE = 0.95    # of the interval each timed figure's median is given with (median_interval)
+# The figures that are times (noisy), for `spread`; the rest are counts, the same in every pair.
 TIMED = ("host_cpu_ns_per_sample", "pass_cpu_ns_per_sample", "serial_ns_per_sample", "kernel_ns_per_sample",
          "wall_ns_per_sample", "kernel_share", "wait_cpu_ns_per_sample")
 
