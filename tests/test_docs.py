@@ -42,9 +42,22 @@ def site():
     build = subprocess.run([sys.executable, "-m", "sphinx", "-W", "-E", "-q", "-b", "html", str(DOCS), str(HTML)],
                            cwd=ROOT, env=env, capture_output=True, text=True)
     if build.returncode != 0:
-        log = "\n".join((build.stdout + build.stderr).splitlines()[-80:])
-        pytest.fail(f"the site's build failed (a warning, or a tutorial's cell):\n{log}", pytrace=False)
+        output = build.stdout + build.stderr
+        log = "\n".join(output.splitlines()[-80:])
+        pytest.fail(f"the site's build failed (a warning, or a tutorial's cell):\n{log}{failed_cell(output)}",
+                    pytrace=False)
     return HTML
+
+
+def failed_cell(output):
+    """The failing cell's own error, which Sphinx keeps only in the traceback file it names."""
+    saved = re.search(r"The full traceback has been saved in:\s*(\S+)", output)
+    if not saved or not Path(saved.group(1)).is_file():
+        return ""
+    text = re.sub(r"\x1b\[[0-9;]*m", "", Path(saved.group(1)).read_text(errors="replace"))   # no colour codes
+    # nbclient's error names the cell's source and its exception; it comes before the chained ExecutionError.
+    cause = text.split("The above exception was the direct cause")[0].splitlines()
+    return "\n\nthe cell's error, from " + saved.group(1) + ":\n" + "\n".join(cause[-60:])
 
 
 class Page(HTMLParser):
