@@ -25,13 +25,9 @@ def build(c):
     Cornell box); the weights of real paths come from bdpt_test.cl, on paths of the toolkit's BDPT."""
     if c.runs("image"):
         c.technique(BdptNaiveConnect, scene="cornell_box")
-    for scene_name in ("cornell_box", "cornell_spheres"):
-        _, ds = c.scene(scene_name)
-        tech = c.technique(BdptParallelConnect, student=False, scene=scene_name)
-        for student in (True, False):
-            for power in (False, True):
-                defines = dict(ds.features(), MAX_VERTICES=tech.max_vertices, MIS_POWER=power)
-                program.build(c.queue, "bdpt_test.cl", defines, directory=c.sources() if student else c.reference_sources())
+    for student in (True, False):
+        for power in (False, True):
+            _build_bdpt_test(c, power, student)
     for power in (False, True):
         c.build("mis_checks.cl", {"MIS_POWER": power})
     # The real paths too, once (_mis_cases keeps them in the grading folder): found here, within the
@@ -52,13 +48,36 @@ def _real_paths(c, scene_name):
     return tech, tech.eye_paths_to_lights(_PATHS)
 
 
+_SCENES = ("cornell_box", "cornell_spheres")   # the scenes whose real paths the weights are checked on
+
+
+def _bdpt_test_defines(c, power):
+    """bdpt_test.cl's defines for the paths of both scenes: one build, not one per scene (each
+    build of a student's file costs seconds of the grading's limit). A material feature either
+    scene has is on, which leaves the other scene's paths as they were (its code is never reached
+    there); what is not a yes/no (the BVH layout the kernel traverses, the vertex count) must agree."""
+    merged = {}
+    for scene_name in _SCENES:
+        _, ds = c.scene(scene_name)
+        tech = c.technique(BdptParallelConnect, student=False, scene=scene_name)
+        for key, value in dict(ds.features(), MAX_VERTICES=tech.max_vertices).items():
+            if isinstance(value, bool) and isinstance(merged.get(key, value), bool):
+                merged[key] = merged.get(key, False) or value
+            elif merged.setdefault(key, value) != value:
+                raise RuntimeError(f"bdpt_test.cl cannot be built once for {_SCENES}: their {key} differs "
+                                   f"({merged[key]} and {value})")
+    return dict(merged, MIS_POWER=power)
+
+
+def _build_bdpt_test(c, power, student=True):
+    return program.build(c.queue, "bdpt_test.cl", _bdpt_test_defines(c, power),
+                         directory=c.sources() if student else c.reference_sources())
+
+
 def _split_weights(c, tech, scene_name, paths, student=True, power=False):
     """The MIS weight of every split s of each path (cl/bdpt_test.cl with the submission's mis.h)."""
     _, ds = c.scene(scene_name)
-    # The device scene's features: they say which BVH layout (binary or wide) the kernel traverses.
-    defines = dict(ds.features(), MAX_VERTICES=tech.max_vertices, MIS_POWER=power)
-    built = program.build(c.queue, "bdpt_test.cl", defines, directory=c.sources() if student else c.reference_sources())
-    kernel = program.kernel(built, "bdpt_test_mis_splits")
+    kernel = program.kernel(_build_bdpt_test(c, power, student), "bdpt_test_mis_splits")
     camera = ds.camera(64, 64)
     out = []
     for path in paths:
@@ -74,7 +93,7 @@ def _split_weights(c, tech, scene_name, paths, student=True, power=False):
 def _mis_cases(c):
     """(scene name, technique, real paths) of both scenes; the paths are found once per grading
     (the checks' subprocesses share the grading folder) and kept there."""
-    for scene_name in ("cornell_box", "cornell_spheres"):
+    for scene_name in _SCENES:
         saved = Path(c.folder) / f"paths_{scene_name}.npz"
         if saved.is_file():
             with np.load(saved) as data:
