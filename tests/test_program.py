@@ -101,6 +101,29 @@ def test_expand_includes_inlines_each_header_once_with_line_markers():
     assert f'#line {include_line + 1} "materials.h"' in source
 
 
+def test_the_toolkits_own_sources_are_put_together_again_only_when_a_file_changes(monkeypatch, tmp_path):
+    """expand_includes keeps the text of the toolkit's own programs (a render builds several, and each
+    took milliseconds to put together again), and reads them again once one of their files changes."""
+    import shutil
+    cl = tmp_path / "cl"
+    shutil.copytree(program.cl_dir(), cl)
+    monkeypatch.setattr(program, "cl_dir", lambda: cl)
+    first = program.expand_includes("materials.h")
+    assert program.expand_includes("materials.h") is first          # kept: the same text, not read again
+    assert "twice_the_pi" not in first
+    common = cl / "common.h"                                         # included by materials.h
+    common.write_text(common.read_text() + "#define twice_the_pi 6.28f\n")
+    again = program.expand_includes("materials.h")
+    assert again is not first and "#define twice_the_pi 6.28f" in again
+    # A folder of the caller's is read every time: a file there may replace the toolkit's.
+    folder = tmp_path / "mine"
+    folder.mkdir()
+    (folder / "common.h").write_text("#define MINE 1\n")
+    assert "#define MINE 1" in program.expand_includes("materials.h", folder)
+    (folder / "common.h").write_text("#define MINE 2\n")
+    assert "#define MINE 2" in program.expand_includes("materials.h", folder)
+
+
 def test_define_options_drop_false_and_none_and_mark_floats():
     options = program.define_options({"B": True, "A": False, "C": None, "D": 3, "E": 0.5})
     assert options == ["-DB=1", "-DD=3", "-DE=0.5f"]

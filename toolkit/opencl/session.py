@@ -13,6 +13,8 @@ What is kept, and why once per process:
 - one OpenCL context and queue per device and lanes setting (toolkit/opencl/device.py: get_queue):
   each context holds the programs built there (builds.py), so a second one would build them again;
 - the probe's verdict per verdict file (device.py: probe), and where it came from (`devices` says);
+- the source text of the toolkit's own programs (program.py: expand_includes), read again when a
+  file of it changes: a render builds several programs, and putting each together took milliseconds;
 - the kernel cache's problem per folder, and the problems already said (kernel_cache.py);
 - the results of the steps that must run once: `runtimes.prepare()` (the loader reads the
   environment once, at the first platform query), `runtimes.before_pyopencl_import()` (pyopencl
@@ -33,6 +35,9 @@ class Session:
         self.cache_problems_said = set()   # the kernel cache's problems already warned about
         self.dll_directories = []     # os.add_dll_directory's handles (Windows)
         self.done = {}                # a step done once per process: what it returned
+        # The toolkit's own programs' source text, put together once (program.py: expand_includes):
+        # (cl/ folder, name): (text, the files it read with their stamps, to see a file changed).
+        self.expanded_sources = {}
         # Host BVHs (toolkit/opencl/device_scene.py): built before their scene's context (build_ahead)
         # until a DeviceScene takes one, and every one a context holds, so that none is built twice.
         self.built_ahead = {}
