@@ -333,25 +333,3 @@ def test_the_pool_size_changes_the_schedule_not_the_image_bits(cornell_box, tech
                               technique_options={"pool_size": pool}).image
     whole = image(16 * 12 * 2)
     assert whole.sum() > 0 and np.array_equal(image(40), whole)
-
-
-def test_a_walk_step_sets_only_its_step_record_again(queue, cornell_box, monkeypatch):
-    """The eye and light streams launch bdpt_extend through kernel objects of their own, one per
-    turn of their swapping buffers (SubpathStream.copy), so that a launch sets only what changed
-    (program.launch): the step's record, not the buffers the other stream's launch had set."""
-    tech = BdptParallelConnect(queue, DeviceScene(queue, cornell_box), count_simd=False)
-    tech.render(16, 16, 4, seed=1)                  # the first render sets every argument once
-    launches, set_args = [], []
-    real_launch, real_set = program.launch, program._set_arg
-    monkeypatch.setattr(program, "launch", lambda q, kernel, *a, **k: launches.append(kernel.function_name)
-                        or real_launch(q, kernel, *a, **k))
-    monkeypatch.setattr(program, "_set_arg", lambda kernel, i, value: set_args.append(kernel.function_name)
-                        or real_set(kernel, i, value))
-    tech.render(16, 16, 4, seed=2)
-    steps = launches.count("bdpt_extend")
-    assert steps >= 20
-    # The step record (the ring's position, the subpaths appended since the last count) is the one
-    # argument that changes at a step, besides the new render's pass record, set once in each of the
-    # four kernel objects (two streams, two turns); with one kernel object for both streams a step
-    # set five (their buffers too).
-    assert set_args.count("bdpt_extend") <= steps + 4, (set_args.count("bdpt_extend"), steps)

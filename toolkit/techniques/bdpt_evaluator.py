@@ -87,19 +87,10 @@ class SubpathStream:
     vertices: cl.Buffer       # BdptVertex[pool][MAX_VERTICES]: every vertex stored so far
     lane_counts: cl.Buffer    # LaneCounts[pool]: the stream's lanes in one walk step (COUNT_SIMD)
     length: int = 0           # at least the subpaths in the stream (their count is on the device): what a step launches
-    turn: int = 0             # which of its two buffers is `current` (flips with advance)
 
     def advance(self):
         """After a step: the survivors, compacted into `spare`, are the stream."""
         self.current, self.spare = self.spare, self.current
-        self.turn ^= 1
-
-    def copy(self):
-        """Which kernel object this stream launches with now: one per stream and turn, so that each
-        keeps the stream's buffers set and a launch sets only what changed (program.launch; on
-        PoCL setting one argument costs the host microseconds, and the eye and light launches of
-        one kernel object would set each other's buffers back at every step)."""
-        return 1 + 2 * self.is_light + self.turn
 
 
 @dataclass
@@ -328,8 +319,7 @@ class BdptEvaluator:
             for stream in (pool.eye, pool.light):   # the eye launch also starts the slots
                 r = BDPT_REGENERATION.record(count=count, fresh=fresh, first_id=p.next_id, ring=p.ring,
                                              appended=p.appended, light=int(stream.is_light))
-                regenerate = ctx.kernels.kernel("bdpt_regenerate", copy=stream.copy())
-                ctx.kernels.launch(regenerate, count, **ctx.kernels.scene_args(), cam=p.camera,
+                ctx.kernels.launch("bdpt_regenerate", count, **ctx.kernels.scene_args(), cam=p.camera,
                                    pass_args=p.args, r=r, slot_list=slots, counters=pool.counters,
                                    stream=stream.current, vertices=stream.vertices, slots=pool.slots,
                                    **p.sampler_args)
@@ -363,7 +353,7 @@ class BdptEvaluator:
             if step is None:
                 step = self._steps[key] = BDPT_STEP.record(ring=p.ring, appended=p.appended,
                                                            light=int(stream.is_light))
-            k.launch(k.kernel("bdpt_extend", copy=stream.copy()), mem.padded(stream.length), **k.scene_args(), cam=p.camera,
+            k.launch("bdpt_extend", mem.padded(stream.length), **k.scene_args(), cam=p.camera,
                      pass_args=p.args, walk_step=step, stream=stream.current, next_stream=stream.spare,
                      counters=pool.counters, vertices=stream.vertices, slots=pool.slots,
                      lane_counts=stream.lane_counts, **p.sampler_args)
