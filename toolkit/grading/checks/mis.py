@@ -10,6 +10,7 @@ from toolkit.grading.assignment import Assignment, CheckFailed
 from toolkit.measure.reference import reference_at, relative_mean_error, z_test
 from toolkit.opencl import program
 from toolkit.techniques import BdptNaiveConnect, BdptParallelConnect
+from toolkit.techniques.bdpt_evaluator import walk_defines
 
 # The points. The assignment asks for two heuristics, the balance one (MIS_POWER 0) and the power
 # one (MIS_POWER 1, beta = 2); a file that computes another rule in either build (uniform weights,
@@ -53,15 +54,17 @@ _SCENES = ("cornell_box", "cornell_spheres")   # the scenes whose real paths the
 
 def _bdpt_test_defines(c, power):
     """bdpt_test.cl's defines for the paths of both scenes: one build, not one per scene (each
-    build of a student's file costs seconds of the grading's limit). A material feature either
-    scene has is on, which leaves the other scene's paths as they were (its code is never reached
-    there); what is not a yes/no (the BVH layout the kernel traverses, the vertex count) must agree."""
+    build of a student's file costs seconds of the grading's limit). A material either scene has
+    is compiled in (HAS_*): a scene without it never reaches its code, so its paths come out as
+    from its own build (tests/test_specialization.py holds the general kernel to the specialized
+    one). Every other define (the BVH layout, the depth limits, the vertex count) must agree."""
     merged = {}
     for scene_name in _SCENES:
-        _, ds = c.scene(scene_name)
-        tech = c.technique(BdptParallelConnect, student=False, scene=scene_name)
-        for key, value in dict(ds.features(), MAX_VERTICES=tech.max_vertices).items():
-            if isinstance(value, bool) and isinstance(merged.get(key, value), bool):
+        scene, ds = c.scene(scene_name)
+        # The technique's own rule for its subpaths' length, without building a technique for it.
+        max_vertices, _ = walk_defines(scene, BdptParallelConnect.max_vertices, coalesced_scatter=True)
+        for key, value in dict(ds.features(), MAX_VERTICES=max_vertices).items():
+            if key.startswith("HAS_"):
                 merged[key] = merged.get(key, False) or value
             elif merged.setdefault(key, value) != value:
                 raise RuntimeError(f"bdpt_test.cl cannot be built once for {_SCENES}: their {key} differs "
