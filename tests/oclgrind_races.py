@@ -24,6 +24,9 @@ from toolkit.techniques import TECHNIQUES  # noqa: E402
 # 8x8 pixels, 4 spp: 256 samples through a stream (or pool) of 64, so slots are regenerated and
 # compacted several times, and a last, partly filled wave drains. The issue's size (issue 22).
 RESOLUTION, SPP, IN_FLIGHT = (8, 8), 4, 64
+# Runs with the SIMD counters on as well: the BDPT walk's kernel then adds its own lanes to the
+# step log (cl/simd_counters.h), with a barrier and atomics of its own. Named "<technique> counted".
+COUNTED = ("bdpt_naive_connect",)
 
 
 def announce(name):
@@ -49,11 +52,14 @@ def main():
     announce("control")
     control(queue)
     print(json.dumps({"run": "control", "device": queue.device.platform.name}), flush=True)
-    for name in sorted(TECHNIQUES):
-        announce(name)
+    runs = [(name, False) for name in sorted(TECHNIQUES)] + [(name, True) for name in COUNTED]
+    for name, count_simd in runs:
+        run = f"{name} counted" if count_simd else name
+        announce(run)
         options = in_flight_options(TECHNIQUES[name])
-        result = toolkit.render(technique=name, spp=SPP, resolution=RESOLUTION, device="oclgrind", options=options)
-        print(json.dumps({"run": name, "device": result.stats["device"], "options": options,
+        result = toolkit.render(technique=name, spp=SPP, resolution=RESOLUTION, device="oclgrind", options=options,
+                                count_simd=count_simd)
+        print(json.dumps({"run": run, "device": result.stats["device"], "options": options,
                           "samples_per_pixel": result.stats["samples_per_pixel"],
                           "finite": bool(np.isfinite(result.image).all())}), flush=True)
 

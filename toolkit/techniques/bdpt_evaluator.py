@@ -242,6 +242,7 @@ class BdptEvaluator:
     listing_delay: int = 1     # steps after a regeneration to list (grows when a listing succeeds only later)
     walk_steps: list = field(default_factory=list)   # the walks' lengths (steps) of the last RECENT_WALKS passes
     _steps: dict = field(default_factory=dict, repr=False)   # BdptStep records by (ring, appended, stream), made once
+    _uncounted: list = field(default=None, repr=False)     # bdpt_extend's SIMD-counter arguments that count nothing (own_counts)
 
     def __post_init__(self):
         fraction = self.regenerate_fraction
@@ -347,7 +348,8 @@ class BdptEvaluator:
         if not (pool.eye.length or pool.light.length):
             return
         k, mem = ctx.kernels, ctx.memory
-        for stream in (pool.eye, pool.light):
+        counts = self.own_counts(p)
+        for stream, count in zip((pool.eye, pool.light), counts):
             key = (p.ring, p.appended, stream.is_light)
             step = self._steps.get(key)
             if step is None:
@@ -356,8 +358,8 @@ class BdptEvaluator:
             k.launch("bdpt_extend", mem.padded(stream.length), **k.scene_args(), cam=p.camera,
                      pass_args=p.args, walk_step=step, stream=stream.current, next_stream=stream.spare,
                      counters=pool.counters, vertices=stream.vertices, slots=pool.slots,
-                     lane_counts=stream.lane_counts, **p.sampler_args)
-        self.count_walk_step(p)
+                     lane_counts=stream.lane_counts, **count, **p.sampler_args)
+        self.count_walk_step(p, counted=counts is not self._uncounted)
         pool.eye.advance()
         pool.light.advance()
         p.ring, p.appended = (p.ring + 1) % 3, 0
@@ -425,14 +427,39 @@ class BdptEvaluator:
 
     # --- measuring and inspecting ------------------------------------------------------------
 
-    def count_walk_step(self, p):
-        """SIMD counters of one walk step (a no-op unless count_simd), summed on the device, both
-        streams with one launch (a launch per step is most of a counted step's host time): a
-        stream's lanes are the first of the length the step extended (counters), its slots those
-        of the subpaths it extended (for the walk as it would be without compaction)."""
-        ctx = self.ctx
-        if not ctx.recorder.on:
-            return
+    def own_counts(self, p):
+        """bdpt_extend's SIMD-counter arguments for the eye and the light stream of this step: where
+        the kernel adds its own lanes to the step log (cl/simd_counters.h simd_count_group: counted,
+        warps that fit in a work-group, not the per-step mode), each stream's row and stamp, in the
+        order the streams launch; else `_uncounted`'s, which tell the kernel not to (row -1)."""
+        ctx, pool = self.ctx, p.pool
+        if not ctx.recorder.on or ctx.kernels.local_size % ctx.recorder.warp_width:
+            return self._uncounted_args(p)
+        streams = [stream for stream in (pool.eye, pool.light) if stream.length]
+        counts = ctx.recorder.counted_by_kernels([self.walk_replay(p)] * len(streams), pool.size)
+        if counts is None:
+            return self._uncounted_args(p)
+        k, warp_width = ctx.kernels, ctx.kernels.int32(ctx.recorder.warp_width)
+        by_stream = {id(stream): dict(simd_rows=rows, simd_warp_stamps=stamps, simd_row=k.int32(row),
+                                      simd_stamp=np.int32(stamp), simd_warp_width=warp_width)
+                     for stream, (rows, stamps, row, stamp) in zip(streams, counts)}
+        uncounted = self._uncounted_args(p)[0]
+        return [by_stream.get(id(stream), uncounted) for stream in (pool.eye, pool.light)]
+
+    def _uncounted_args(self, p):
+        """bdpt_extend's SIMD-counter arguments that count nothing (row -1; any buffer: none is read),
+        the same objects at every step, for both streams: `_uncounted`."""
+        if self._uncounted is None or self._uncounted[0]["simd_rows"] is not p.pool.counters:
+            k = self.ctx.kernels
+            args = dict(simd_rows=p.pool.counters, simd_warp_stamps=p.pool.counters, simd_row=k.int32(-1),
+                        simd_stamp=k.int32(0), simd_warp_width=k.int32(1))
+            self._uncounted = [args, args]
+        return self._uncounted
+
+    def walk_replay(self, p):
+        """The replay of a walk step's row (SimdRecorder): a stream's lanes are the first of the length
+        the step extended, its pool warps those holding the slots of the subpaths it extended (the
+        walk as it would be without compaction)."""
         pool, draining = p.pool.size, p.next_id == p.budget
 
         def replay(recorder, sums):
@@ -444,12 +471,29 @@ class BdptEvaluator:
             recorder.warp_loops(recorder.traversal_counter(), "closest", sums, "closest_steps")
             # without compaction each path keeps its slot's lane
             recorder.slot_warps(recorder.counter(WITHOUT_COMPACTION), "walk", sums, pool)
+        return replay
+
+    def count_walk_step(self, p, counted=False):
+        """SIMD counters of one walk step (a no-op unless count_simd), summed on the device: by the
+        step's own launches where they counted (`counted`: own_counts), which leaves only a
+        reference recorder to give the lanes to; else both streams with one counting launch. A
+        stream's lanes are the first of the length the step extended (counters), its slots those
+        of the subpaths it extended."""
+        ctx = self.ctx
+        if not ctx.recorder.on:
+            return
+        if counted and ctx.recorder.reference is None:
+            return
+        pool, replay = p.pool.size, self.walk_replay(p)
         slot_offset = SUBPATH.soa_offset("slot", p.pool.capacity) // 4
         steps = [dict(lanes=stream.lane_counts, stride=4, bound=stream.length, length_at=p.pool.counters,
                       length_index=int(length), slot_of=stream.current, slot_offset=slot_offset, pool=pool)
                  for stream, length in ((p.pool.eye, WalkCounter.STEP_EYE_LENGTH),
                                         (p.pool.light, WalkCounter.STEP_LIGHT_LENGTH)) if stream.length]
-        if len(steps) == 2:     # both streams with one launch
+        if counted:             # by bdpt_extend, into rows queued before it: the lanes go only to the reference
+            for step in steps:
+                ctx.recorder.reference.lanes(replay, **step)
+        elif len(steps) == 2:   # both streams with one launch
             ctx.recorder.lanes_two((replay, steps[0]), (replay, steps[1]))
         elif steps:
             ctx.recorder.lanes(replay, **steps[0])
