@@ -423,7 +423,10 @@ def _kept_by_identity(value):
     writable record (np.void), which may change in place."""
     if isinstance(value, np.void):
         return not value.flags.writeable
-    return isinstance(value, cl.MemoryObjectHolder) or (isinstance(value, np.number) and np.ndim(value) == 0)
+    return isinstance(value, _KEPT_TYPES)     # a numpy number is a 0-d scalar, never an array
+
+
+_KEPT_TYPES = (cl.MemoryObjectHolder, np.number)
 
 
 class _Launched:

@@ -463,6 +463,8 @@ class BdptEvaluator:
         pool, draining = p.pool.size, p.next_id == p.budget
 
         def replay(recorder, sums):
+            if sums.lanes is None:
+                return recorder.walk_row(sums.sums, pool, draining, WITHOUT_COMPACTION)
             length = sums[SimdSum.LANES]
             if length == 0:
                 return      # a stream the device had found empty

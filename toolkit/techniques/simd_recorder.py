@@ -200,6 +200,23 @@ class SimdRecorder:
             self.iterations += 1
 
 
+    def walk_row(self, row, pool, draining, uncompacted):
+        """A BDPT walk step's replay from its row of the log (a list of ints by SimdSum), the walk
+        without compaction into the counter named `uncompacted`: what
+        BdptEvaluator.walk_replay adds from the lanes (count_now, the compaction, warp_loops of
+        the traversal, slot_warps), the same integers in fewer calls, since a render replays
+        thousands of them (tests/test_simd_device.py compares the two)."""
+        length = row[SimdSum.LANES]
+        if length == 0:
+            return      # a stream the device had found empty
+        w = self.warp_width
+        issued = -(-length // w) * w
+        self._simd.add_step("walk", length, issued, self.iterations, pool, draining)
+        self.iterations += 1
+        self._simd.add("compact", length, issued)
+        self._traversal.add("closest", row[SimdSum.CLOSEST_SUM], row[SimdSum.CLOSEST_WARP_MAX] * w)
+        self.counter(uncompacted).add("walk", length, row[SimdSum.SLOT_WARPS] * w)
+
     def mask_step(self, phase, sums, field="work", numbered=False, before=False, capacity=None, draining=False,
                   counter=None):
         """A step whose active lanes are those with `field` > 0 (work, shadow_rays, or the aux ints): numbered (an
