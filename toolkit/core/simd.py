@@ -78,10 +78,12 @@ class PhaseCounter:
         """One per_iteration entry per iteration k of a loop: lanes_past[k] lanes and warps_past[k]
         warps still running it. Python ints (tolist): a render counts tens of thousands of them."""
         w = self.warp_width
+        lanes, warps = lanes_past.tolist(), warps_past.tolist()
+        # by index, not zip: no tuple per iteration (a render makes thousands, each one more for the collector)
         self.per_iteration.extend(
-            {"phase": phase, "iteration": first_iteration + k, "efficiency": active / (warps * w) if warps else 1.0,
-             "active": active, "capacity": capacity, "draining": False}
-            for k, (active, warps) in enumerate(zip(lanes_past.tolist(), warps_past.tolist())))
+            [{"phase": phase, "iteration": first_iteration + k,
+              "efficiency": lanes[k] / (warps[k] * w) if warps[k] else 1.0,
+              "active": lanes[k], "capacity": capacity, "draining": False} for k in range(len(lanes))])
 
     def efficiency(self):
         out = {p: (self.active[p] / self.issued[p] if self.issued[p] else 1.0) for p in self.active}

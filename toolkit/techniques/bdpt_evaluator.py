@@ -243,6 +243,8 @@ class BdptEvaluator:
     walk_steps: list = field(default_factory=list)   # the walks' lengths (steps) of the last RECENT_WALKS passes
     _steps: dict = field(default_factory=dict, repr=False)   # BdptStep records by (ring, appended, stream), made once
     _uncounted: list = field(default=None, repr=False)     # bdpt_extend's SIMD-counter arguments that count nothing (own_counts)
+    _own: list = field(default=None, repr=False)           # the eye's and light's counting arguments (own_counts)
+    _replays: dict = field(default_factory=dict, repr=False)   # walk_replay's, by (pool size, draining)
 
     def __post_init__(self):
         fraction = self.regenerate_fraction
@@ -431,20 +433,35 @@ class BdptEvaluator:
         """bdpt_extend's SIMD-counter arguments for the eye and the light stream of this step: where
         the kernel adds its own lanes to the step log (cl/simd_counters.h simd_count_group: counted,
         warps that fit in a work-group, not the per-step mode), each stream's row and stamp, in the
-        order the streams launch; else `_uncounted`'s, which tell the kernel not to (row -1)."""
+        order the streams launch; else `_uncounted`'s, which tell the kernel not to (row -1). A render
+        counts thousands of steps: each stream's dict of arguments is made once and given its row
+        and stamp, and the step's replay is made once per pool and drain (walk_replay)."""
         ctx, pool = self.ctx, p.pool
-        if not ctx.recorder.on or ctx.kernels.local_size % ctx.recorder.warp_width:
-            return self._uncounted_args(p)
-        streams = [stream for stream in (pool.eye, pool.light) if stream.length]
-        counts = ctx.recorder.counted_by_kernels([self.walk_replay(p)] * len(streams), pool.size)
-        if counts is None:
-            return self._uncounted_args(p)
-        k, warp_width = ctx.kernels, ctx.kernels.int32(ctx.recorder.warp_width)
-        by_stream = {id(stream): dict(simd_rows=rows, simd_warp_stamps=stamps, simd_row=k.int32(row),
-                                      simd_stamp=np.int32(stamp), simd_warp_width=warp_width)
-                     for stream, (rows, stamps, row, stamp) in zip(streams, counts)}
-        uncounted = self._uncounted_args(p)[0]
-        return [by_stream.get(id(stream), uncounted) for stream in (pool.eye, pool.light)]
+        recorder = ctx.recorder
+        uncounted = self._uncounted_args(p)
+        if not recorder.on or ctx.kernels.local_size % recorder.warp_width:
+            return uncounted
+        eye, light = pool.eye.length > 0, pool.light.length > 0
+        counts = recorder.counted_by_kernels(self.walk_replay(p), eye + light, pool.size)
+        if not counts:
+            return uncounted
+        own, args, counts = self._own_args(counts[0][:2]), list(uncounted), iter(counts)
+        for i, walking in enumerate((eye, light)):
+            if walking:
+                _, _, row, stamp = next(counts)
+                own[i]["simd_row"], own[i]["simd_stamp"] = ctx.kernels.int32(row), np.int32(stamp)
+                args[i] = own[i]
+        return args
+
+    def _own_args(self, buffers):
+        """The eye's and the light's dicts of counting arguments over the log's `buffers` (its rows,
+        the pool warps' stamps), made once (own_counts sets their row and stamp)."""
+        if self._own is None or self._own[0]["simd_rows"] is not buffers[0] \
+                or self._own[0]["simd_warp_stamps"] is not buffers[1]:
+            warp_width = self.ctx.kernels.int32(self.ctx.recorder.warp_width)
+            self._own = [dict(simd_rows=buffers[0], simd_warp_stamps=buffers[1], simd_row=None, simd_stamp=None,
+                              simd_warp_width=warp_width) for _ in range(2)]
+        return self._own
 
     def _uncounted_args(self, p):
         """bdpt_extend's SIMD-counter arguments that count nothing (row -1; any buffer: none is read),
@@ -457,11 +474,17 @@ class BdptEvaluator:
         return self._uncounted
 
     def walk_replay(self, p):
-        """The replay of a walk step's row (SimdRecorder): a stream's lanes are the first of the length
-        the step extended, its pool warps those holding the slots of the subpaths it extended (the
-        walk as it would be without compaction)."""
+        """The replay of a walk step's row (SimdRecorder), one per pool size and drain (kept): a
+        stream's lanes are the first of the length the step extended, its pool warps those holding
+        the slots of the subpaths it extended (the walk as it would be without compaction)."""
         pool, draining = p.pool.size, p.next_id == p.budget
+        key = (pool, draining)
+        if key not in self._replays:
+            self._replays[key] = self._walk_replay(pool, draining)
+        return self._replays[key]
 
+    @staticmethod
+    def _walk_replay(pool, draining):
         def replay(recorder, sums):
             if sums.lanes is None:
                 return recorder.walk_row(sums.sums, pool, draining, WITHOUT_COMPACTION)
