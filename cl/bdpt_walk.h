@@ -9,7 +9,6 @@
 #include "bdpt.h"
 #include "compact.h"
 #include "bdpt_regeneration.h"
-#include "simd_counters.h"
 
 /* Store one vertex per work-item at memory[index] (index < 0: nothing to store).
  * Direct: each work-item writes its own vertex (96 bytes), far from its neighbours' (uncoalesced).
@@ -172,9 +171,7 @@ HELPER bool subpath_extend(const SceneView* scene, Subpath* p, BdptSampler* rng,
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
 void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const BdptStep walk_step,
                  __global void* stream, __global void* next_stream, volatile __global int* counters,
-                 __global BdptVertex* vertices, volatile __global BdptSlot* slots, __global LaneCounts* lane_counts,
-                 volatile __global uint* simd_rows, volatile __global int* simd_warp_stamps, const int simd_row,
-                 const int simd_stamp, const int simd_warp_width
+                 __global BdptVertex* vertices, volatile __global BdptSlot* slots, __global LaneCounts* lane_counts
                  BDPT_SAMPLER_PARAM)
 {
     const bool light_path = walk_step.light != 0;
@@ -185,9 +182,6 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
         /* the eye launch counts the step if either stream has subpaths (the light's length is final) */
         if (!light_path && length + counters[RING_LENGTHS(walk_step.ring) + 1] + walk_step.appended > 0)
             counters[WALK_STEPS] += 1;
-#if COUNT_SIMD
-        if (simd_row >= 0) simd_rows[(simd_row * SIMD_FIELDS + SIMD_LANES) * 2] = (uint)max(length, 0);
-#endif
     }
     const int first = (int)get_group_id(0) * LOCAL_SIZE;
     /* All the group's work-items leave together, so none waits at a barrier the others skip. */
@@ -195,9 +189,6 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
     __local int scratch[COMPACT_SCRATCH_INTS];
     __local uint stage[LOCAL_SIZE * VERTEX_WORDS];
     __local int dest[LOCAL_SIZE];
-#if COUNT_SIMD
-    __local uint simd_lanes[2 * LOCAL_SIZE];   /* simd_count_group's */
-#endif
     const int index = first + get_local_id(0);
     bool alive = false;
     int store_at = -1, steps = 0;
@@ -224,10 +215,6 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
         LaneCounts lane = {.work = 1, .closest_steps = steps};
         lane_counts[index] = lane;
     }
-    /* The step's sums into the step log here, not by a counting launch after it (simd_row < 0: the
-     * host counts this step's lanes itself, or with that launch). */
-    simd_count_group(index < length, (uint)steps, index < length ? p.slot : 0, simd_rows, simd_row,
-                     simd_warp_stamps, simd_stamp, simd_warp_width, simd_lanes);
 #endif
 }
 

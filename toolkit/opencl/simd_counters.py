@@ -126,23 +126,6 @@ class StepLog:
                        np.int32(row), *stamps, np.int32(warps[0]), *steps, local_size=self.local_size)
         return row, row + 1
 
-    def own_counts(self, rows, pool):
-        """Rows for `rows` steps whose kernels add their own lanes to the log (the BDPT walk's
-        bdpt_extend: cl/simd_counters.h simd_count_group), in order, each with a stamp of its own
-        for the warps of a pool of `pool` samples (SLOT_WARPS): [(the log's rows buffer, the pool
-        warps' stamps buffer, row, stamp)] for the kernels' arguments. The steps run one after the
-        other (an in-order queue), so they share one set of stamps."""
-        if not self.has_room(rows):
-            raise RuntimeError("the step log is full: read it first")
-        self._rows()
-        stamps = self._stamps(pool)
-        out = []
-        for _ in range(rows):
-            self.stamp += 1
-            out.append((self.rows, stamps, self.used, self.stamp))
-            self.used += 1
-        return out
-
     def _queued(self, lanes, stride, bound, length_at=None, length_index=-1, watch=None, watch_count=0,
                 slot_of=None, slot_offset=0, pool=0, aux=None, aux_bound=0, histogram_row=-1, second=False):
         """One step's buffers as its kernel takes them (lanes, length_at, watch, slot_of, warp

@@ -242,8 +242,6 @@ class BdptEvaluator:
     listing_delay: int = 1     # steps after a regeneration to list (grows when a listing succeeds only later)
     walk_steps: list = field(default_factory=list)   # the walks' lengths (steps) of the last RECENT_WALKS passes
     _steps: dict = field(default_factory=dict, repr=False)   # BdptStep records by (ring, appended, stream), made once
-    _uncounted: list = field(default=None, repr=False)     # bdpt_extend's SIMD-counter arguments that count nothing (own_counts)
-    _own: list = field(default=None, repr=False)           # the eye's and light's counting arguments (own_counts)
     _replays: dict = field(default_factory=dict, repr=False)   # walk_replay's, by (pool size, draining)
 
     def __post_init__(self):
@@ -350,8 +348,7 @@ class BdptEvaluator:
         if not (pool.eye.length or pool.light.length):
             return
         k, mem = ctx.kernels, ctx.memory
-        counts = self.own_counts(p)
-        for stream, count in zip((pool.eye, pool.light), counts):
+        for stream in (pool.eye, pool.light):
             key = (p.ring, p.appended, stream.is_light)
             step = self._steps.get(key)
             if step is None:
@@ -360,8 +357,8 @@ class BdptEvaluator:
             k.launch("bdpt_extend", mem.padded(stream.length), **k.scene_args(), cam=p.camera,
                      pass_args=p.args, walk_step=step, stream=stream.current, next_stream=stream.spare,
                      counters=pool.counters, vertices=stream.vertices, slots=pool.slots,
-                     lane_counts=stream.lane_counts, **count, **p.sampler_args)
-        self.count_walk_step(p, counted=counts is not self._uncounted)
+                     lane_counts=stream.lane_counts, **p.sampler_args)
+        self.count_walk_step(p)
         pool.eye.advance()
         pool.light.advance()
         p.ring, p.appended = (p.ring + 1) % 3, 0
@@ -429,50 +426,6 @@ class BdptEvaluator:
 
     # --- measuring and inspecting ------------------------------------------------------------
 
-    def own_counts(self, p):
-        """bdpt_extend's SIMD-counter arguments for the eye and the light stream of this step: where
-        the kernel adds its own lanes to the step log (cl/simd_counters.h simd_count_group: counted,
-        warps that fit in a work-group, not the per-step mode), each stream's row and stamp, in the
-        order the streams launch; else `_uncounted`'s, which tell the kernel not to (row -1). A render
-        counts thousands of steps: each stream's dict of arguments is made once and given its row
-        and stamp, and the step's replay is made once per pool and drain (walk_replay)."""
-        ctx, pool = self.ctx, p.pool
-        recorder = ctx.recorder
-        uncounted = self._uncounted_args(p)
-        if not recorder.on or ctx.kernels.local_size % recorder.warp_width:
-            return uncounted
-        eye, light = pool.eye.length > 0, pool.light.length > 0
-        counts = recorder.counted_by_kernels(self.walk_replay(p), eye + light, pool.size)
-        if not counts:
-            return uncounted
-        own, args, counts = self._own_args(counts[0][:2]), list(uncounted), iter(counts)
-        for i, walking in enumerate((eye, light)):
-            if walking:
-                _, _, row, stamp = next(counts)
-                own[i]["simd_row"], own[i]["simd_stamp"] = ctx.kernels.int32(row), np.int32(stamp)
-                args[i] = own[i]
-        return args
-
-    def _own_args(self, buffers):
-        """The eye's and the light's dicts of counting arguments over the log's `buffers` (its rows,
-        the pool warps' stamps), made once (own_counts sets their row and stamp)."""
-        if self._own is None or self._own[0]["simd_rows"] is not buffers[0] \
-                or self._own[0]["simd_warp_stamps"] is not buffers[1]:
-            warp_width = self.ctx.kernels.int32(self.ctx.recorder.warp_width)
-            self._own = [dict(simd_rows=buffers[0], simd_warp_stamps=buffers[1], simd_row=None, simd_stamp=None,
-                              simd_warp_width=warp_width) for _ in range(2)]
-        return self._own
-
-    def _uncounted_args(self, p):
-        """bdpt_extend's SIMD-counter arguments that count nothing (row -1; any buffer: none is read),
-        the same objects at every step, for both streams: `_uncounted`."""
-        if self._uncounted is None or self._uncounted[0]["simd_rows"] is not p.pool.counters:
-            k = self.ctx.kernels
-            args = dict(simd_rows=p.pool.counters, simd_warp_stamps=p.pool.counters, simd_row=k.int32(-1),
-                        simd_stamp=k.int32(0), simd_warp_width=k.int32(1))
-            self._uncounted = [args, args]
-        return self._uncounted
-
     def walk_replay(self, p):
         """The replay of a walk step's row (SimdRecorder), one per pool size and drain (kept): a
         stream's lanes are the first of the length the step extended, its pool warps those holding
@@ -498,16 +451,13 @@ class BdptEvaluator:
             recorder.slot_warps(recorder.counter(WITHOUT_COMPACTION), "walk", sums, pool)
         return replay
 
-    def count_walk_step(self, p, counted=False):
-        """SIMD counters of one walk step (a no-op unless count_simd), summed on the device: by the
-        step's own launches where they counted (`counted`: own_counts), which leaves only a
-        reference recorder to give the lanes to; else both streams with one counting launch. A
+    def count_walk_step(self, p):
+        """SIMD counters of one walk step (a no-op unless count_simd), summed on the device, both
+        streams with one launch (a launch per step is most of a counted step's host time): a
         stream's lanes are the first of the length the step extended (counters), its slots those
-        of the subpaths it extended."""
+        of the subpaths it extended (for the walk as it would be without compaction)."""
         ctx = self.ctx
         if not ctx.recorder.on:
-            return
-        if counted and ctx.recorder.reference is None:
             return
         pool, replay = p.pool.size, self.walk_replay(p)
         slot_offset = SUBPATH.soa_offset("slot", p.pool.capacity) // 4
@@ -515,10 +465,7 @@ class BdptEvaluator:
                       length_index=int(length), slot_of=stream.current, slot_offset=slot_offset, pool=pool)
                  for stream, length in ((p.pool.eye, WalkCounter.STEP_EYE_LENGTH),
                                         (p.pool.light, WalkCounter.STEP_LIGHT_LENGTH)) if stream.length]
-        if counted:             # by bdpt_extend, into rows queued before it: the lanes go only to the reference
-            for step in steps:
-                ctx.recorder.reference.lanes(replay, **step)
-        elif len(steps) == 2:   # both streams with one launch
+        if len(steps) == 2:     # both streams with one launch
             ctx.recorder.lanes_two((replay, steps[0]), (replay, steps[1]))
         elif steps:
             ctx.recorder.lanes(replay, **steps[0])
