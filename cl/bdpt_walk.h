@@ -9,6 +9,7 @@
 #include "bdpt.h"
 #include "compact.h"
 #include "bdpt_regeneration.h"
+#include "simd_counters.h"
 
 /* Store one vertex per work-item at memory[index] (index < 0: nothing to store).
  * Direct: each work-item writes its own vertex (96 bytes), far from its neighbours' (uncoalesced).
@@ -49,10 +50,12 @@ HELPER BdptSampler bdpt_sampler_mlt(const BdptPass* pass, int id, __global const
                            (uint)pass->chains, (uint)chain};
     return sampler;
 }
-#define bdpt_sampler(cam, pass, id) bdpt_sampler_mlt(pass, id, mlt_primary)
+#define bdpt_sampler(pass, id) bdpt_sampler_mlt(pass, id, mlt_primary)
 #else
-HELPER BdptSampler bdpt_sampler(const Camera* cam, const BdptPass* pass, int id) {
-    return sampler_init(pass->seed, (uint)sample_pixel(cam, id), (uint)sample_number(cam, id, pass->sample_base));
+/* BDPT: sample `id` is sample number sample_base + id / pixels of pixel id % pixels (camera.h's
+ * sample_pixel and sample_number, from the pass's copy of the camera's pixels). */
+HELPER BdptSampler bdpt_sampler(const BdptPass* pass, int id) {
+    return sampler_init(pass->seed, (uint)(id % pass->pixels), (uint)(pass->sample_base + id / pass->pixels));
 }
 #endif
 
@@ -169,10 +172,10 @@ HELPER bool subpath_extend(const SceneView* scene, Subpath* p, BdptSampler* rng,
  * counts as terminated. The streams are Subpath structures of arrays of pass_args.capacity
  * records (layout.h). */
 __kernel __attribute__((reqd_work_group_size(LOCAL_SIZE, 1, 1)))
-void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const BdptStep walk_step,
+void bdpt_extend(SCENE_PARAMS, const BdptPass pass_args, const BdptStep walk_step,
                  __global void* stream, __global void* next_stream, volatile __global int* counters,
-                 __global BdptVertex* vertices, volatile __global BdptSlot* slots, __global LaneCounts* lane_counts
-                 BDPT_SAMPLER_PARAM)
+                 __global BdptVertex* vertices, volatile __global BdptSlot* slots, __global LaneCounts* lane_counts,
+                 volatile __global uint* simd_log BDPT_SAMPLER_PARAM)
 {
     const bool light_path = walk_step.light != 0;
     const int length = counters[RING_LENGTHS(walk_step.ring) + walk_step.light] + walk_step.appended;
@@ -182,6 +185,9 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
         /* the eye launch counts the step if either stream has subpaths (the light's length is final) */
         if (!light_path && length + counters[RING_LENGTHS(walk_step.ring) + 1] + walk_step.appended > 0)
             counters[WALK_STEPS] += 1;
+#if COUNT_SIMD
+        if (walk_step.simd_row >= 0) simd_log[(walk_step.simd_row * SIMD_FIELDS + SIMD_LANES) * 2] = (uint)max(length, 0);
+#endif
     }
     const int first = (int)get_group_id(0) * LOCAL_SIZE;
     /* All the group's work-items leave together, so none waits at a barrier the others skip. */
@@ -189,6 +195,9 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
     __local int scratch[COMPACT_SCRATCH_INTS];
     __local uint stage[LOCAL_SIZE * VERTEX_WORDS];
     __local int dest[LOCAL_SIZE];
+#if COUNT_SIMD
+    __local uint simd_lanes[2 * LOCAL_SIZE];   /* simd_count_group's */
+#endif
     const int index = first + get_local_id(0);
     bool alive = false;
     int store_at = -1, steps = 0;
@@ -198,7 +207,7 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
     if (index < length) {
         SceneView scene = SCENE_INIT;
         p = subpath_load(subpath_soa(stream, pass_args.capacity), index);
-        BdptSampler rng = bdpt_sampler(&cam, &pass_args, slots[p.slot].sample_id);
+        BdptSampler rng = bdpt_sampler(&pass_args, slots[p.slot].sample_id);
         alive = subpath_extend(&scene, &p, &rng, light_path, &v, &store_at, &steps);
         if (!alive) {
             if (light_path) slots[p.slot].light_vertices = p.vertices;
@@ -215,6 +224,11 @@ void bdpt_extend(SCENE_PARAMS, const Camera cam, const BdptPass pass_args, const
         LaneCounts lane = {.work = 1, .closest_steps = steps};
         lane_counts[index] = lane;
     }
+    /* The step's sums into the step log here, not by a counting launch after it (simd_row < 0: the
+     * host counts this step's lanes itself, or with that launch). */
+    simd_count_group(index < length, (uint)steps, index < length ? p.slot : 0, simd_log, walk_step.simd_row,
+                     (volatile __global int*)(simd_log + walk_step.simd_stamps_at), walk_step.simd_stamp,
+                     walk_step.simd_warp_width, simd_lanes);
 #endif
 }
 
@@ -266,7 +280,7 @@ __kernel void bdpt_regenerate(SCENE_PARAMS, const Camera cam, const BdptPass pas
         return;
     }
     SceneView scene = SCENE_INIT;
-    BdptSampler rng = bdpt_sampler(&cam, &pass_args, id);
+    BdptSampler rng = bdpt_sampler(&pass_args, id);
     if (r.light) {
         bdpt_start_light_subpath(&scene, &rng, slot, base + gid, pass_args.capacity, stream, vertices);
         return;

@@ -11,14 +11,7 @@
  * atomics add to (OpenCL 1.1's core, every device): a low word that wraps carries one into the
  * high word. Integers added in another order are the same integers, so the row is what the
  * host's sums were, bit for bit. */
-#include "common.h"
-
-/* row[field] += x, exactly: a wrapped low word carries into the high one. */
-HELPER void add_wide(volatile __global uint* row, int field, uint x) {
-    if (x == 0u) return;
-    uint old = atomic_add(&row[2 * field], x);
-    if (old + x < old) atomic_inc(&row[2 * field + 1]);
-}
+#include "simd_counters.h"
 
 /* One work-item per warp, its sums into row `row_index` of the log: the warp's `warp_width`
  * consecutive lanes of the first n, where n is `bound` or, when length_index >= 0,

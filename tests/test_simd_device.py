@@ -53,6 +53,28 @@ def test_the_device_sums_are_the_hosts(queue, cornell_box, technique):
         assert on_device["others"]["connect_terminated_packed"][0]
 
 
+@pytest.mark.parametrize("technique,warp_width", [("bdpt_parallel_connect", 32), ("mlt", 16),
+                                                   ("bdpt_naive_connect", 128)])
+def test_the_walk_counts_its_own_lanes(queue, cornell_box, technique, warp_width, monkeypatch):
+    """A counted BDPT walk step adds its lanes to the step log inside bdpt_extend (cl/simd_counters.h
+    simd_count_group): no counting launch of its own, where a warp fits in a work-group (local size
+    64); wider warps (128) are counted by simd_count_two_steps as before. The host's figures either way."""
+    from toolkit.opencl import program
+    launched = []
+    real = program.launch
+    monkeypatch.setattr(program, "launch", lambda queue, kernel, *a, **k: (launched.append(kernel.function_name),
+                                                                           real(queue, kernel, *a, **k))[1])
+    cls, options = get_technique(technique)
+    tech = cls(queue, DeviceScene(queue, cornell_box), count_simd=True, warp_width=warp_width, **options,
+               **SIZES[technique])
+    tech.recorder.check_against_host()
+    tech.render(16, 16, 2, seed=7)
+    assert figures(tech.recorder) == figures(tech.recorder.reference)
+    walk_steps = tech.recorder.simd.per_iteration
+    assert sum(entry["phase"] == "walk" for entry in walk_steps) > 20
+    assert ("simd_count_two_steps" in launched) == (program.LOCAL_SIZE % warp_width != 0)
+
+
 @pytest.mark.parametrize("technique", ["pt_inplace_regen", "bdpt_naive_connect"])
 def test_a_full_log_is_read_and_counting_goes_on(queue, cornell_box, technique, monkeypatch):
     """A log of 5 rows and 2 histograms fills many times a render: each time it is read, the steps

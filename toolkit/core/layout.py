@@ -199,12 +199,18 @@ BDPT_PASS = Record("BdptPass", [
     ("pool", "int"),            # samples in flight: slots of the pool
     ("capacity", "int"),        # records each subpath stream holds (pool rounded up, a multiple of 4)
     ("chains", "int"),          # mlt only: the stride of the stored primary-sample vectors (cl/mlt.h); else 0
+    ("pixels", "int"),          # the camera's pixels (width x height): sample id -> pixel and number (bdpt_sampler)
 ], "What every BDPT kernel of one pass shares.")
 
 BDPT_STEP = Record("BdptStep", [
     ("ring", "int"),            # the step's place in the counters' ring of lengths (WalkCounter.LENGTH_RING): step k % 3
     ("appended", "int"),        # subpaths regenerated onto each stream since the lengths in the ring were counted
     ("light", "int"),           # the stream this launch extends: 0 the eye stream, 1 the light stream
+    # SIMD counters (COUNT_SIMD) the launch adds to the step log itself (cl/simd_counters.h simd_count_group):
+    ("simd_row", "int"),        # its row of the log (simd_log), or -1: not counted by this launch
+    ("simd_stamp", "int"),      # its stamp of the pool's warps (SimdSum.SLOT_WARPS)
+    ("simd_warp_width", "int"),   # W, which divides the work-group's size
+    ("simd_stamps_at", "int"),  # where in simd_log (uints) the pool warps' stamps start
 ], "One random-walk step of one stream (bdpt_extend, launched once per stream).")
 
 BDPT_REGENERATION = Record("BdptRegeneration", [

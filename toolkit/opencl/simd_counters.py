@@ -66,6 +66,7 @@ class StepLog:
         self.copy_of = {}                      # (kernel name, its buffers' ids) -> the kernel object's copy (_kernel)
         self.row_bytes = 8 * int(SimdSum.FIELDS)
         self.rows = self.none = None           # the log, and an argument no work-item reads: at the first step
+        self.rows_bytes = self.stamp_words = 0  # the rows' bytes in it, and the pool warps' stamps after them (own_counts)
         self.used = 0                          # rows queued since the last read
         self.histogram, self.bins, self.histogram_used = None, 0, []   # [(row, bins)] queued with a histogram
         self.made, self.stamp = {}, 0          # buffers made once (pool warps' stamps, scratch) and the last stamp given
@@ -126,6 +127,36 @@ class StepLog:
                        np.int32(row), *stamps, np.int32(warps[0]), *steps, local_size=self.local_size)
         return row, row + 1
 
+    def has_stamps(self, pool):
+        """Whether the log's buffer holds the stamps of a pool of `pool` samples' warps (own_counts)."""
+        return self.rows is not None and self.stamp_words >= self._pool_warps(pool)
+
+    def own_counts(self, rows, pool):
+        """Rows for `rows` steps whose kernels add their own lanes to the log (the BDPT walk's
+        bdpt_extend: cl/simd_counters.h simd_count_group), in order, each with a stamp of its own for
+        the warps of a pool of `pool` samples (SLOT_WARPS): [(the log's buffer, where in it (uints)
+        the pool warps' stamps are, row, stamp)]. The stamps live in the log's buffer after its rows
+        (a kernel has few arguments to spare); a larger pool makes the buffer anew, so the log must
+        be empty then (read it first: has_stamps). The steps run one after the other (an in-order
+        queue), so they share the stamps."""
+        if not self.has_room(rows):
+            raise RuntimeError("the step log is full: read it first")
+        self._rows()
+        if not self.has_stamps(pool):
+            if self.used:
+                raise RuntimeError("the step log must be read before it is made for a larger pool")
+            self._make_rows(self._pool_warps(pool))
+        stamps_at = self.rows_bytes // 4
+        out = []
+        for _ in range(rows):
+            self.stamp += 1
+            out.append((self.rows, stamps_at, self.used, self.stamp))
+            self.used += 1
+        return out
+
+    def _pool_warps(self, pool):
+        return max(1, -(-pool // self.warp_width))
+
     def _queued(self, lanes, stride, bound, length_at=None, length_index=-1, watch=None, watch_count=0,
                 slot_of=None, slot_offset=0, pool=0, aux=None, aux_bound=0, histogram_row=-1, second=False):
         """One step's buffers as its kernel takes them (lanes, length_at, watch, slot_of, warp
@@ -158,9 +189,16 @@ class StepLog:
     def _rows(self):
         """The log's buffers, made at the first step."""
         if self.rows is None:
-            ctx, rw = self.queue.context, cl.mem_flags.READ_WRITE
-            self.rows, self.none = cl.Buffer(ctx, rw, self.row_bytes * ROWS), cl.Buffer(ctx, rw, 4)
-            cl.enqueue_fill_buffer(self.queue, self.rows, np.uint32(0), 0, self.row_bytes * ROWS)
+            self.none = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, 4)
+            self._make_rows(0)
+
+    def _make_rows(self, stamp_words):
+        """The log's buffer: ROWS rows, then `stamp_words` pool warps' stamps (own_counts), all zero."""
+        self.rows_bytes = self.row_bytes * ROWS
+        size = self.rows_bytes + 4 * stamp_words
+        self.rows = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, size)
+        cl.enqueue_fill_buffer(self.queue, self.rows, np.uint32(0), 0, size)
+        self.stamp_words = stamp_words
 
     def _step(self, stride, bound, length_index, watch_count=0, histogram_row=-1, slot_offset=0, aux_bound=0):
         """The SimdStep record of a counted step (its fields: layout.py SIMD_STEP), made once for the

@@ -186,6 +186,31 @@ class Connections:
         return read_buffer(self.queue, self.pixel_buffer, np.empty(self.count, np.int32))
 
 
+class OwnCounts:
+    """The walk steps' arguments for counting their own lanes (BdptEvaluator.own_counts): the step
+    log's buffer and, per walking stream, a BdptStep with its row and stamp. One writable record per
+    stream, changed in place (program.launch compares its bytes): a render counts thousands of steps."""
+
+    def __init__(self, warp_width):
+        self.warp_width, self.log = warp_width, None
+        self.records = [BDPT_STEP.zeros(1)[0] for _ in range(2)]   # eye, light
+        self.rows = {}
+
+    def start(self, counts, walking):
+        """This step's (log buffer, stamps' place, row, stamp) for each stream in `walking`."""
+        self.rows = {stream.is_light: count for stream, count in zip(walking, counts)}
+        self.log = counts[0][0] if counts else None
+
+    def step(self, p, stream):
+        """The stream's BdptStep for this step, counting into its row."""
+        _, stamps_at, row, stamp = self.rows[stream.is_light]
+        record = self.records[stream.is_light]
+        record["ring"], record["appended"], record["light"] = p.ring, p.appended, int(stream.is_light)
+        record["simd_row"], record["simd_stamp"] = row, stamp
+        record["simd_warp_width"], record["simd_stamps_at"] = self.warp_width, stamps_at
+        return record
+
+
 @dataclass
 class BdptContext:
     """What BDPT's evaluator and its connect phases use of a technique, and nothing more."""
@@ -243,6 +268,7 @@ class BdptEvaluator:
     walk_steps: list = field(default_factory=list)   # the walks' lengths (steps) of the last RECENT_WALKS passes
     _steps: dict = field(default_factory=dict, repr=False)   # BdptStep records by (ring, appended, stream), made once
     _replays: dict = field(default_factory=dict, repr=False)   # walk_replay's, by (pool size, draining)
+    _own: object = field(default=None, repr=False)        # an OwnCounts, made at the first counted step (own_counts)
 
     def __post_init__(self):
         fraction = self.regenerate_fraction
@@ -283,7 +309,7 @@ class BdptEvaluator:
         ctx = self.ctx
         pool = self.sample_pool(min(self.pool_size, budget))
         args = BDPT_PASS.record(seed=seed, sample_base=sample_base, pool=pool.size, capacity=pool.capacity,
-                                chains=vector_stride)
+                                chains=vector_stride, pixels=pixel_count(camera))
         # the streams' lengths: 0 here and on the device; nothing terminated, no walk step yet
         cl.enqueue_fill_buffer(ctx.queue, pool.counters, np.int32(0), 0, 4 * WalkCounter.COUNTER_INTS)
         pool.eye.length = pool.light.length = 0
@@ -348,17 +374,17 @@ class BdptEvaluator:
         if not (pool.eye.length or pool.light.length):
             return
         k, mem = ctx.kernels, ctx.memory
+        counted = self.own_counts(p)     # the rows of the step log the launches add their lanes to, if any
         for stream in (pool.eye, pool.light):
-            key = (p.ring, p.appended, stream.is_light)
-            step = self._steps.get(key)
-            if step is None:
-                step = self._steps[key] = BDPT_STEP.record(ring=p.ring, appended=p.appended,
-                                                           light=int(stream.is_light))
-            k.launch("bdpt_extend", mem.padded(stream.length), **k.scene_args(), cam=p.camera,
-                     pass_args=p.args, walk_step=step, stream=stream.current, next_stream=stream.spare,
-                     counters=pool.counters, vertices=stream.vertices, slots=pool.slots,
-                     lane_counts=stream.lane_counts, **p.sampler_args)
-        self.count_walk_step(p)
+            if counted and stream.length:
+                step, log = counted.step(p, stream), counted.log
+            else:
+                step, log = self.walk_step_record(p, stream), pool.counters   # counts nothing (any buffer)
+            k.launch("bdpt_extend", mem.padded(stream.length), **k.scene_args(), pass_args=p.args,
+                     walk_step=step, stream=stream.current, next_stream=stream.spare, counters=pool.counters,
+                     vertices=stream.vertices, slots=pool.slots, lane_counts=stream.lane_counts, simd_log=log,
+                     **p.sampler_args)
+        self.count_walk_step(p, counted=counted is not None)
         pool.eye.advance()
         pool.light.advance()
         p.ring, p.appended = (p.ring + 1) % 3, 0
@@ -426,6 +452,35 @@ class BdptEvaluator:
 
     # --- measuring and inspecting ------------------------------------------------------------
 
+    def walk_step_record(self, p, stream):
+        """The BdptStep of a launch that counts nothing itself (simd_row -1): one read-only record per
+        (ring, appended, stream), made once."""
+        key = (p.ring, p.appended, stream.is_light)
+        step = self._steps.get(key)
+        if step is None:
+            step = self._steps[key] = BDPT_STEP.record(ring=p.ring, appended=p.appended, light=int(stream.is_light),
+                                                       simd_row=-1, simd_stamp=0, simd_warp_width=1,
+                                                       simd_stamps_at=0)
+        return step
+
+    def own_counts(self, p):
+        """Where this step's launches add their own lanes to the SIMD counters' step log (counting,
+        not per step, and W dividing the work-group: cl/simd_counters.h simd_count_group), an
+        OwnCounts with each walking stream's row and stamp, in launch order; else None (the step is
+        counted by count_walk_step's launch, or not at all)."""
+        ctx, pool = self.ctx, p.pool
+        recorder = ctx.recorder
+        if not recorder.on or ctx.kernels.local_size % recorder.warp_width:
+            return None
+        walking = [stream for stream in (pool.eye, pool.light) if stream.length]
+        counts = recorder.counted_by_kernels(self.walk_replay(p), len(walking), pool.size)
+        if counts is None:
+            return None
+        if self._own is None:
+            self._own = OwnCounts(recorder.warp_width)
+        self._own.start(counts, walking)
+        return self._own
+
     def walk_replay(self, p):
         """The replay of a walk step's row (SimdRecorder), one per pool size and drain (kept): a
         stream's lanes are the first of the length the step extended, its pool warps those holding
@@ -451,13 +506,14 @@ class BdptEvaluator:
             recorder.slot_warps(recorder.counter(WITHOUT_COMPACTION), "walk", sums, pool)
         return replay
 
-    def count_walk_step(self, p):
-        """SIMD counters of one walk step (a no-op unless count_simd), summed on the device, both
-        streams with one launch (a launch per step is most of a counted step's host time): a
-        stream's lanes are the first of the length the step extended (counters), its slots those
-        of the subpaths it extended (for the walk as it would be without compaction)."""
+    def count_walk_step(self, p, counted=False):
+        """SIMD counters of one walk step (a no-op unless count_simd), summed on the device: by the
+        step's own launches where they counted (`counted`: own_counts), which leaves only a
+        reference recorder (check_against_host) to give the lanes to; else both streams with one
+        counting launch. A stream's lanes are the first of the length the step extended
+        (counters), its slots those of the subpaths it extended (for the walk without compaction)."""
         ctx = self.ctx
-        if not ctx.recorder.on:
+        if not ctx.recorder.on or (counted and ctx.recorder.reference is None):
             return
         pool, replay = p.pool.size, self.walk_replay(p)
         slot_offset = SUBPATH.soa_offset("slot", p.pool.capacity) // 4
@@ -465,7 +521,10 @@ class BdptEvaluator:
                       length_index=int(length), slot_of=stream.current, slot_offset=slot_offset, pool=pool)
                  for stream, length in ((p.pool.eye, WalkCounter.STEP_EYE_LENGTH),
                                         (p.pool.light, WalkCounter.STEP_LIGHT_LENGTH)) if stream.length]
-        if len(steps) == 2:     # both streams with one launch
+        if counted:             # by bdpt_extend, into rows queued before it: the lanes go only to the reference
+            for step in steps:
+                ctx.recorder.reference.lanes(replay, **step)
+        elif len(steps) == 2:   # both streams with one launch
             ctx.recorder.lanes_two((replay, steps[0]), (replay, steps[1]))
         elif steps:
             ctx.recorder.lanes(replay, **steps[0])

@@ -132,6 +132,22 @@ class SimdRecorder:
         rows = log.count_two(first[1], second[1])
         self._pending += [(rows[0], first[0]), (rows[1], second[0])]
 
+    def counted_by_kernels(self, replay, steps, pool):
+        """`steps` steps whose kernels add their own lanes to the step log (StepLog.own_counts: the
+        BDPT walk's streams, stamping the warps of a pool of `pool` samples), each replayed by
+        `replay(sums)` in order with its row's sums, as `lanes`' steps are: each step's (log buffer,
+        where its stamps are, row, stamp), or None in per-step mode, where the host reads each
+        step's lanes instead (`lanes`). A reference recorder (check_against_host) is given the
+        steps by the caller, once the kernels ran."""
+        if self.per_step:
+            return None
+        log = self._step_log()
+        if not log.has_room(steps) or not log.has_stamps(pool):
+            self.flush()
+        counts = log.own_counts(steps, pool)
+        self._pending += [(count[2], replay) for count in counts]
+        return counts
+
     def flush(self):
         """Read the step log and run the steps' replays, in order: replay(self[, the step's StepSums])."""
         if not self._pending:
