@@ -192,22 +192,22 @@ class OwnCounts:
     stream, changed in place (program.launch compares its bytes): a render counts thousands of steps."""
 
     def __init__(self, warp_width):
-        self.warp_width, self.log = warp_width, None
-        self.records = [BDPT_STEP.zeros(1)[0] for _ in range(2)]   # eye, light
-        self.rows = {}
+        self.log, self.rows = None, {}
+        self.records = [BDPT_STEP.zeros(1)[0] for _ in range(2)]   # eye, light: what a step does not change, set once
+        for light, record in enumerate(self.records):
+            record["light"], record["simd_warp_width"] = light, warp_width
 
     def start(self, counts, walking):
         """This step's (log buffer, stamps' place, row, stamp) for each stream in `walking`."""
         self.rows = {stream.is_light: count for stream, count in zip(walking, counts)}
-        self.log = counts[0][0] if counts else None
+        self.log = counts[0][0]
 
     def step(self, p, stream):
         """The stream's BdptStep for this step, counting into its row."""
         _, stamps_at, row, stamp = self.rows[stream.is_light]
         record = self.records[stream.is_light]
-        record["ring"], record["appended"], record["light"] = p.ring, p.appended, int(stream.is_light)
-        record["simd_row"], record["simd_stamp"] = row, stamp
-        record["simd_warp_width"], record["simd_stamps_at"] = self.warp_width, stamps_at
+        record["ring"], record["appended"] = p.ring, p.appended
+        record["simd_row"], record["simd_stamp"], record["simd_stamps_at"] = row, stamp, stamps_at
         return record
 
 
@@ -474,7 +474,7 @@ class BdptEvaluator:
             return None
         walking = [stream for stream in (pool.eye, pool.light) if stream.length]
         counts = recorder.counted_by_kernels(self.walk_replay(p), len(walking), pool.size)
-        if counts is None:
+        if not counts:          # per-step mode (None), or no stream walking
             return None
         if self._own is None:
             self._own = OwnCounts(recorder.warp_width)
