@@ -1,5 +1,6 @@
 """The path-tracing strategies against each other, their sample accounting, and the SIMD
 counters against the talk's figures."""
+import gc
 import json
 import subprocess
 import sys
@@ -117,6 +118,37 @@ def test_loop_iterations_per_iteration_by_hand_and_by_counting():
     assert [(it["active"], it["efficiency"]) for it in c.per_iteration] == \
         [(int((x > k).sum()), int((x > k).sum()) / (32 * int((warp_longest > k).sum()))) for k in range(x.max())]
 
+
+
+def test_per_iteration_figures_are_dicts_when_read_and_no_objects_before():
+    """PhaseCounter.per_iteration keeps its figures as columns (StepFigures): read, each is the dict
+    the plots and RenderResult.iterations hand out, in the order added, also after more are added
+    behind a read; added, a loop's thousands of figures make no object for Python's garbage
+    collector (the cost a counted render saves, toolkit/core/simd.py)."""
+    c = PhaseCounter(warp_width=4)
+    c.add_stream_step("walk", 5, iteration=0, capacity=16, draining=True)
+    assert c.per_iteration == [{"phase": "walk", "iteration": 0, "efficiency": 5 / 8, "active": 5,
+                                "capacity": 16, "draining": True}]
+    c.add_loop_iterations("connect", [2, 1, 0, 0, 0, 0, 0, 0], first_iteration=1)
+    c.add_step("generate", 0, 0, iteration=3)
+    assert list(c.per_iteration) == [
+        {"phase": "walk", "iteration": 0, "efficiency": 5 / 8, "active": 5, "capacity": 16, "draining": True},
+        {"phase": "connect", "iteration": 1, "efficiency": 2 / 4, "active": 2, "capacity": 8, "draining": False},
+        {"phase": "connect", "iteration": 2, "efficiency": 1 / 4, "active": 1, "capacity": 8, "draining": False},
+        {"phase": "generate", "iteration": 3, "efficiency": 1.0, "active": 0, "capacity": 0, "draining": False}]
+    assert len(c.per_iteration) == 4 and c.per_iteration[-1]["phase"] == "generate"
+    lengths = np.random.default_rng(5).integers(0, 3000, 4096)
+    counter = PhaseCounter(warp_width=32)
+    gc.collect()
+    gc.disable()
+    try:
+        before = len(gc.get_objects())
+        for first in range(0, 30_000, 3000):
+            counter.add_loop_iterations("connect", lengths, first_iteration=first)
+        made = len(gc.get_objects()) - before
+    finally:
+        gc.enable()
+    assert len(counter.per_iteration) >= 29_000 and made < 100, made     # len() makes no dict
 
 @pytest.fixture(scope="module")
 def talk_figures(cornell_box):

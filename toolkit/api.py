@@ -4,6 +4,7 @@ import inspect
 import sys
 import time
 import warnings
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -33,7 +34,8 @@ class RenderResult:
     image: np.ndarray      # (H, W, 3) float64 mean radiance
     stderr: np.ndarray     # (H, W, 3) per-pixel standard error of the mean
     stats: dict = field(default_factory=dict)
-    iterations: list = field(default_factory=list)   # per-iteration SIMD figures, for plots
+    # per-iteration SIMD figures, for plots: a sequence of dicts (toolkit/core/simd.py StepFigures)
+    iterations: Sequence = field(default_factory=list)
     strategy_images: StrategyImages = None   # per-strategy images (RenderOptions.strategy_images=K), else None
 
 

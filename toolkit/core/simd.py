@@ -1,6 +1,9 @@
 """The SIMD-efficiency model of the talk: active lanes divided by lanes issued, over warps of
 W consecutive work-items. It is an upper bound on real SIMD efficiency and is counted the same
 way on every device (a CPU runs idle lanes cheaply; the counters model a GPU warp)."""
+from array import array
+from collections.abc import Sequence
+
 import numpy as np
 
 
@@ -13,7 +16,7 @@ class PhaseCounter:
         self.issued = {}
         # per step, for plots: phase, iteration, efficiency, active lanes, stream capacity, and
         # whether the step belongs to the final drain (the budget is spent, nothing regenerates)
-        self.per_iteration = []
+        self.per_iteration = StepFigures()
 
     def add(self, phase, active, issued):
         self.active[phase] = self.active.get(phase, 0) + int(active)
@@ -42,10 +45,7 @@ class PhaseCounter:
         toolkit/opencl/simd_counters.py), numbered as add_stream_step numbers its steps."""
         self.add(phase, active, issued)
         if iteration is not None:
-            self.per_iteration.append({"phase": phase, "iteration": iteration,
-                                       "efficiency": active / issued if issued else 1.0,
-                                       "active": active, "capacity": capacity or active,
-                                       "draining": bool(draining)})
+            self.per_iteration.add(phase, iteration, active, issued, capacity or active, draining)
 
     def add_warp_loops(self, phase, lane_iterations, active=None):
         """A loop run inside each lane: its warp issues as many iterations as its longest lane.
@@ -76,14 +76,9 @@ class PhaseCounter:
 
     def _add_iterations(self, phase, lanes_past, warps_past, capacity, first_iteration):
         """One per_iteration entry per iteration k of a loop: lanes_past[k] lanes and warps_past[k]
-        warps still running it. Python ints (tolist): a render counts tens of thousands of them."""
-        w = self.warp_width
-        lanes, warps = lanes_past.tolist(), warps_past.tolist()
-        # by index, not zip: no tuple per iteration (a render makes thousands, each one more for the collector)
-        self.per_iteration.extend(
-            [{"phase": phase, "iteration": first_iteration + k,
-              "efficiency": lanes[k] / (warps[k] * w) if warps[k] else 1.0,
-              "active": lanes[k], "capacity": capacity, "draining": False} for k in range(len(lanes))])
+        warps still running it."""
+        self.per_iteration.add_loop(phase, first_iteration, lanes_past, np.asarray(warps_past, np.int64) *
+                                    self.warp_width, capacity)
 
     def efficiency(self):
         out = {p: (self.active[p] / self.issued[p] if self.issued[p] else 1.0) for p in self.active}
@@ -108,3 +103,67 @@ def _more_than(counts, longest):
 def _from_the_top(counts_by_value):
     """For k = 0, 1, ...: how many counted values are greater than k, from counts by value."""
     return np.asarray(counts_by_value, np.int64)[::-1].cumsum()[::-1][1:]
+
+
+class StepFigures(Sequence):
+    """PhaseCounter.per_iteration: one figure per step or loop iteration, a dict of its phase,
+    iteration, efficiency, active lanes, capacity and whether it drains. Kept as columns of numbers
+    and made into dicts only when read: a counted render adds tens of thousands of them, and a dict
+    each would be as many objects for Python's garbage collector to walk (a full collection of a
+    render's process takes 13 to 18 ms, results/issue48_host_meter.md), for figures most renders
+    never look at."""
+    KEYS = ("phase", "iteration", "efficiency", "active", "capacity", "draining")
+
+    def __init__(self):
+        self._phase = []                  # the phase's name (the same few strings, shared)
+        self._iteration, self._active = array("q"), array("q")
+        self._issued, self._capacity = array("q"), array("q")
+        self._draining = array("b")
+        self._made = []                   # the dicts made so far, for the first len(_made) figures
+
+    def add(self, phase, iteration, active, issued, capacity, draining=False):
+        """One step: `active` of `issued` lanes busy, over a stream of `capacity` lanes."""
+        self._phase.append(phase)
+        self._iteration.append(iteration)
+        self._active.append(active)
+        self._issued.append(issued)
+        self._capacity.append(capacity)
+        self._draining.append(bool(draining))
+
+    def add_loop(self, phase, first_iteration, active, issued, capacity):
+        """The iterations of a loop, numbered from `first_iteration`: `active[k]` of `issued[k]`
+        lanes busy at its k-th (arrays), `capacity` lanes launched."""
+        n = len(active)
+        self._phase.extend([phase] * n)
+        self._iteration.extend(range(first_iteration, first_iteration + n))
+        self._active.frombytes(np.asarray(active, np.int64).tobytes())
+        self._issued.frombytes(np.asarray(issued, np.int64).tobytes())
+        self._capacity.frombytes(np.full(n, capacity, np.int64).tobytes())
+        self._draining.frombytes(bytes(n))
+
+    def __len__(self):
+        return len(self._phase)
+
+    def __getitem__(self, index):
+        self._make()
+        return self._made[index]
+
+    def __iter__(self):
+        self._make()
+        return iter(self._made)
+
+    def __eq__(self, other):
+        return isinstance(other, Sequence) and len(self) == len(other) and list(self) == list(other)
+
+    def __repr__(self):
+        return f"StepFigures({list(self)!r})"
+
+    def _make(self):
+        """The dicts of the figures added since the last read (the efficiency as a step's active
+        lanes over its issued ones, 1 for a step that issued none)."""
+        made, total = len(self._made), len(self._phase)
+        for k in range(made, total):
+            active, issued = self._active[k], self._issued[k]
+            self._made.append({"phase": self._phase[k], "iteration": self._iteration[k],
+                               "efficiency": active / issued if issued else 1.0, "active": active,
+                               "capacity": self._capacity[k], "draining": bool(self._draining[k])})
