@@ -370,8 +370,9 @@ def padded(n, local_size=LOCAL_SIZE):
 
 
 # Kernel arguments set once, not per launch. Setting the arguments is most of a launch's cost on
-# PoCL (~165 us for 33 arguments: a BDPT walk step launches two kernels of 16), and most of them
-# (the scene, the pass's records and buffers) do not change between the launches of a pass.
+# PoCL (~165 us for 33 arguments, 2026-12-06, when a BDPT walk step launched two kernels of 16),
+# and most of them (the scene, the pass's records and buffers) do not change between the launches
+# of a pass.
 # `launch` keeps, per kernel, a cl.Kernel of its own with the values last set (in the context's
 # Builds: builds.py), and sets only the arguments that changed (cl.Kernel.set_arg; OpenCL keeps
 # the others) before enqueue_nd_range_kernel. Its own cl.Kernel, because a kernel called directly
