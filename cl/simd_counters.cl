@@ -134,6 +134,23 @@ __kernel void simd_count_two_steps(__global const int* lanes, __global const int
                         stamp_b, aux_b, step_b);
 }
 
+/* `steps` consecutive steps in one launch, each what simd_count_lanes counts over `bound` lanes
+ * (no device length, watch, histogram or slots: `step`, one record for all): a path tracer's step
+ * kernels write step t of a round to turn t of buffers that hold a round's steps, `turn_lanes`
+ * lanes apart (pt_inplace_regen). Step s of the launch is turn first_turn + s, its sums go to
+ * row + s; warps [s * warps, (s + 1) * warps) count it. A launch counts a whole round, so a step
+ * costs the host an eighth of a launch, not half of one. */
+__kernel void simd_count_turns(__global const int* lanes, __global const int* aux, volatile __global uint* rows,
+                               const int row, const int first_turn, const int steps, const int warps,
+                               const int turn_lanes, const SimdStep step)
+{
+    int gid = get_global_id(0), s = gid / warps;
+    if (s >= steps) return;      /* the launch's padding: no step's warp */
+    long turn = first_turn + s;
+    simd_count_warp(gid - s * warps, lanes + turn * turn_lanes * step.stride, 0, rows, row + s, 0, 0, 0, 0, 0,
+                    aux + turn * turn_lanes, step);
+}
+
 /* The same loops with only the lanes that have work, packed side by side in lane order (the naive
  * connect phase as if only the terminated samples ran): PACKED_WARP_MAX += each packed warp's
  * largest work. One work-group walks the first n lanes in order, LOCAL_SIZE at a time: a scan of

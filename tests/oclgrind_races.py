@@ -25,8 +25,10 @@ from toolkit.techniques import TECHNIQUES  # noqa: E402
 # compacted several times, and a last, partly filled wave drains. The issue's size (issue 22).
 RESOLUTION, SPP, IN_FLIGHT = (8, 8), 4, 64
 # Runs with the SIMD counters on as well: the BDPT walk's kernel then adds its own lanes to the
-# step log (cl/simd_counters.h), with a barrier and atomics of its own. Named "<technique> counted".
-COUNTED = ("bdpt_naive_connect",)
+# step log (cl/simd_counters.h), with a barrier and atomics of its own; pt_inplace_regen's steps
+# write their lanes to turns of one buffer that simd_count_turns reads a round at a time. Named
+# "<technique> counted".
+COUNTED = ("bdpt_naive_connect", "pt_inplace_regen")
 
 
 def announce(name):

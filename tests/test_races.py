@@ -3,9 +3,10 @@ as SIMD lanes in lock-step, what OpenCL's memory model leaves undefined (a plain
 that other work-items change atomically, say) may go wrong, so none may be left. One subprocess
 (tests/oclgrind_races.py) runs them all at 8x8, 4 spp, streams and pools of 64: small enough for
 a simulator that interprets every instruction, big enough that slots are regenerated and
-compacted; and once more a counted bdpt_naive_connect, whose walk adds its own lanes to the
-SIMD counters (cl/simd_counters.h: a barrier and atomics). A control kernel with a known race
-shows that the detector is on."""
+compacted; and once more, counted, bdpt_naive_connect, whose walk adds its own lanes to the SIMD
+counters (cl/simd_counters.h: a barrier and atomics), and pt_inplace_regen, whose steps' lanes a
+launch sums a round at a time (simd_count_turns). A control kernel with a known race shows that
+the detector is on."""
 import json
 import re
 import subprocess

@@ -99,23 +99,25 @@ def test_counting_on_the_device_changes_nothing_else(queue, cornell_box, techniq
 
 
 @pytest.mark.parametrize("technique", ["pt_inplace_regen", "pt_compact_regen", "pt_compact_regen/multipass"])
-def test_steps_counted_in_pairs_across_passes(queue, cornell_box, technique, monkeypatch):
-    """A path tracer's steps are counted two to a launch (StepPairs), its step kernels writing to two
-    buffers in turn: five passes of one sample per pixel, each ending after an odd or even number of
-    steps (a step held at a pass's end is counted alone), the turn going on from pass to pass. Every
-    step handed over is replayed once, with the host's figures, and the image is the uncounted one."""
-    from toolkit.techniques.simd_recorder import StepPairs
+def test_steps_counted_in_rounds_across_passes(queue, cornell_box, technique, monkeypatch):
+    """A path tracer's steps are counted several to a launch, its step kernels writing to buffers in
+    turn: pt_inplace_regen's a round of 8 (StepTurns), pt_compact_regen's two (StepPairs). Five
+    passes of one sample per pixel, each ending after a number of steps that fills no whole round
+    (the steps held at a pass's end are counted then). Every step handed over is replayed once,
+    with the host's figures, and the image is the uncounted one."""
+    from toolkit.techniques.simd_recorder import StepPairs, StepTurns
     handed, replayed = [0], [0]
-    real = StepPairs.lanes
+    holder, method = (StepTurns, "add") if technique == "pt_inplace_regen" else (StepPairs, "lanes")
+    real = getattr(holder, method)
 
-    def lanes(self, replay, **step):
+    def hand_over(self, replay, **step):
         handed[0] += 1
 
         def counted_replay(recorder, sums):
             replayed[0] += recorder is self.recorder    # the device's recorder (its reference replays too)
             return replay(recorder, sums)
         return real(self, counted_replay, **step)
-    monkeypatch.setattr(StepPairs, "lanes", lanes)
+    monkeypatch.setattr(holder, method, hand_over)
     cls, options = get_technique(technique)
     counted_tech = cls(queue, DeviceScene(queue, cornell_box), count_simd=True, pass_spp=1, **options,
                        **SIZES[technique])
@@ -132,18 +134,19 @@ def test_steps_counted_in_pairs_across_passes(queue, cornell_box, technique, mon
 def test_pt_inplace_regen_drains_when_its_sample_counter_says_so(queue, cornell_box, monkeypatch):
     """The counters mark a step as the final drain from the samples its regenerations started, added
     up (PassCount.step); checked here against the sample counter itself, read by the host after each
-    counted step's regeneration (a blocking read of next_sample: the steps' pairs are counted later,
+    counted step's regeneration (a blocking read of next_sample: the steps' rounds are counted later,
     so the device's counter has moved on by then). One pass of 2,048 samples on 512 slots."""
     import pyopencl as cl
     from toolkit.techniques import pt_inplace_regen as module
     at_budget, passes = [], []
     real_count, real_pass = module.PtInplaceRegen.count_extend, module.PtInplaceRegen.run_pass
 
-    def count_extend(self, counting, mem, slots):
+    def count_extend(self, counting, slots):
         value = np.zeros(1, np.int32)
+        mem = self.memory.reused(("slots", slots), None)     # the pass's slot buffers, made already
         cl.enqueue_copy(self.queue, value, mem.next_sample)
         at_budget.append(int(value[0]) >= counting.budget)
-        real_count(self, counting, mem, slots)
+        real_count(self, counting, slots)
     monkeypatch.setattr(module.PtInplaceRegen, "count_extend", count_extend)
     monkeypatch.setattr(module.PtInplaceRegen, "run_pass", lambda self, *a: (passes.append(a), real_pass(self, *a))[1])
     tech, _, _ = counted(queue, cornell_box, "pt_inplace_regen", size=32, check=False)

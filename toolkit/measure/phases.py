@@ -51,11 +51,12 @@ KERNEL_PHASES = {
     "simd_count_lanes": ("SIMD counters: sum a step's lanes", (), ()),
     "simd_count_packed": ("SIMD counters: sum a step's lanes", (), ()),
     "simd_count_two_steps": ("SIMD counters: sum a step's lanes", (), ()),
+    "simd_count_turns": ("SIMD counters: sum a step's lanes", (), ()),
 }
 HOST = "(host, transfers)"   # the render's wall time that no kernel accounts for
 # The SIMD counters' own kernels (toolkit/opencl/simd_counters.py): a counted render's cost of
 # measuring, which a render without the counters does not pay.
-COUNTER_KERNELS = ("simd_count_lanes", "simd_count_packed", "simd_count_two_steps")
+COUNTER_KERNELS = ("simd_count_lanes", "simd_count_packed", "simd_count_two_steps", "simd_count_turns")
 
 
 def phase_rows(stats):

@@ -1,5 +1,7 @@
 """A technique's device memory: buffers sized in whole work-groups, memory kept from pass to
 pass, and reading results back to the host."""
+from dataclasses import dataclass
+
 import numpy as np
 import pyopencl as cl
 
@@ -50,6 +52,21 @@ class DeviceMemory:
         return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE,
                          LANE_COUNTS.dtype.itemsize * self.padded(max(n, 1)))
 
+    def turn_buffers(self, itemsize, n, turns):
+        """`turns` buffers of n items of `itemsize` bytes (4: ints, 16: LaneCounts), a step's in turn,
+        as sub-buffers of one (TurnBuffers), so that one launch reads a round of steps
+        (cl/simd_counters.cl simd_count_turns). Turns are `turn_lanes` items apart, a multiple of
+        the device's base address alignment for ints and LaneCounts alike. One turn: one buffer."""
+        lanes = self.padded(max(n, 1))
+        if turns == 1:
+            whole = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, itemsize * lanes)
+            return TurnBuffers(whole, (whole,), lanes)
+        align_ints = max(1, self.queue.device.mem_base_addr_align // 32)   # bits, in 4-byte ints
+        turn_lanes = -(-lanes // align_ints) * align_ints
+        whole = cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, itemsize * turn_lanes * turns)
+        by_turn = tuple(whole.get_sub_region(itemsize * turn_lanes * t, itemsize * lanes) for t in range(turns))
+        return TurnBuffers(whole, by_turn, turn_lanes)
+
     def record_buffer(self, record):
         """One record of layout `record` (toolkit/core/layout.py) on the device: counts the kernels keep."""
         return cl.Buffer(self.queue.context, cl.mem_flags.READ_WRITE, record.dtype.itemsize)
@@ -94,3 +111,15 @@ class PendingRead:
     def result(self):
         self.event.wait()
         return self.out[0]
+
+
+@dataclass
+class TurnBuffers:
+    """DeviceMemory.turn_buffers: one buffer, and the sub-buffers of its turns, `turn_lanes` items apart."""
+    whole: cl.Buffer
+    by_turn: tuple
+    turn_lanes: int
+
+    @property
+    def turns(self):
+        return len(self.by_turn)

@@ -14,11 +14,17 @@ from dataclasses import dataclass
 import numpy as np
 import pyopencl as cl
 
-from toolkit.core.layout import HIT_RECORD, PATH_STATE, PT_PASS
+from toolkit.core.layout import HIT_RECORD, LANE_COUNTS, PATH_STATE, PT_PASS
 from toolkit.opencl.work_sizes import checked_size
 from toolkit.techniques.base import Technique, pixel_count
 from toolkit.techniques.pass_end import PassEnd
-from toolkit.techniques.simd_recorder import StepPairs
+from toolkit.techniques.device_memory import TurnBuffers
+from toolkit.techniques.simd_recorder import StepTurns
+
+# Steps whose SIMD counters one launch sums (a round, StepTurns): each step's lanes go to a turn of
+# their own until then. 8: the counting launch is an eighth of a step's host time, for 8 copies of
+# the lanes (slots x 20 bytes each: 43 MB at a GPU's 270,336 slots).
+TURNS = 8
 
 
 @dataclass
@@ -26,21 +32,21 @@ class SlotBuffers:
     """pt_inplace_regen's device memory: made once per stream size, reused by every pass."""
     paths: cl.Buffer         # PathState per slot, a structure of arrays of `capacity` records: the slot's path
     hits: cl.Buffer          # HitRecord per slot (the same layout): what its path's ray hit in this step
-    lane_counts_by_turn: tuple   # LaneCounts per slot, a buffer per turn: what it did in an extension step (COUNT_SIMD)
-    regenerated_by_turn: tuple   # int per slot, a buffer per turn: 1 where a regeneration started a sample (COUNT_SIMD)
+    lane_counts_turns: TurnBuffers   # LaneCounts per slot, per turn: what it did in an extension step (COUNT_SIMD)
+    regenerated_turns: TurnBuffers   # int per slot, per turn: 1 where a regeneration started a sample (COUNT_SIMD)
     alive: cl.Buffer         # int per slot: 1 while it holds a live path, 0 while it is free
     next_sample: cl.Buffer   # one int: the next sample id of the pass to start (the slots' atomic counter)
     any_alive: cl.Buffer     # one int: set by every slot that holds a live path after a regeneration, cleared by shade
     radiance: cl.Buffer = None   # float4 per sample of the pass (DeviceMemory.output_buffer): set by each pass
-    turn: int = 0            # which buffer of each pair this step writes (flips each step while counting)
+    turn: int = 0            # which turn of the buffers above this step writes (the step's in its round)
 
     @property
     def lane_counts(self):
-        return self.lane_counts_by_turn[self.turn]
+        return self.lane_counts_turns.by_turn[self.turn]
 
     @property
     def regenerated(self):
-        return self.regenerated_by_turn[self.turn]
+        return self.regenerated_turns.by_turn[self.turn]
 
 
 class PtInplaceRegen(Technique):
@@ -60,8 +66,8 @@ class PtInplaceRegen(Technique):
         """The device memory of `slots` slots (run_pass makes it once per stream size)."""
         m = self.memory
         return SlotBuffers(paths=m.soa_buffer(PATH_STATE, slots), hits=m.soa_buffer(HIT_RECORD, slots),
-                           lane_counts_by_turn=self.by_turn(lambda: m.lane_counts_buffer(slots)),
-                           regenerated_by_turn=self.by_turn(lambda: m.int_buffer(slots)),
+                           lane_counts_turns=m.turn_buffers(LANE_COUNTS.dtype.itemsize, slots, self.turns),
+                           regenerated_turns=m.turn_buffers(4, slots, self.turns),
                            alive=m.int_buffer(slots), next_sample=m.int_buffer(1), any_alive=m.int_buffer(1))
 
     def run_pass(self, film, camera, seed, sample_base, spp):
@@ -78,7 +84,9 @@ class PtInplaceRegen(Technique):
         # from a read behind the device (pass_end.py), so it never waits for the flag at a step.
         end = PassEnd(self.memory, np.int32, lambda any_alive: any_alive == 0, every=self.reads_every,
                       at_least=-(-budget // slots))
-        counting = PassCount(budget, StepPairs(self.recorder)) if self.count_simd else None
+        mem.turn = 0
+        counting = PassCount(budget, StepTurns(self.recorder, mem.lane_counts_turns, mem.regenerated_turns, stride=4,
+                                               bound=slots, aux_bound=slots)) if self.count_simd else None
         k = self.kernels
         while True:
             # Regenerate: every free slot starts the next sample of the budget, if one is left;
@@ -97,20 +105,24 @@ class PtInplaceRegen(Technique):
                      paths=mem.paths, alive=mem.alive, hits=mem.hits, radiance=mem.radiance,
                      any_alive=mem.any_alive, lane_counts=mem.lane_counts)
             if counting:
-                self.count_extend(counting, mem, slots)
-                mem.turn ^= 1   # the next step's counters go to the other buffers
+                self.count_extend(counting, slots)
+                mem.turn = (mem.turn + 1) % self.turns   # the next step's counters go to the next turn
         if counting:
-            counting.pairs.close()
+            counting.steps.close()
         self.collect(film, mem.radiance, budget)
 
     # --- SIMD counting, summed on the device (simd_recorder.py); no-op unless count_simd ----------
 
-    def count_extend(self, counting, mem, slots):
-        """The extension step and the regeneration before it, summed on the device (with the next
-        step's: StepPairs): the extension's LaneCounts, and as the second buffer (aux) the slots
-        that started a sample (PassCount.step)."""
-        counting.pairs.lanes(lambda recorder, sums: counting.step(recorder, sums, slots), lanes=mem.lane_counts,
-                             stride=4, bound=slots, aux=mem.regenerated, aux_bound=slots)
+    @property
+    def turns(self):
+        """Turns of the counters' buffers: a round of steps counted by one launch, or 1 uncounted."""
+        return TURNS if self.count_simd else 1
+
+    def count_extend(self, counting, slots):
+        """The extension step and the regeneration before it, summed on the device with the rest of
+        their round (StepTurns): the extension's LaneCounts, and as the second buffer (aux) the
+        slots that started a sample (PassCount.step)."""
+        counting.steps.add(lambda recorder, sums: counting.step(recorder, sums, slots))
 
 
 class PassCount:
@@ -123,9 +135,9 @@ class PassCount:
     step has no lane with work) ends the pass: it is counted, nothing after it (the host went on
     queueing steps until it learned so: pass_end.py)."""
 
-    def __init__(self, budget, pairs):
+    def __init__(self, budget, steps):
         self.budget = budget
-        self.pairs = pairs          # the pass's steps, counted two to a launch
+        self.steps = steps          # the pass's steps, counted a round to a launch (StepTurns)
         self.ended = set()          # the recorders that have counted the pass's end
         self.started = {}           # by recorder: the samples the steps it counted started
 

@@ -132,6 +132,28 @@ class SimdRecorder:
         rows = log.count_two(first[1], second[1])
         self._pending += [(rows[0], first[0]), (rows[1], second[0])]
 
+    def lanes_turns(self, replays, lanes, aux, stride, bound, aux_bound):
+        """A round's first len(replays) steps (StepTurns), step t's lanes in turn t of `lanes` and its
+        aux ints in turn t of `aux` (TurnBuffers; `lanes`' arguments, the same for every step),
+        counted by one launch (StepLog.count_turns) and replayed in order."""
+        if self.reference is not None or self.per_step:
+            for t, replay in enumerate(replays):
+                (self if self.per_step else self.reference).lanes(replay, lanes.by_turn[t], stride, bound,
+                                                                  aux=aux.by_turn[t], aux_bound=aux_bound)
+            if self.per_step:
+                return
+        log = self._step_log()
+        if not log.has_room(len(replays)):
+            self.flush()
+        first = 0
+        while first < len(replays):      # one launch, unless the log holds fewer rows than a round
+            if not log.has_room(1):
+                self.flush()
+            steps = min(len(replays) - first, log.room())
+            row = log.count_turns(lanes.whole, aux.whole, first, steps, lanes.turn_lanes, stride, bound, aux_bound)
+            self._pending += [(row + t, replays[first + t]) for t in range(steps)]
+            first += steps
+
     def counted_by_kernels(self, replay, steps, pool):
         """`steps` steps whose kernels add their own lanes to the step log (StepLog.own_counts: the
         BDPT walk's streams, stamping the warps of a pool of `pool` samples), each replayed by
@@ -330,6 +352,31 @@ def _values(sums, field):
     if field == "aux":
         return sums.aux
     return sums.lanes if sums.lanes.dtype.names is None else sums.lanes[field]
+
+
+class StepTurns:
+    """A pass's steps counted a round to a launch: step t of a round writes its lanes to turn t of
+    buffers that hold a round's steps (TurnBuffers: `lanes`, and `aux` for the ints a step's other
+    kernel writes), `add(replay)` holds the step, and the round's last step queues the round
+    (SimdRecorder.lanes_turns); `close()`, at the pass's end, queues the steps still held. A pass
+    starts at turn 0. A held step's lanes are intact until the next round writes its turn, which
+    the queue runs after the round's count. Counted one to a launch, a path tracer's step costs
+    the host about as much as its two kernels; two to a launch (StepPairs), still half that."""
+
+    def __init__(self, recorder, lanes, aux, stride, bound, aux_bound):
+        self.recorder, self.lanes, self.aux = recorder, lanes, aux
+        self.step = dict(stride=stride, bound=bound, aux_bound=aux_bound)
+        self.held = []
+
+    def add(self, replay):
+        self.held.append(replay)
+        if len(self.held) == self.lanes.turns:
+            self.close()
+
+    def close(self):
+        if self.held:
+            held, self.held = self.held, []
+            self.recorder.lanes_turns(held, self.lanes, self.aux, **self.step)
 
 
 class StepPairs:
