@@ -147,6 +147,10 @@ class PassCount:
             return
         self.started[recorder] = started = self.started.get(recorder, 0) + sums.aux_sum()
         draining = started >= self.budget
+        if sums.lanes is None:      # a row of the log: the same figures in fewer calls
+            if not recorder.regeneration_row(sums.sums, slots, draining):
+                self.ended.add(recorder)
+            return
         recorder.mask_step("generate", sums, "aux", before=True, capacity=slots, draining=draining)
         if sums.work_lanes() == 0:
             self.ended.add(recorder)    # no slot holds a live path: budget spent and every path has ended

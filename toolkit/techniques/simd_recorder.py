@@ -240,6 +240,23 @@ class SimdRecorder:
         self._traversal.add("closest", row[SimdSum.CLOSEST_SUM], row[SimdSum.CLOSEST_WARP_MAX] * w)
         self.counter(uncompacted).add("walk", length, row[SimdSum.SLOT_WARPS] * w)
 
+    def regeneration_row(self, row, capacity, draining):
+        """A pt_inplace_regen step's replay from its row of the log (a list of ints by SimdSum): the
+        regeneration (its aux lanes, numbered as the extension after it) and, if any lane had work,
+        the extension step; the integers mask_step and extension_step add from the same sums, in
+        fewer calls, since a render replays hundreds of them (tests/test_simd_device.py compares the
+        two). Returns whether the extension had work (none: the pass has ended)."""
+        w, simd, traversal, iteration = self.warp_width, self._simd, self._traversal, self.iterations
+        simd.add_step("generate", row[SimdSum.AUX_LANES], row[SimdSum.AUX_WARPS] * w, iteration, capacity, draining)
+        if row[SimdSum.WORK_LANES] == 0:
+            return False
+        simd.add_step("extend", row[SimdSum.WORK_LANES], row[SimdSum.WORK_WARPS] * w, iteration, capacity, draining)
+        self.iterations = iteration + 1
+        traversal.add("closest", row[SimdSum.CLOSEST_SUM], row[SimdSum.CLOSEST_WARP_MAX] * w)
+        simd.add("shadow", row[SimdSum.SHADOW_LANES], row[SimdSum.SHADOW_WARPS] * w)
+        traversal.add("shadow", row[SimdSum.SHADOW_STEPS_SUM], row[SimdSum.SHADOW_STEPS_WARP_MAX] * w)
+        return True
+
     def mask_step(self, phase, sums, field="work", numbered=False, before=False, capacity=None, draining=False,
                   counter=None):
         """A step whose active lanes are those with `field` > 0 (work, shadow_rays, or the aux ints): numbered (an
