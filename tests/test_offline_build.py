@@ -211,7 +211,7 @@ def test_command_prints_the_table_and_writes_the_json(tmp_path, monkeypatch, cap
     assert report["command"] == f"python -m toolkit gpucheck --offline --json {out}"
     rows = {(row["target"], row["kernel"]): row for row in report["kernels"]}
     kernels = ("pt_naive_render", "film_reduce", "simd_count_lanes", "simd_count_packed",
-               "simd_count_two_steps")   # counters on: their sums
+               "simd_count_two_steps", "simd_count_turns")   # counters on: their sums
     assert set(rows) == {(t, k) for t in ("nvptx64", "amdgcn") for k in kernels} \
         | {("amdgcn", "film_accumulate"), ("amdgcn", "film_accumulate_pass")}   # the device film: the MI210 model has float64
     for (target, kernel), row in rows.items():

@@ -19,6 +19,7 @@ import webbrowser
 
 import panel as pn
 from bokeh.settings import settings as bokeh_settings
+from panel.io.resources import LOCAL_DIST
 from tornado.ioloop import IOLoop
 from tornado.iostream import StreamClosedError
 from tornado.websocket import WebSocketClosedError
@@ -56,6 +57,15 @@ def allowed_origins(host, port):
     return sorted({f"{host}:{port}", f"127.0.0.1:{port}", f"localhost:{port}"})
 
 
+def keep_styles_local(doc):
+    """Panel points a model's style sheets (loading.css, a widget's own) at this server once it has
+    made the session's page (the document's `dist_url`, which it sets then); a model changed before
+    that, as a second tab's was while the first one rendered, got Panel's CDN instead, which an
+    offline page cannot load. Set from the session's start, as Panel sets it for the page."""
+    if doc is not None and "dist_url" not in doc._template_variables:
+        doc._template_variables["dist_url"] = f"{pn.state.rel_path}/{LOCAL_DIST}" if pn.state.rel_path else LOCAL_DIST
+
+
 class DemoServer:
     """Serves DemoView(scenes, settings, device) on host:port; run() blocks until it stops."""
 
@@ -85,6 +95,7 @@ class DemoServer:
 
     def new_tab(self):
         """A session's page: its own view and render thread, stopped with the session."""
+        keep_styles_local(pn.state.curdoc)
         view = DemoView(self.scenes, self.settings, self.device)
         # Redraws start once the browser has the page: a redraw that adds figures (the first
         # frame's) sent before the page's document reached the browser referred to models the
