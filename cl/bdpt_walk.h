@@ -52,10 +52,11 @@ HELPER BdptSampler bdpt_sampler_mlt(const BdptPass* pass, int id, __global const
 }
 #define bdpt_sampler(pass, id) bdpt_sampler_mlt(pass, id, mlt_primary)
 #else
-/* BDPT: sample `id` is sample number sample_base + id / pixels of pixel id % pixels (camera.h's
- * sample_pixel and sample_number, from the pass's copy of the camera's pixels). */
+/* BDPT: sample `id`'s pixel and number as the path tracers' (camera.h), from the pass's copy of
+ * the camera's pixel count. */
 HELPER BdptSampler bdpt_sampler(const BdptPass* pass, int id) {
-    return sampler_init(pass->seed, (uint)(id % pass->pixels), (uint)(pass->sample_base + id / pass->pixels));
+    return sampler_init(pass->seed, (uint)pixel_of_sample(pass->pixels, id),
+                        (uint)number_of_sample(pass->pixels, id, pass->sample_base));
 }
 #endif
 

@@ -14,11 +14,14 @@ HELPER float3 camera_direction(const Camera* cam, float x, float y) {
 /* The image's pixel count: a pass's sample ids 0 .. pixels - 1 are one sample of every pixel. */
 HELPER int camera_pixels(const Camera* cam) { return cam->width * cam->height; }
 
-/* Sample `id` of a pass: consecutive ids are consecutive pixels (so samples started together
- * trace coherent primary rays), then the next sample of every pixel. */
-HELPER int sample_pixel(const Camera* cam, int id) { return id % camera_pixels(cam); }
+/* Sample `id` of a pass over an image of `pixels` pixels: consecutive ids are consecutive pixels
+ * (so samples started together trace coherent primary rays), then the next sample of every pixel.
+ * (BDPT's kernels have the pixel count in their pass record, not the camera: bdpt_sampler.) */
+HELPER int pixel_of_sample(int pixels, int id) { return id % pixels; }
+HELPER int number_of_sample(int pixels, int id, int sample_base) { return sample_base + id / pixels; }
+HELPER int sample_pixel(const Camera* cam, int id) { return pixel_of_sample(camera_pixels(cam), id); }
 HELPER int sample_number(const Camera* cam, int id, int sample_base) {
-    return sample_base + id / camera_pixels(cam);
+    return number_of_sample(camera_pixels(cam), id, sample_base);
 }
 
 /* The camera sample: the direction through a box-filtered position (u, v in [0, 1)) inside

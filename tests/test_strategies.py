@@ -119,7 +119,6 @@ def test_loop_iterations_per_iteration_by_hand_and_by_counting():
         [(int((x > k).sum()), int((x > k).sum()) / (32 * int((warp_longest > k).sum()))) for k in range(x.max())]
 
 
-
 def test_per_iteration_figures_are_dicts_when_read_and_no_objects_before():
     """PhaseCounter.per_iteration keeps its figures as columns (StepFigures): read, each is the dict
     the plots and RenderResult.iterations hand out, in the order added, also after more are added
@@ -149,6 +148,7 @@ def test_per_iteration_figures_are_dicts_when_read_and_no_objects_before():
     finally:
         gc.enable()
     assert len(counter.per_iteration) >= 29_000 and made < 100, made     # len() makes no dict
+
 
 @pytest.fixture(scope="module")
 def talk_figures(cornell_box):

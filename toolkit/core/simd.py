@@ -112,8 +112,6 @@ class StepFigures(Sequence):
     each would be as many objects for Python's garbage collector to walk (a full collection of a
     render's process takes 13 to 18 ms, results/issue48_host_meter.md), for figures most renders
     never look at."""
-    KEYS = ("phase", "iteration", "efficiency", "active", "capacity", "draining")
-
     def __init__(self):
         self._phase = []                  # the phase's name (the same few strings, shared)
         self._iteration, self._active = array("q"), array("q")
