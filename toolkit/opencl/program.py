@@ -364,21 +364,6 @@ def kernel(built, name, copy=0):
     return built.kernels_by_name[key]
 
 
-def int32(value):
-    """np.int32(value), the same object for the same value: a launch given the object it was given
-    last time knows the argument is set without comparing its bytes (launch). Kept for the last
-    values asked (a pass's sizes, a ring's places), not for every value ever asked."""
-    number = _INT32S.get(value)
-    if number is None:
-        if len(_INT32S) >= 1024:
-            _INT32S.clear()
-        number = _INT32S[value] = np.int32(value)
-    return number
-
-
-_INT32S = {}
-
-
 def padded(n, local_size=LOCAL_SIZE):
     """Global size: n rounded up to a multiple of the local size (kernels guard with `gid >= n`)."""
     return max(local_size, (n + local_size - 1) // local_size * local_size)

@@ -64,6 +64,7 @@ class StepLog:
         self.built = program.build(queue, "simd_counters.cl", {"LOCAL_SIZE": local_size}, directory=sources)
         self.packed_kernel = program.kernel(self.built, "simd_count_packed")
         self.turns_kernel = program.kernel(self.built, "simd_count_turns")
+        self._ints = {}                        # np.int32 by value (ints)
         self.copy_of = {}                      # (kernel name, its buffers' ids) -> the kernel object's copy (_kernel)
         self.row_bytes = 8 * int(SimdSum.FIELDS)
         self.rows = self.none = None           # the log, and an argument no work-item reads: at the first step
@@ -139,7 +140,7 @@ class StepLog:
         row = self.used
         self.used += steps
         warps = max(1, -(-max(bound, aux_bound) // self.warp_width))
-        ints = program.int32
+        ints = self.ints
         program.launch(self.queue, self.turns_kernel, steps * warps, lanes, aux, self.rows, np.int32(row),
                        ints(first_turn), ints(steps), ints(warps), ints(turn_lanes),
                        self._step(stride, bound, -1, aux_bound=aux_bound), local_size=self.local_size)
@@ -148,6 +149,15 @@ class StepLog:
     def room(self):
         """Steps that fit before the log must be read (has_room)."""
         return ROWS - self.used if len(self.histogram_used) < HISTOGRAM_ROWS else 0
+
+    def ints(self, value):
+        """np.int32(value), one object per value: a launch that gives the same object again sets nothing."""
+        made = self._ints.get(value)
+        if made is None:
+            if len(self._ints) >= 256:
+                self._ints.clear()
+            made = self._ints[value] = np.int32(value)
+        return made
 
     def has_stamps(self, pool):
         """Whether the log's buffer holds the stamps of a pool of `pool` samples' warps (own_counts)."""

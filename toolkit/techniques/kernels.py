@@ -1,6 +1,7 @@
 """A technique's kernels: its program, built for the scene, and how they are launched (on its
 queue, in work-groups of its local size, with the scene's arguments). This is all that the BDPT
 evaluator and the connect phases need of a technique to run a kernel."""
+import numpy as np
 
 from toolkit.core.layout import SCENE_PARAM_NAMES
 from toolkit.opencl import program
@@ -13,6 +14,7 @@ class Kernels:
         self.local_size = local_size      # the program's LOCAL_SIZE: every launch uses it
         self.scene = device_scene
         self._scene_args = None   # scene_args, made at its first use: the scene's arguments never change
+        self._int32s = {}         # int32's numbers, one object per value
 
     def kernel(self, name, copy=0):
         """The kernel object, retrieved once per `copy` (program.kernel: a copy per turn of buffers
@@ -34,7 +36,10 @@ class Kernels:
             self._scene_args = dict(zip(SCENE_PARAM_NAMES, self.scene.args()))
         return self._scene_args
 
-    @staticmethod
-    def int32(value):
-        """program.int32: np.int32(value), the same object for the same value."""
-        return program.int32(value)
+    def int32(self, value):
+        """np.int32(value), the same object for the same value: a launch given the object it was
+        given last time knows the argument is set without comparing its bytes (program.launch)."""
+        number = self._int32s.get(value)
+        if number is None:
+            number = self._int32s[value] = np.int32(value)
+        return number
